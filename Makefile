@@ -1,0 +1,30 @@
+# `make run` and `make test` create .venv when missing and install simbot with what it needs.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: run test urdf meshes clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	touch $(STAMP)
+
+## The main job. For now: the robot's description (the simulator comes with the server issue).
+run: $(STAMP)
+	$(BIN)/simbot describe urdf/flexley_tug.sdf
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+## Regenerate the committed URDF from the SDF (a test checks it is up to date).
+urdf: $(STAMP)
+	$(BIN)/simbot sdf2urdf urdf/flexley_tug.sdf -o urdf/flexley_tug.urdf
+
+## Regenerate the meshes from primitives.
+meshes: $(STAMP)
+	$(BIN)/python meshes/make_meshes.py
+
+clean:
+	rm -rf $(VENV) build dist .pytest_cache

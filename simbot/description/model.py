@@ -1,0 +1,291 @@
+"""Plain typed data of a robot or world description, whatever file format it came from.
+
+Every pose here is already resolved (SDF `relative_to` applied): a link's pose is in its
+model's frame, a joint's pose is in its model's frame, and the poses of what a link holds
+(inertial, collisions, visuals, sensors) are in that link's frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Union
+
+from simbot.description.poses import IDENTITY, Pose, Vec3
+
+RGBA = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Box:
+    size: Vec3
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Axis along the geometry's z, as in SDF and URDF."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Sphere:
+    radius: float
+
+
+@dataclass(frozen=True)
+class Plane:
+    normal: Vec3
+    size: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """`uri` as written; `path` the file it resolved to, None when it could not be found."""
+
+    uri: str
+    scale: Vec3 = (1.0, 1.0, 1.0)
+    path: Path | None = None
+
+
+Geometry = Union[Box, Cylinder, Sphere, Plane, Mesh]
+
+
+@dataclass(frozen=True)
+class Material:
+    ambient: RGBA | None = None
+    diffuse: RGBA | None = None
+    specular: RGBA | None = None
+    emissive: RGBA | None = None
+
+    def color(self) -> RGBA | None:
+        """The one colour a renderer without lighting terms should use."""
+        return self.diffuse or self.ambient
+
+
+@dataclass(frozen=True)
+class Friction:
+    """ODE-style friction: mu along fdir1 (or the first friction direction), mu2 across."""
+
+    mu: float = 1.0
+    mu2: float = 1.0
+    fdir1: Vec3 | None = None
+
+
+@dataclass(frozen=True)
+class Inertial:
+    mass: float
+    pose: Pose = IDENTITY
+    inertia: tuple[float, float, float, float, float, float] = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
+    """ixx, ixy, ixz, iyy, iyz, izz about the centre of mass, in the inertial frame."""
+
+
+@dataclass(frozen=True)
+class Collision:
+    name: str
+    geometry: Geometry
+    pose: Pose = IDENTITY
+    friction: Friction | None = None
+
+
+@dataclass(frozen=True)
+class Visual:
+    name: str
+    geometry: Geometry
+    pose: Pose = IDENTITY
+    material: Material | None = None
+
+
+@dataclass(frozen=True)
+class Noise:
+    type: str = "none"
+    mean: float = 0.0
+    stddev: float = 0.0
+    bias_mean: float = 0.0
+    bias_stddev: float = 0.0
+
+
+@dataclass(frozen=True)
+class ScanAxis:
+    samples: int = 1
+    resolution: float = 1.0
+    min_angle: float = 0.0
+    max_angle: float = 0.0
+
+
+@dataclass(frozen=True)
+class Lidar:
+    horizontal: ScanAxis
+    vertical: ScanAxis
+    range_min: float
+    range_max: float
+    range_resolution: float
+    noise: Noise | None = None
+
+
+@dataclass(frozen=True)
+class Camera:
+    horizontal_fov: float
+    width: int
+    height: int
+    format: str
+    near: float
+    far: float
+    noise: Noise | None = None
+
+
+@dataclass(frozen=True)
+class Imu:
+    """Noise per axis (x, y, z); None where the SDF gives none."""
+
+    angular_velocity_noise: tuple[Noise | None, Noise | None, Noise | None] = (None, None, None)
+    linear_acceleration_noise: tuple[Noise | None, Noise | None, Noise | None] = (None, None, None)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    name: str
+    type: str
+    pose: Pose = IDENTITY
+    update_rate: float = 0.0
+    always_on: bool = False
+    topic: str | None = None
+    frame_name: str | None = None
+    lidar: Lidar | None = None
+    camera: Camera | None = None
+    imu: Imu | None = None
+
+
+@dataclass(frozen=True)
+class Param:
+    """One child element of a `<plugin>`, kept whole because plugins define their own syntax."""
+
+    tag: str
+    text: str = ""
+    attrs: tuple[tuple[str, str], ...] = ()
+    children: tuple[Param, ...] = ()
+
+
+@dataclass(frozen=True)
+class Plugin:
+    name: str
+    filename: str
+    params: tuple[Param, ...] = ()
+
+    def get(self, tag: str, default: str | None = None) -> str | None:
+        """Text of the first parameter named `tag`."""
+        return next((p.text for p in self.params if p.tag == tag), default)
+
+    def get_all(self, tag: str) -> list[str]:
+        """Texts of every parameter named `tag`, in file order (e.g. several left_joint)."""
+        return [p.text for p in self.params if p.tag == tag]
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    pose: Pose = IDENTITY
+    inertial: Inertial | None = None
+    collisions: tuple[Collision, ...] = ()
+    visuals: tuple[Visual, ...] = ()
+    sensors: tuple[Sensor, ...] = ()
+
+
+@dataclass(frozen=True)
+class Axis:
+    """Direction in the joint frame; limits of None mean unlimited."""
+
+    xyz: Vec3 = (0.0, 0.0, 1.0)
+    lower: float | None = None
+    upper: float | None = None
+    effort: float | None = None
+    velocity: float | None = None
+    damping: float = 0.0
+    friction: float = 0.0
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    type: str
+    parent: str
+    child: str
+    pose: Pose = IDENTITY
+    axis: Axis | None = None
+
+
+@dataclass(frozen=True)
+class Model:
+    name: str
+    pose: Pose = IDENTITY
+    static: bool = False
+    canonical_link: str = ""
+    links: tuple[Link, ...] = ()
+    joints: tuple[Joint, ...] = ()
+    plugins: tuple[Plugin, ...] = ()
+    source: Path | None = None
+    uri: str | None = None
+    """The include URI this model came from, if any."""
+
+    def link(self, name: str) -> Link:
+        """The link called `name`; KeyError names it when absent."""
+        for link in self.links:
+            if link.name == name:
+                return link
+        raise KeyError(f"model {self.name!r} has no link {name!r}")
+
+    def joint(self, name: str) -> Joint:
+        """The joint called `name`; KeyError names it when absent."""
+        for joint in self.joints:
+            if joint.name == name:
+                return joint
+        raise KeyError(f"model {self.name!r} has no joint {name!r}")
+
+    def sensors(self) -> list[tuple[Link, Sensor]]:
+        """Every sensor with the link that carries it."""
+        return [(link, sensor) for link in self.links for sensor in link.sensors]
+
+
+@dataclass(frozen=True)
+class Physics:
+    max_step_size: float = 0.001
+    real_time_factor: float = 1.0
+    real_time_update_rate: float = 1000.0
+    type: str = "ode"
+
+
+@dataclass(frozen=True)
+class Light:
+    name: str
+    type: str
+    pose: Pose = IDENTITY
+    diffuse: RGBA = (1.0, 1.0, 1.0, 1.0)
+    specular: RGBA = (0.1, 0.1, 0.1, 1.0)
+    direction: Vec3 = (0.0, 0.0, -1.0)
+    cast_shadows: bool = False
+
+
+@dataclass(frozen=True)
+class Scene:
+    ambient: RGBA = (0.4, 0.4, 0.4, 1.0)
+    background: RGBA = (0.7, 0.7, 0.7, 1.0)
+
+
+@dataclass(frozen=True)
+class World:
+    name: str
+    physics: Physics = field(default_factory=Physics)
+    gravity: Vec3 = (0.0, 0.0, -9.8)
+    scene: Scene = field(default_factory=Scene)
+    lights: tuple[Light, ...] = ()
+    models: tuple[Model, ...] = ()
+    plugins: tuple[Plugin, ...] = ()
+    source: Path | None = None
+
+    def model(self, name: str) -> Model:
+        """The model called `name`; KeyError names it when absent."""
+        for model in self.models:
+            if model.name == name:
+                return model
+        raise KeyError(f"world {self.name!r} has no model {name!r}")

@@ -1,0 +1,86 @@
+"""Rigid transforms as SDF and URDF write them: xyz plus fixed-axis roll, pitch, yaw."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+
+
+def rpy_to_matrix(rpy: Vec3) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), the convention of both SDF and URDF."""
+    roll, pitch, yaw = rpy
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def matrix_to_rpy(rot: np.ndarray) -> Vec3:
+    """Inverse of rpy_to_matrix; at gimbal lock the roll is folded into the yaw."""
+    sp = -float(rot[2, 0])
+    if abs(sp) >= 1.0 - 1e-12:
+        pitch = math.copysign(math.pi / 2, sp)
+        yaw = math.atan2(-float(rot[0, 1]), float(rot[1, 1]))
+        return (0.0, pitch, yaw)
+    pitch = math.asin(sp)
+    roll = math.atan2(float(rot[2, 1]), float(rot[2, 2]))
+    yaw = math.atan2(float(rot[1, 0]), float(rot[0, 0]))
+    return (roll, pitch, yaw)
+
+
+def quaternion_to_matrix(xyzw: tuple[float, float, float, float]) -> np.ndarray:
+    """Rotation matrix of a (normalised here) quaternion given as x, y, z, w."""
+    x, y, z, w = np.asarray(xyzw, dtype=float) / np.linalg.norm(xyzw)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A frame's placement in its parent frame."""
+
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    @staticmethod
+    def from_matrix(mat: np.ndarray) -> Pose:
+        """The pose of a 4x4 homogeneous transform."""
+        x, y, z = (float(v) for v in mat[:3, 3])
+        return Pose((x, y, z), matrix_to_rpy(mat[:3, :3]))
+
+    def matrix(self) -> np.ndarray:
+        """The 4x4 homogeneous transform parent_T_frame."""
+        mat = np.eye(4)
+        mat[:3, :3] = rpy_to_matrix(self.rpy)
+        mat[:3, 3] = self.xyz
+        return mat
+
+    def __matmul__(self, other: Pose) -> Pose:
+        """Composition: (a_T_b @ b_T_c) is a_T_c."""
+        return Pose.from_matrix(self.matrix() @ other.matrix())
+
+    def inverse(self) -> Pose:
+        """b_T_a from a_T_b."""
+        return Pose.from_matrix(np.linalg.inv(self.matrix()))
+
+    def is_identity(self, tol: float = 1e-12) -> bool:
+        """True when the frame coincides with its parent."""
+        return bool(np.allclose(self.matrix(), np.eye(4), atol=tol))
+
+
+IDENTITY = Pose()

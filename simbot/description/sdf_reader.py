@@ -1,0 +1,568 @@
+"""SDF 1.4–1.11 models and worlds into the plain data of simbot.description.model.
+
+Poses follow SDF's frame semantics: a link's pose is relative to the model frame, a joint's
+to its child link, a `<frame>`'s to what it is attached to, and `relative_to` (or the older
+`frame` attribute) may name any of these frames. What a link holds (inertial, collisions,
+visuals, sensors) is placed in the link frame. A link without `<inertial>` is massless here,
+as robot descriptions mean it (SDF's own default of 1 kg would be a surprise on `base_footprint`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from simbot.description.errors import DescriptionError
+from simbot.description.model import (
+    Axis,
+    Box,
+    Camera,
+    Collision,
+    Cylinder,
+    Friction,
+    Geometry,
+    Imu,
+    Inertial,
+    Joint,
+    Lidar,
+    Light,
+    Link,
+    Material,
+    Mesh,
+    Model,
+    Noise,
+    Param,
+    Physics,
+    Plane,
+    Plugin,
+    ScanAxis,
+    Scene,
+    Sensor,
+    Sphere,
+    Visual,
+    World,
+)
+from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
+from simbot.description.poses import IDENTITY, Pose, quaternion_to_matrix, rpy_to_matrix
+from simbot.description.resources import resolve
+from simbot.description.xml import Element, Reader, parse_file
+
+logger = logging.getLogger(__name__)
+
+SUPPORTED_VERSIONS = ((1, 4), (1, 11))
+MODEL_FRAME = "__model__"
+JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic", "ball")
+UNLIMITED = 1e16
+"""SDF writes an unlimited joint as ±1e16 (or more); such limits become None."""
+FRAME_ID_TAGS = ("frame_name", "gz_frame_id", "ignition_frame_id", "frameName")
+
+
+def load_sdf(path: Path | str) -> Model | World:
+    """The world or the (first) model of an SDF file."""
+    path = Path(path)
+    root = parse_file(path)
+    reader = Reader(path)
+    version = _check_version(reader, root)
+    world = root.find("world")
+    if world is not None:
+        return _read_world(reader, version, world)
+    model = root.find("model")
+    if model is None:
+        raise reader.error(root, "no <world> or <model> in this SDF file")
+    return _read_model(reader, version, model)
+
+
+def load_model(path: Path | str) -> Model:
+    """The model of an SDF model file (a world file is an error here)."""
+    loaded = load_sdf(path)
+    if not isinstance(loaded, Model):
+        raise DescriptionError(path, "expected an SDF <model>, found a <world>")
+    return loaded
+
+
+def load_world(path: Path | str) -> World:
+    """The world of an SDF world file (a model file is an error here)."""
+    loaded = load_sdf(path)
+    if not isinstance(loaded, World):
+        raise DescriptionError(path, "expected an SDF <world>, found a <model>")
+    return loaded
+
+
+def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
+    if root.tag != "sdf":
+        raise reader.error(root, "not an SDF file: the root element must be <sdf>")
+    text = reader.attr(root, "version")
+    try:
+        major, minor = (int(part) for part in text.split("."))
+    except ValueError:
+        raise reader.error(root, f"malformed version {text!r}") from None
+    low, high = SUPPORTED_VERSIONS
+    if not low <= (major, minor) <= high:
+        raise reader.error(root, f"unsupported SDF version {text} (supported: 1.4 to 1.11)")
+    return (major, minor)
+
+
+# ---------------------------------------------------------------- poses and frames
+
+
+def _pose(reader: Reader, element: Element) -> tuple[Pose, str | None]:
+    """The `<pose>` child of `element` and the frame it is relative to (None: the default)."""
+    found = element.find("pose")
+    if found is None:
+        return IDENTITY, None
+    relative_to = (found.get("relative_to") or found.get("frame") or "").strip() or None
+    values = reader.floats(found)
+    fmt = found.get("rotation_format", "euler_rpy")
+    degrees = found.get("degrees", "false").lower() in ("1", "true")
+    if not values:
+        return IDENTITY, relative_to
+    if fmt == "quat_xyzw" and len(values) == 7:
+        mat = IDENTITY.matrix()
+        mat[:3, :3] = quaternion_to_matrix(values[3:7])
+        mat[:3, 3] = values[:3]
+        return Pose.from_matrix(mat), relative_to
+    if fmt != "euler_rpy" or len(values) != 6:
+        raise reader.error(found, f"expected 6 numbers 'x y z roll pitch yaw', got {len(values)}")
+    rpy = tuple(math.radians(v) if degrees else v for v in values[3:])
+    return Pose(values[:3], rpy), relative_to  # type: ignore[arg-type]
+
+
+@dataclass
+class _Frames:
+    """The frame graph of one model: each frame's pose and the frame it is relative to."""
+
+    reader: Reader
+    edges: dict[str, tuple[Pose, str, Element]] = field(default_factory=dict)
+    resolved: dict[str, Pose] = field(default_factory=lambda: {MODEL_FRAME: IDENTITY})
+
+    def add(self, name: str, pose: Pose, relative_to: str, element: Element) -> None:
+        if name in self.edges or name == MODEL_FRAME:
+            raise self.reader.error(element, f"duplicate frame name {name!r} in this model")
+        self.edges[name] = (pose, relative_to, element)
+
+    def in_model(self, name: str, asked_by: Element, visiting: tuple[str, ...] = ()) -> Pose:
+        """model_T_name, following relative_to links; unknown names and cycles are errors."""
+        if name in self.resolved:
+            return self.resolved[name]
+        if name not in self.edges:
+            raise self.reader.error(asked_by, f"unknown frame {name!r}")
+        pose, parent, element = self.edges[name]
+        if name in visiting:
+            raise self.reader.error(element, f"frame {name!r} is defined relative to itself (cycle)")
+        result = self.in_model(parent, element, visiting + (name,)) @ pose
+        self.resolved[name] = result
+        return result
+
+    def in_link(self, link: str, element: Element) -> Pose:
+        """The pose of `element` (a collision, visual or sensor) in the frame of `link`."""
+        pose, relative_to = _pose(self.reader, element)
+        if relative_to is None or relative_to == link:
+            return pose
+        return self.in_model(link, element).inverse() @ self.in_model(relative_to, element) @ pose
+
+
+# ---------------------------------------------------------------- models
+
+
+def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> Model:
+    name = reader.attr(element, "name")
+    pose, _ = _pose(reader, element)
+    link_elements = element.findall("link")
+    if not link_elements:
+        raise reader.error(element, f"model {name!r} has no <link>")
+    for nested in element.findall("model") + element.findall("include"):
+        logger.warning("%s:%s: nested <%s> in model %r is not supported; ignored", reader.file, nested.sourceline, nested.tag, name)
+    frames = _model_frames(reader, element, link_elements)
+    links = tuple(_read_link(reader, frames, e) for e in link_elements)
+    link_names = {link.name for link in links}
+    joints = tuple(_read_joint(reader, version, frames, e, link_names) for e in element.findall("joint"))
+    canonical = element.get("canonical_link") or links[0].name
+    if canonical not in link_names:
+        raise reader.error(element, f"canonical_link {canonical!r} is not a link of model {name!r}")
+    return Model(
+        name=name,
+        pose=pose,
+        static=reader.flag(element, "static", False),
+        canonical_link=canonical,
+        links=links,
+        joints=joints,
+        plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
+        source=reader.file,
+    )
+
+
+def _model_frames(reader: Reader, model: Element, links: list[Element]) -> _Frames:
+    frames = _Frames(reader)
+    for link in links:
+        pose, relative_to = _pose(reader, link)
+        frames.add(reader.attr(link, "name"), pose, relative_to or MODEL_FRAME, link)
+    for joint in model.findall("joint"):
+        pose, relative_to = _pose(reader, joint)
+        child = reader.text(joint, "child")
+        if child is None:
+            raise reader.error(joint, "missing required element <child>")
+        frames.add(reader.attr(joint, "name"), pose, relative_to or child, joint)
+    for frame in model.findall("frame"):
+        pose, relative_to = _pose(reader, frame)
+        attached_to = frame.get("attached_to") or MODEL_FRAME
+        frames.add(reader.attr(frame, "name"), pose, relative_to or attached_to, frame)
+    return frames
+
+
+def _read_link(reader: Reader, frames: _Frames, element: Element) -> Link:
+    name = reader.attr(element, "name")
+    collisions = [_read_collision(reader, frames, name, e) for e in element.findall("collision")]
+    collisions = present_collisions(reader.file, name, collisions)
+    visuals = [_read_visual(reader, frames, name, e) for e in element.findall("visual")]
+    return Link(
+        name=name,
+        pose=frames.in_model(name, element),
+        inertial=_read_inertial(reader, element.find("inertial")),
+        collisions=tuple(collisions),
+        visuals=tuple(visuals_with_fallbacks(reader.file, name, visuals, collisions)),
+        sensors=tuple(_read_sensor(reader, frames, name, e) for e in element.findall("sensor")),
+    )
+
+
+def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
+    if element is None:
+        return None
+    mass = reader.number(element, "mass", 1.0)
+    if not mass > 0 or not math.isfinite(mass):
+        raise reader.error(element, f"mass must be positive, got {mass}")
+    inertia = element.find("inertia")
+    tags = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+    defaults = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
+    values = defaults if inertia is None else tuple(reader.number(inertia, t, d) for t, d in zip(tags, defaults))
+    return Inertial(mass=mass, pose=_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
+
+
+def _read_geometry(reader: Reader, owner: Element) -> Geometry:
+    geometry = reader.child(owner, "geometry")
+    shape = next(iter(geometry), None)
+    if shape is None:
+        raise reader.error(geometry, "empty <geometry>: expected box, cylinder, sphere, plane or mesh")
+    if shape.tag == "box":
+        return Box(reader.floats(reader.child(shape, "size"), 3))  # type: ignore[arg-type]
+    if shape.tag == "cylinder":
+        return Cylinder(reader.required_number(shape, "radius"), reader.required_number(shape, "length"))
+    if shape.tag == "sphere":
+        return Sphere(reader.required_number(shape, "radius"))
+    if shape.tag == "plane":
+        normal = reader.vector(shape, "normal", 3, (0.0, 0.0, 1.0))
+        size = reader.vector(shape, "size", 2, (100.0, 100.0))
+        return Plane(normal, size)  # type: ignore[arg-type]
+    if shape.tag == "mesh":
+        uri = reader.text(shape, "uri")
+        if not uri:
+            raise reader.error(shape, "missing required element <uri>")
+        scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
+        return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
+    raise reader.error(shape, f"unsupported geometry <{shape.tag}>")
+
+
+def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
+    return Collision(
+        reader.attr(element, "name"),
+        _read_geometry(reader, element),
+        frames.in_link(link, element),
+        _read_friction(reader, element),
+    )
+
+
+def _read_friction(reader: Reader, collision: Element) -> Friction | None:
+    ode = collision.find("surface/friction/ode")
+    if ode is None:
+        return None
+    fdir1 = reader.vector(ode, "fdir1", 3)
+    return Friction(reader.number(ode, "mu", 1.0), reader.number(ode, "mu2", 1.0), fdir1)  # type: ignore[arg-type]
+
+
+def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -> Visual:
+    material = element.find("material")
+    return Visual(
+        name=reader.attr(element, "name"),
+        geometry=_read_geometry(reader, element),
+        pose=frames.in_link(link, element),
+        material=None if material is None else _read_material(reader, material),
+    )
+
+
+def _rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, float, float] | None:
+    found = element.find(tag)
+    if found is None:
+        return None
+    values = reader.floats(found)
+    if len(values) == 3:
+        values = values + (1.0,)
+    if len(values) != 4:
+        raise reader.error(found, f"expected 4 numbers 'r g b a', got {len(values)}")
+    return values  # type: ignore[return-value]
+
+
+def _read_material(reader: Reader, element: Element) -> Material:
+    return Material(*(_rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")))
+
+
+# ---------------------------------------------------------------- joints
+
+
+def _read_joint(reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, links: set[str]) -> Joint:
+    name = reader.attr(element, "name")
+    kind = reader.attr(element, "type")
+    if kind not in JOINT_TYPES:
+        raise reader.error(element, f"unsupported joint type {kind!r} for joint {name!r} (supported: {', '.join(JOINT_TYPES)})")
+    parent = reader.text(element, "parent") or ""
+    child = reader.text(element, "child") or ""
+    for role, link in (("parent", parent), ("child", child)):
+        if link not in links and not (role == "parent" and link == "world"):
+            raise reader.error(reader.child(element, role), f"joint {name!r}: {role} {link!r} is not a link of this model")
+    pose = frames.in_model(name, element)
+    axis = element.find("axis")
+    needs_axis = kind in ("revolute", "continuous", "prismatic")
+    if axis is None and needs_axis:
+        raise reader.error(element, f"joint {name!r} of type {kind} needs an <axis>")
+    return Joint(name, kind, parent, child, pose, _read_axis(reader, version, frames, pose, axis) if needs_axis else None)
+
+
+def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_pose: Pose, axis: Element) -> Axis:
+    xyz_element = reader.child(axis, "xyz")
+    xyz = np.asarray(reader.floats(xyz_element, 3))
+    if not (xyz**2).sum() > 0:
+        raise reader.error(xyz_element, "axis must not be zero")
+    expressed_in = xyz_element.get("expressed_in")
+    if version < (1, 7) and reader.flag(axis, "use_parent_model_frame", False):
+        expressed_in = MODEL_FRAME
+    if expressed_in:
+        frame = frames.in_model(expressed_in, xyz_element)
+        xyz = rpy_to_matrix(joint_pose.rpy).T @ rpy_to_matrix(frame.rpy) @ xyz
+    xyz = xyz / (xyz**2).sum() ** 0.5
+    limit = axis.find("limit")
+    dynamics = axis.find("dynamics")
+
+    def bound(tag: str) -> float | None:
+        value = None if limit is None else reader.number(limit, tag, UNLIMITED)
+        return None if value is None or abs(value) >= UNLIMITED else value
+
+    def positive(tag: str) -> float | None:
+        value = None if limit is None else reader.number(limit, tag, -1.0)
+        return value if value is not None and value >= 0 else None
+
+    return Axis(
+        xyz=tuple(float(v) for v in xyz),  # type: ignore[arg-type]
+        lower=bound("lower"),
+        upper=bound("upper"),
+        effort=positive("effort"),
+        velocity=positive("velocity"),
+        damping=0.0 if dynamics is None else reader.number(dynamics, "damping", 0.0),
+        friction=0.0 if dynamics is None else reader.number(dynamics, "friction", 0.0),
+    )
+
+
+# ---------------------------------------------------------------- sensors and plugins
+
+
+def _read_sensor(reader: Reader, frames: _Frames, link: str, element: Element) -> Sensor:
+    kind = reader.attr(element, "type")
+    frame_name = next((reader.text(element, tag) for tag in FRAME_ID_TAGS if element.find(tag) is not None), None)
+    ray = element.find("lidar") if element.find("lidar") is not None else element.find("ray")
+    camera = element.find("camera")
+    imu = element.find("imu")
+    return Sensor(
+        name=reader.attr(element, "name"),
+        type=kind,
+        pose=frames.in_link(link, element),
+        update_rate=reader.number(element, "update_rate", 0.0),
+        always_on=reader.flag(element, "always_on", False),
+        topic=reader.text(element, "topic"),
+        frame_name=frame_name,
+        lidar=None if ray is None else _read_lidar(reader, ray),
+        camera=None if camera is None else _read_camera(reader, camera),
+        imu=None if imu is None else _read_imu(reader, imu),
+    )
+
+
+def _read_noise(reader: Reader, parent: Element | None) -> Noise | None:
+    noise = None if parent is None else parent.find("noise")
+    if noise is None:
+        return None
+    return Noise(
+        type=noise.get("type") or reader.text(noise, "type", "gaussian") or "gaussian",
+        mean=reader.number(noise, "mean", 0.0),
+        stddev=reader.number(noise, "stddev", 0.0),
+        bias_mean=reader.number(noise, "bias_mean", 0.0),
+        bias_stddev=reader.number(noise, "bias_stddev", 0.0),
+    )
+
+
+def _read_scan_axis(reader: Reader, element: Element | None) -> ScanAxis:
+    if element is None:
+        return ScanAxis()
+    return ScanAxis(
+        samples=reader.integer(element, "samples", 1),
+        resolution=reader.number(element, "resolution", 1.0),
+        min_angle=reader.number(element, "min_angle", 0.0),
+        max_angle=reader.number(element, "max_angle", 0.0),
+    )
+
+
+def _read_lidar(reader: Reader, element: Element) -> Lidar:
+    scan = reader.child(element, "scan")
+    ranges = reader.child(element, "range")
+    return Lidar(
+        horizontal=_read_scan_axis(reader, reader.child(scan, "horizontal")),
+        vertical=_read_scan_axis(reader, scan.find("vertical")),
+        range_min=reader.required_number(ranges, "min"),
+        range_max=reader.required_number(ranges, "max"),
+        range_resolution=reader.number(ranges, "resolution", 0.0),
+        noise=_read_noise(reader, element),
+    )
+
+
+def _read_camera(reader: Reader, element: Element) -> Camera:
+    image = element.find("image")
+    clip = element.find("clip")
+    return Camera(
+        horizontal_fov=reader.number(element, "horizontal_fov", 1.047),
+        width=320 if image is None else reader.integer(image, "width", 320),
+        height=240 if image is None else reader.integer(image, "height", 240),
+        format=(None if image is None else reader.text(image, "format")) or "R8G8B8",
+        near=0.1 if clip is None else reader.number(clip, "near", 0.1),
+        far=100.0 if clip is None else reader.number(clip, "far", 100.0),
+        noise=_read_noise(reader, element),
+    )
+
+
+def _axes_noise(reader: Reader, element: Element | None) -> tuple[Noise | None, Noise | None, Noise | None]:
+    if element is None:
+        return (None, None, None)
+    x, y, z = (_read_noise(reader, element.find(axis)) for axis in "xyz")
+    return (x, y, z)
+
+
+def _read_imu(reader: Reader, element: Element) -> Imu:
+    return Imu(
+        angular_velocity_noise=_axes_noise(reader, element.find("angular_velocity")),
+        linear_acceleration_noise=_axes_noise(reader, element.find("linear_acceleration")),
+    )
+
+
+def _read_param(element: Element) -> Param:
+    return Param(
+        tag=element.tag,
+        text=(element.text or "").strip(),
+        attrs=tuple(sorted((str(k), str(v)) for k, v in element.attrib.items())),
+        children=tuple(_read_param(child) for child in element),
+    )
+
+
+def _read_plugin(reader: Reader, element: Element) -> Plugin:
+    return Plugin(
+        name=reader.attr(element, "name"),
+        filename=element.get("filename", "").strip(),
+        params=tuple(_read_param(child) for child in element),
+    )
+
+
+# ---------------------------------------------------------------- worlds
+
+
+def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> World:
+    models = [_read_model(reader, version, e) for e in element.findall("model")]
+    models += [_read_include(reader, e) for e in element.findall("include")]
+    seen: set[str] = set()
+    for model in models:
+        if model.name in seen:
+            raise reader.error(element, f"two models are named {model.name!r}")
+        seen.add(model.name)
+    physics = _read_physics(reader, element)
+    gravity = reader.vector(element, "gravity", 3)
+    return World(
+        name=reader.attr(element, "name"),
+        physics=physics,
+        gravity=gravity or (0.0, 0.0, -9.8),  # type: ignore[arg-type]
+        scene=_read_scene(reader, element.find("scene")),
+        lights=tuple(_read_light(reader, e) for e in element.findall("light")),
+        models=tuple(models),
+        plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
+        source=reader.file,
+    )
+
+
+def _read_physics(reader: Reader, world: Element) -> Physics:
+    """The physics marked default, else the first, as Gazebo picks it."""
+    candidates = world.findall("physics")
+    if not candidates:
+        return Physics()
+    chosen = next((p for p in candidates if p.get("default", "").lower() in ("1", "true")), candidates[0])
+    step = reader.number(chosen, "max_step_size", 0.001)
+    if not step > 0:
+        raise reader.error(chosen, f"max_step_size must be positive, got {step}")
+    return Physics(
+        max_step_size=step,
+        real_time_factor=reader.number(chosen, "real_time_factor", 1.0),
+        real_time_update_rate=reader.number(chosen, "real_time_update_rate", 1000.0),
+        type=chosen.get("type", "ode"),
+    )
+
+
+def _read_scene(reader: Reader, element: Element | None) -> Scene:
+    if element is None:
+        return Scene()
+    defaults = Scene()
+    return Scene(
+        ambient=_rgba(reader, element, "ambient") or defaults.ambient,
+        background=_rgba(reader, element, "background") or defaults.background,
+    )
+
+
+def _read_light(reader: Reader, element: Element) -> Light:
+    defaults = Light("", "")
+    return Light(
+        name=element.get("name", ""),
+        type=element.get("type", "point"),
+        pose=_pose(reader, element)[0],
+        diffuse=_rgba(reader, element, "diffuse") or defaults.diffuse,
+        specular=_rgba(reader, element, "specular") or defaults.specular,
+        direction=reader.vector(element, "direction", 3, defaults.direction),  # type: ignore[arg-type]
+        cast_shadows=reader.flag(element, "cast_shadows", False),
+    )
+
+
+def _model_file(reader: Reader, include: Element, found: Path) -> Path:
+    """The SDF file of an included model: the file itself, or the one its model.config names."""
+    if found.is_file():
+        return found
+    config = found / "model.config"
+    if config.is_file():
+        config_reader = Reader(config)
+        entries = parse_file(config).findall("sdf")
+        if not entries:
+            raise config_reader.error(parse_file(config), "model.config names no <sdf> file")
+        best = max(entries, key=lambda e: tuple(int(p) for p in (e.get("version") or "0.0").split(".")))
+        return found / (best.text or "").strip()
+    if (found / "model.sdf").is_file():
+        return found / "model.sdf"
+    raise reader.error(include, f"{found} holds neither model.config nor model.sdf")
+
+
+def _read_include(reader: Reader, element: Element) -> Model:
+    uri_element = reader.child(element, "uri")
+    uri = (uri_element.text or "").strip()
+    resolution = resolve(uri, reader.file.parent)
+    if resolution.path is None:
+        raise reader.error(uri_element, f"cannot resolve {uri!r} (tried {resolution.describe_tried()})")
+    model = load_model(_model_file(reader, element, resolution.path))
+    pose_element = element.find("pose")
+    return replace(
+        model,
+        name=reader.text(element, "name") or model.name,
+        pose=model.pose if pose_element is None else _pose(reader, element)[0],
+        static=reader.flag(element, "static", model.static),
+        plugins=model.plugins + tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
+        uri=uri,
+    )

@@ -1,0 +1,238 @@
+"""A URDF from a parsed model: same world pose for every link, collision and visual.
+
+URDF cannot say everything SDF can, so a few things are rewritten, each keeping the physics:
+- URDF puts a link's frame on its parent joint. Where an SDF joint sits away from its child
+  link's origin, the movable joint drives a massless frame link `<joint>__frame` placed at the
+  joint, and the child link hangs from it by a fixed joint at its own SDF pose.
+- A ball joint becomes three continuous joints `<joint>__yaw`, `__pitch`, `__roll` through
+  massless links: a free swivel with a gimbal lock only at ±90° pitch.
+- PyBullet gives a link without `<inertial>` 1 kg, so every link states its inertial, a
+  massless one as zero. PyBullet also pins a massless base link to the world, so a massless
+  root (like base_footprint) gets a token mass of ROOT_TOKEN; on a robot of tens of
+  kilograms it changes nothing.
+- A plane becomes a thin box whose top face is the plane.
+- Limits SDF calls unlimited: a revolute joint becomes continuous; effort or velocity, and a
+  prismatic joint's range, are written as ±UNLIMITED.
+Sensors, plugins and friction, which URDF has no place for, stay in the parsed model.
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from simbot.description.errors import DescriptionError
+from simbot.description.model import (
+    Axis,
+    Box,
+    Collision,
+    Cylinder,
+    Geometry,
+    Inertial,
+    Joint,
+    Link,
+    Mesh,
+    Model,
+    Plane,
+    Sphere,
+    Visual,
+)
+from simbot.description.poses import IDENTITY, Pose, matrix_to_rpy
+
+MASSLESS = Inertial(0.0, IDENTITY, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))
+UNLIMITED = 1e16
+PLANE_THICKNESS = 0.01
+BALL_AXES = (("yaw", (0.0, 0.0, 1.0)), ("pitch", (0.0, 1.0, 0.0)), ("roll", (1.0, 0.0, 0.0)))
+
+
+def _fmt(value: float) -> str:
+    text = f"{round(float(value), 12):.12g}"
+    return "0" if text == "-0" else text
+
+
+def _fmts(values: tuple[float, ...] | np.ndarray) -> str:
+    return " ".join(_fmt(v) for v in values)
+
+
+@dataclass
+class _Urdf:
+    """The URDF under construction, with each link's URDF frame in the model frame."""
+
+    model: Model
+    mesh_dir: Path | None
+    robot: ET.Element = field(init=False)
+    frames: dict[str, Pose] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.robot = ET.Element("robot", name=self.model.name)
+
+    def origin(self, parent: ET.Element, pose: Pose) -> None:
+        if not pose.is_identity(1e-15):
+            ET.SubElement(parent, "origin", xyz=_fmts(pose.xyz), rpy=_fmts(pose.rpy))
+
+    def add_link(self, name: str, frame: Pose, link: Link | None = None, token_mass: bool = False) -> None:
+        """A URDF link at `frame` (model frame) holding what the SDF link holds."""
+        self.frames[name] = frame
+        element = ET.SubElement(self.robot, "link", name=name)
+        massless = ROOT_TOKEN if token_mass else MASSLESS
+        if link is None:
+            self.add_inertial(element, IDENTITY, massless)
+            return
+        to_link = frame.inverse() @ link.pose
+        inertial = link.inertial or massless
+        self.add_inertial(element, to_link @ inertial.pose, inertial)
+        for visual in link.visuals:
+            self.add_shape(element, "visual", to_link, visual)
+        for collision in link.collisions:
+            self.add_shape(element, "collision", to_link, collision)
+
+    def add_inertial(self, link: ET.Element, pose: Pose, inertial: Inertial) -> None:
+        element = ET.SubElement(link, "inertial")
+        self.origin(element, pose)
+        ET.SubElement(element, "mass", value=_fmt(inertial.mass))
+        tags = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+        ET.SubElement(element, "inertia", {t: _fmt(v) for t, v in zip(tags, inertial.inertia)})
+
+    def add_shape(self, link: ET.Element, kind: str, to_link: Pose, shape: Visual | Collision) -> None:
+        element = ET.SubElement(link, kind, name=shape.name)
+        pose = to_link @ shape.pose
+        if isinstance(shape.geometry, Plane):
+            pose = pose @ _plane_offset(shape.geometry)
+        self.origin(element, pose)
+        self.add_geometry(ET.SubElement(element, "geometry"), shape.geometry)
+        color = shape.material.color() if isinstance(shape, Visual) and shape.material else None
+        if color is not None:
+            material = ET.SubElement(element, "material", name=f"{link.get('name')}__{shape.name}")
+            ET.SubElement(material, "color", rgba=_fmts(color))
+
+    def add_geometry(self, parent: ET.Element, geometry: Geometry) -> None:
+        if isinstance(geometry, Box):
+            ET.SubElement(parent, "box", size=_fmts(geometry.size))
+        elif isinstance(geometry, Cylinder):
+            ET.SubElement(parent, "cylinder", radius=_fmt(geometry.radius), length=_fmt(geometry.length))
+        elif isinstance(geometry, Sphere):
+            ET.SubElement(parent, "sphere", radius=_fmt(geometry.radius))
+        elif isinstance(geometry, Plane):
+            ET.SubElement(parent, "box", size=_fmts((*geometry.size, PLANE_THICKNESS)))
+        elif isinstance(geometry, Mesh):
+            ET.SubElement(parent, "mesh", filename=self.mesh_filename(geometry), scale=_fmts(geometry.scale))
+
+    def mesh_filename(self, mesh: Mesh) -> str:
+        """Relative to the URDF's folder when known, so a committed URDF holds no machine paths."""
+        if mesh.path is None:
+            raise DescriptionError(self.model.source, f"mesh {mesh.uri!r} was not resolved", "mesh")
+        if self.mesh_dir is None:
+            return str(mesh.path.resolve())
+        return Path(os.path.relpath(mesh.path.resolve(), self.mesh_dir.resolve())).as_posix()
+
+    def add_joint(self, name: str, kind: str, parent: str, child: str, axis: Axis | None = None, axis_xyz: tuple[float, ...] | None = None) -> None:
+        """A URDF joint; the child's frame must already be registered."""
+        element = ET.SubElement(self.robot, "joint", name=name, type=kind)
+        self.origin(element, self.frames[parent].inverse() @ self.frames[child])
+        ET.SubElement(element, "parent", link=parent)
+        ET.SubElement(element, "child", link=child)
+        if kind == "fixed":
+            return
+        ET.SubElement(element, "axis", xyz=_fmts(axis_xyz or (axis.xyz if axis else (0.0, 0.0, 1.0))))
+        if axis is None:
+            return
+        _add_limit(element, kind, axis)
+        if axis.damping or axis.friction:
+            ET.SubElement(element, "dynamics", damping=_fmt(axis.damping), friction=_fmt(axis.friction))
+
+
+def _add_limit(joint: ET.Element, kind: str, axis: Axis) -> None:
+    effort = _fmt(axis.effort if axis.effort is not None else UNLIMITED)
+    velocity = _fmt(axis.velocity if axis.velocity is not None else UNLIMITED)
+    if kind == "continuous":
+        if axis.effort is not None or axis.velocity is not None:
+            ET.SubElement(joint, "limit", effort=effort, velocity=velocity)
+        return
+    lower = axis.lower if axis.lower is not None else -UNLIMITED
+    upper = axis.upper if axis.upper is not None else UNLIMITED
+    ET.SubElement(joint, "limit", lower=_fmt(lower), upper=_fmt(upper), effort=effort, velocity=velocity)
+
+
+def _plane_offset(plane: Plane) -> Pose:
+    """Turns the box's z onto the plane normal and sinks it so its top face is the plane."""
+    normal = np.asarray(plane.normal, dtype=float) / np.linalg.norm(plane.normal)
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, normal)
+    sin, cos = np.linalg.norm(axis), float(z @ normal)
+    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rot = np.eye(3) + skew + skew @ skew * ((1 - cos) / sin**2 if sin > 1e-12 else 0.0)
+    if sin <= 1e-12 and cos < 0:
+        rot = np.diag([1.0, -1.0, -1.0])
+    return Pose(tuple(-normal * PLANE_THICKNESS / 2), matrix_to_rpy(rot))  # type: ignore[arg-type]
+
+
+def _tree(model: Model) -> tuple[str, dict[str, list[Joint]]]:
+    """The root link and each link's child joints; a model that is not one tree is an error."""
+    children: dict[str, list[Joint]] = {}
+    parents: dict[str, str] = {}
+    for joint in model.joints:
+        if joint.child in parents:
+            raise DescriptionError(model.source, f"link {joint.child!r} is the child of two joints; URDF needs a tree", "joint")
+        parents[joint.child] = joint.name
+        children.setdefault(joint.parent, []).append(joint)
+    roots = ["world"] if "world" in children else [link.name for link in model.links if link.name not in parents]
+    if len(roots) != 1:
+        raise DescriptionError(model.source, f"model {model.name!r} is not one tree of joints (roots: {', '.join(roots) or 'none, a cycle'}); URDF needs one", "model")
+    return roots[0], children
+
+
+def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[Joint]], parent: str) -> None:
+    for joint in children.get(parent, []):
+        child = links[joint.child]
+        if joint.type == "fixed":
+            urdf.add_link(child.name, child.pose, child)
+            urdf.add_joint(joint.name, "fixed", parent, child.name)
+        else:
+            _add_movable(urdf, joint, child)
+        _add_subtree(urdf, links, children, child.name)
+
+
+def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
+    """The joint as a chain of URDF joints at the SDF joint frame, ending at the child link."""
+    on_child = (child.pose.inverse() @ joint.pose).is_identity(1e-9)
+    end = child.name if on_child else f"{joint.name}__frame"
+    if joint.type == "ball":
+        names = [f"{joint.name}__{axis_name}" for axis_name, _ in BALL_AXES]
+        links = [f"{joint.name}__{axis_name}_link" for axis_name, _ in BALL_AXES[:-1]] + [end]
+        steps = [(n, "continuous", link, None, xyz) for n, link, (_, xyz) in zip(names, links, BALL_AXES)]
+    else:
+        kind = "continuous" if joint.type == "revolute" and joint.axis and None in (joint.axis.lower, joint.axis.upper) else joint.type
+        steps = [(joint.name, kind, end, joint.axis, None)]
+    parent = joint.parent
+    for name, kind, link, axis, xyz in steps:
+        urdf.add_link(link, child.pose if link == child.name else joint.pose, child if link == child.name else None)
+        urdf.add_joint(name, kind, parent, link, axis, xyz)
+        parent = link
+    if not on_child:
+        urdf.add_link(child.name, child.pose, child)
+        urdf.add_joint(f"{joint.name}__offset", "fixed", end, child.name)
+
+
+def model_to_urdf(model: Model, mesh_dir: Path | None = None) -> str:
+    """URDF text of `model`; mesh paths relative to `mesh_dir` (the URDF's folder) if given."""
+    root, children = _tree(model)
+    links = {link.name: link for link in model.links}
+    urdf = _Urdf(model, mesh_dir)
+    if root == "world":
+        urdf.robot.append(ET.Element("link", name="world"))
+        urdf.frames["world"] = IDENTITY
+    else:
+        urdf.add_link(root, links[root].pose, links[root], token_mass=True)
+    _add_subtree(urdf, links, children, root)
+    unreached = [name for name in links if name not in urdf.frames]
+    if unreached:
+        raise DescriptionError(model.source, f"links {', '.join(unreached)} are not joined to {root!r}; URDF needs one tree", "model")
+    ET.indent(urdf.robot)
+    source = model.source.name if model.source else "a parsed model"
+    header = f"<?xml version=\"1.0\"?>\n<!-- Generated by simbot sdf2urdf from {source}; edit the SDF, not this file. -->\n"
+    return header + ET.tostring(urdf.robot, encoding="unicode") + "\n"
