@@ -45,7 +45,7 @@ def chamfered_rect(lx: float, ly: float, c: float) -> NDArray[np.float64]:
 def loft(rings: list[NDArray[np.float64]]) -> Triangles:
     """Closed, outward-facing surface through rings stacked bottom to top."""
     tris: list[NDArray[np.float64]] = []
-    for lo, hi in zip(rings[:-1], rings[1:]):
+    for lo, hi in zip(rings[:-1], rings[1:], strict=True):
         lo1, hi1 = np.roll(lo, -1, axis=0), np.roll(hi, -1, axis=0)
         tris += [np.stack([lo, lo1, hi1], axis=1), np.stack([lo, hi1, hi], axis=1)]
     for cap, up in ((rings[0], False), (rings[-1], True)):
@@ -54,7 +54,8 @@ def loft(rings: list[NDArray[np.float64]]) -> Triangles:
         tris.append(np.stack([centre, cap, nxt] if up else [centre, nxt, cap], axis=1))
     out = np.concatenate(tris)
     area = np.linalg.norm(np.cross(out[:, 1] - out[:, 0], out[:, 2] - out[:, 0]), axis=1)
-    return out[area > 1e-9]
+    kept: Triangles = out[area > 1e-9]
+    return kept
 
 
 def prism(profile: NDArray[np.float64], z0: float, z1: float) -> Triangles:

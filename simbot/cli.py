@@ -1,0 +1,65 @@
+"""`simbot`: the command line. Each subcommand is a small function; user mistakes exit 2
+with one line on stderr, never a traceback."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from simbot.description import DescriptionError, Model, load_description, load_model, model_to_urdf
+from simbot.description.summary import summarize
+
+EXIT_USAGE = 2
+
+
+def _sdf2urdf(args: argparse.Namespace) -> int:
+    model = load_model(args.input)
+    if args.output is None:
+        sys.stdout.write(model_to_urdf(model))
+        return 0
+    out = Path(args.output)
+    try:
+        out.write_text(model_to_urdf(model, out.parent))
+    except OSError as exc:
+        raise DescriptionError(out, f"cannot write: {exc.strerror or exc}") from None
+    print(f"wrote {out}: {len(model.links)} links, {len(model.joints)} joints", file=sys.stderr)
+    return 0
+
+
+def _describe(args: argparse.Namespace) -> int:
+    description = load_description(args.file)
+    print(summarize(description))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="simbot", description="simbot: a headless simulator of the ABB Flexley Tug")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    convert = commands.add_parser("sdf2urdf", help="convert an SDF model to URDF")
+    convert.add_argument("input", help="SDF model file")
+    convert.add_argument("-o", "--output", help="URDF file to write (default: standard output)")
+    convert.set_defaults(run=_sdf2urdf)
+    describe = commands.add_parser("describe", help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file")
+    describe.add_argument("file", help="SDF world or model, URDF, or xacro file")
+    describe.set_defaults(run=_describe)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the `simbot` console script."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
+    run: Callable[[argparse.Namespace], int] = args.run
+    try:
+        return run(args)
+    except DescriptionError as exc:
+        print(f"simbot {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":
+    sys.exit(main())
