@@ -1,0 +1,35 @@
+"""Shared fixtures: the repository's files, the reference description, and the CLI."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+ROBOT_SDF = REPO / "urdf" / "flexley_tug.sdf"
+ROBOT_URDF = REPO / "urdf" / "flexley_tug.urdf"
+TROLLEY_SDF = REPO / "worlds" / "models" / "trolley" / "model.sdf"
+REFERENCE = REPO.parent / "shared" / "reference" / "simbot-gazebo"
+
+
+@pytest.fixture
+def reference() -> Path:
+    """The original Gazebo description; CI has it beside the repository, a fresh clone may not."""
+    if not REFERENCE.is_dir():
+        pytest.skip(f"reference description not found at {REFERENCE} (it sits in ../shared beside the repository in CI)")
+    return REFERENCE
+
+
+@pytest.fixture
+def clean_resource_path(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No resource-path variables from the developer's shell."""
+    for name in ("SIMBOT_RESOURCE_PATH", "GZ_SIM_RESOURCE_PATH", "IGN_GAZEBO_RESOURCE_PATH"):
+        monkeypatch.delenv(name, raising=False)
+
+
+def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    """`simbot ARGS` in a subprocess, as a user runs it."""
+    return subprocess.run([sys.executable, "-m", "simbot.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=120)
