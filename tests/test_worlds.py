@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from simbot.description import Model, World, load_model, load_world
-from simbot.description.model import Box, Cylinder, Geometry, Plane, Sphere
+from simbot.description.model import RGBA, Box, Cylinder, Geometry, Plane, Sphere
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import RESOURCE_PATH_VARIABLES
 
@@ -44,9 +44,8 @@ def half_extents(geometry: Geometry) -> np.ndarray:
         return np.asarray(geometry.size) / 2
     if isinstance(geometry, Cylinder):
         return np.array([geometry.radius, geometry.radius, geometry.length / 2])
-    if isinstance(geometry, Sphere):
-        return np.full(3, geometry.radius)
-    raise TypeError(f"no bounding box for {geometry!r}")
+    assert isinstance(geometry, Sphere), f"no bounding box for {geometry!r}"
+    return np.full(3, geometry.radius)
 
 
 def aabb(pose: Pose, geometry: Geometry) -> Aabb:
@@ -72,27 +71,28 @@ def overlaps(a: Aabb, b: Aabb, axes: slice = slice(0, 3)) -> bool:
     return bool(np.all(a[0][axes] < b[1][axes]) and np.all(b[0][axes] < a[1][axes]))
 
 
-def union(boxes: list[Aabb]) -> Aabb:
-    """The smallest box holding all of them."""
-    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+@pytest.mark.parametrize("name", ["empty.sdf", "warehouse.sdf"])
+def test_physics_settings(name: str, caplog: pytest.LogCaptureFixture) -> None:
+    """Both worlds load without warnings, step physics every 1 ms and pull at -9.8 m/s^2 along z."""
+    world = load(name, caplog)
+    assert world.physics.max_step_size == pytest.approx(0.001, abs=1e-9)
+    np.testing.assert_allclose(world.gravity, (0.0, 0.0, -9.8), atol=1e-9)
 
 
-def test_empty_world(caplog: pytest.LogCaptureFixture) -> None:
-    """empty.sdf: a ground plane, a 1 ms physics step and gravity -9.8 m/s^2 along z."""
-    world = load("empty.sdf", caplog)
-    ground = world.model("ground_plane")
+def test_empty_world_has_ground_plane(caplog: pytest.LogCaptureFixture) -> None:
+    """empty.sdf holds a static ground plane whose collision is an upward-facing plane."""
+    ground = load("empty.sdf", caplog).model("ground_plane")
     assert ground.static
-    assert any(isinstance(c.geometry, Plane) for link in ground.links for c in link.collisions)
-    assert world.physics.max_step_size == pytest.approx(0.001, abs=1e-9)
-    np.testing.assert_allclose(world.gravity, (0.0, 0.0, -9.8), atol=1e-9)
+    planes = [c.geometry for link in ground.links for c in link.collisions if isinstance(c.geometry, Plane)]
+    assert len(planes) == 1
+    np.testing.assert_allclose(planes[0].normal, (0.0, 0.0, 1.0), atol=1e-9)
 
 
-def test_warehouse_settings_and_hall(caplog: pytest.LogCaptureFixture) -> None:
-    """warehouse.sdf: 1 ms step, gravity -9.8 z, and walls enclosing a 20 x 20 m hall centred at 0."""
+def test_warehouse_hall_is_20_by_20(caplog: pytest.LogCaptureFixture) -> None:
+    """The walls' collision boxes enclose x, y in [-10, 10] m (within 0.5 m) and stand at least 2 m tall."""
     world = load("warehouse.sdf", caplog)
-    assert world.physics.max_step_size == pytest.approx(0.001, abs=1e-9)
-    np.testing.assert_allclose(world.gravity, (0.0, 0.0, -9.8), atol=1e-9)
-    lo, hi = union(list(collision_boxes(world.model("walls")).values()))
+    walls = list(collision_boxes(world.model("walls")).values())
+    lo, hi = np.min([b[0] for b in walls], axis=0), np.max([b[1] for b in walls], axis=0)
     np.testing.assert_allclose(lo[:2], (-10.0, -10.0), atol=0.5)
     np.testing.assert_allclose(hi[:2], (10.0, 10.0), atol=0.5)
     assert hi[2] >= 2.0, f"walls only {hi[2]} m high"
@@ -120,18 +120,12 @@ def test_trolley(caplog: pytest.LogCaptureFixture) -> None:
 
 @pytest.mark.parametrize("name", ["empty.sdf", "warehouse.sdf"])
 def test_every_visual_is_coloured(name: str, caplog: pytest.LogCaptureFixture) -> None:
-    """Every visual has a material with a colour, and the world is not all one colour."""
+    """Every visual has a material with a colour, and the warehouse is not all one colour."""
     world = load(name, caplog)
-    colours = {}
-    for model in world.models:
-        for link in model.links:
-            for visual in link.visuals:
-                where = f"{model.name}/{link.name}/{visual.name}"
-                assert visual.material is not None and visual.material.color() is not None, where
-                colours[where] = visual.material.color()
-    assert colours
-    if name == "warehouse.sdf":
-        assert len(set(colours.values())) > 1
+    visuals = {f"{m.name}/{link.name}/{v.name}": v for m in world.models for link in m.links for v in link.visuals}
+    colours: dict[str, RGBA | None] = {k: v.material.color() if v.material else None for k, v in visuals.items()}
+    assert colours and [k for k, c in colours.items() if c is None] == []
+    assert len(set(colours.values())) > 1 or name == "empty.sdf"
 
 
 def test_corridor_is_clear(caplog: pytest.LogCaptureFixture) -> None:
@@ -144,8 +138,8 @@ def test_corridor_is_clear(caplog: pytest.LogCaptureFixture) -> None:
 
 
 def test_robot_drives_under_the_trolley(caplog: pytest.LogCaptureFixture) -> None:
-    """The robot resting on its wheels at y = 0, swept along x, touches no trolley collision;
-    the deck's underside is at least 0.1 m above the chassis top (0.30 m)."""
+    """The robot on its wheels at y = 0, swept along x, misses every trolley collision (chassis and
+    lidars included), and the deck's underside is >= 0.1 m above the chassis top (0.30 m)."""
     robot = load_model(ROBOT_SDF)
     wheels = [b for k, b in collision_boxes(robot, IDENTITY).items() if "wheel" in k]
     assert len(wheels) == 4
@@ -155,7 +149,6 @@ def test_robot_drives_under_the_trolley(caplog: pytest.LogCaptureFixture) -> Non
     chassis = robot_boxes["flexley_tug/base_link/base_link_collision"]
     assert chassis[1][2] == pytest.approx(0.30, abs=1e-6)
     assert sum("base_scan" in k for k in robot_boxes) == 2
-
     trolley = collision_boxes(load("warehouse.sdf", caplog).model("trolley"))
     hits = [(r, t) for r, rb in robot_boxes.items() for t, tb in trolley.items() if overlaps(rb, tb, slice(1, 3))]
     assert hits == []

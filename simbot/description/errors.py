@@ -16,7 +16,7 @@ class DescriptionError(Exception):
         line: int | None = None,
     ) -> None:
         self.file = str(file) if file is not None else "<input>"
-        self.message = message
+        self.message = " ".join(message.split())  # one line, whatever the cause's own text
         self.element = element
         self.line = line
         super().__init__(str(self))

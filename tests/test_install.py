@@ -1,0 +1,129 @@
+"""A non-editable install works away from the repository: the wheel carries the assets and finds them.
+
+One module fixture builds the wheel (pip with build isolation, since hatchling is not in the
+dev venv) and installs it with its dependencies into a fresh venv; the tests then run that
+venv's python and `simbot` from an empty folder, with no resource path variables set.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from simbot.description.resources import RESOURCE_PATH_VARIABLES
+
+REPO = Path(__file__).resolve().parents[1]
+ROBOT_LINKS = (
+    "base_footprint", "base_link", "imu_link", "base_scan_front", "base_scan_back",
+    "front_left_wheel", "front_right_wheel", "back_left_wheel", "back_right_wheel",
+    "castor_front_right", "castor_front_left", "castor_back_right", "castor_back_left",
+)  # fmt: skip
+PACKAGED = (
+    "simbot/assets/urdf/flexley_tug.sdf",
+    "simbot/assets/urdf/flexley_tug.urdf",
+    "simbot/assets/meshes/chassis.stl",
+    "simbot/assets/worlds/warehouse.sdf",
+    "simbot/assets/worlds/models/trolley/model.sdf",
+)
+
+
+@dataclass(frozen=True)
+class Installed:
+    """A wheel of the repository and a fresh venv it is installed in."""
+
+    wheel: Path
+    venv: Path
+    site_packages: Path
+    cwd: Path
+    env: dict[str, str]
+
+    def run(self, *args: str) -> subprocess.CompletedProcess[str]:
+        """A program of the venv's bin/, run from the empty folder; never raises on failure."""
+        program = str(self.venv / "bin" / args[0])
+        return subprocess.run([program, *args[1:]], cwd=self.cwd, env=self.env, capture_output=True, text=True, timeout=300)
+
+    def asset(self, relative: str) -> Path:
+        """Where the installed simbot says its own asset lies."""
+        code = f"from simbot.description.resources import asset; print(asset({relative!r}))"
+        done = self.run("python", "-c", code)
+        assert done.returncode == 0, done.stderr
+        return Path(done.stdout.strip())
+
+    def describe(self, path: Path) -> str:
+        """`simbot describe` output; fails on a non-zero exit or any warning (e.g. a missing mesh)."""
+        done = self.run("simbot", "describe", str(path))
+        assert done.returncode == 0, done.stderr
+        assert "WARNING" not in done.stderr, done.stderr
+        return done.stdout
+
+
+def clean_env() -> dict[str, str]:
+    """This process's environment without anything that points Python or simbot at the repository."""
+    dropped = {*RESOURCE_PATH_VARIABLES, "PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "PYTHONSTARTUP"}
+    return {k: v for k, v in os.environ.items() if k not in dropped}
+
+
+def pip(python: Path | str, *args: str, cwd: Path, env: dict[str, str]) -> None:
+    """Run pip, failing with its output."""
+    done = subprocess.run([str(python), "-m", "pip", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, f"pip {' '.join(args)}:\n{done.stdout}\n{done.stderr}"
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
+    """Build the wheel, make a fresh venv, install the wheel and its dependencies into it."""
+    root = tmp_path_factory.mktemp("install")
+    env, dist, venv, cwd = clean_env(), root / "dist", root / "venv", root / "elsewhere"
+    cwd.mkdir()
+    pip(sys.executable, "wheel", "--no-deps", "-w", str(dist), str(REPO), cwd=cwd, env=env)
+    (wheel,) = dist.glob("simbot-*.whl")
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], cwd=cwd, env=env, check=True, timeout=300)
+    pip(venv / "bin" / "python", "install", str(wheel), cwd=cwd, env=env)
+    code = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+    purelib = subprocess.run([str(venv / "bin" / "python"), "-c", code], cwd=cwd, env=env, capture_output=True, text=True, check=True)
+    return Installed(wheel, venv, Path(purelib.stdout.strip()).resolve(), cwd, env)
+
+
+def test_wheel_carries_the_assets(installed: Installed) -> None:
+    """The wheel holds the robot (SDF and URDF), its meshes, and the worlds with their models."""
+    with zipfile.ZipFile(installed.wheel) as wheel:
+        names = set(wheel.namelist())
+    assert set(PACKAGED) <= names, sorted(set(PACKAGED) - names)
+    assert not any(".mypy_cache" in n or "__pycache__" in n for n in names)
+
+
+def test_installed_simbot_is_not_the_repository(installed: Installed) -> None:
+    """The fresh venv imports simbot from its own site-packages, not from the repository."""
+    done = installed.run("python", "-c", "import simbot; print(simbot.__file__)")
+    assert done.returncode == 0, done.stderr
+    module = Path(done.stdout.strip()).resolve()
+    assert module.is_relative_to(installed.site_packages), module
+    assert not module.is_relative_to(REPO)
+
+
+def test_describe_packaged_robot(installed: Installed) -> None:
+    """The packaged robot SDF lies in site-packages, and `simbot describe` finds its meshes and 13 links."""
+    sdf = installed.asset("urdf/flexley_tug.sdf").resolve()
+    assert sdf.is_relative_to(installed.site_packages), sdf
+    assert sdf.is_file()
+    out = installed.describe(sdf)
+    assert "links (13)" in out
+    rows = {line.split()[0] for line in out.splitlines() if line.strip()}
+    assert set(ROBOT_LINKS) <= rows, sorted(set(ROBOT_LINKS) - rows)
+
+
+def test_describe_packaged_warehouse(installed: Installed) -> None:
+    """`simbot describe` of the packaged warehouse resolves model://trolley inside the installed package."""
+    world = installed.asset("worlds/warehouse.sdf").resolve()
+    assert world.is_relative_to(installed.site_packages), world
+    out = installed.describe(world)
+    trolley_rows = [line.split() for line in out.splitlines() if line.startswith("trolley ")]
+    assert len(trolley_rows) == 1 and trolley_rows[0][-1] == "model://trolley", trolley_rows
+    trolley_sdf = installed.site_packages / "simbot" / "assets" / "worlds" / "models" / "trolley" / "model.sdf"
+    assert f"from {trolley_sdf}" in out
