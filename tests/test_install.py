@@ -11,7 +11,7 @@ import os
 import subprocess
 import sys
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pytest
@@ -46,7 +46,8 @@ class Installed:
     def run(self, *args: str) -> subprocess.CompletedProcess[str]:
         """A program of the venv's bin/, run from the empty folder; never raises on failure."""
         program = str(self.venv / "bin" / args[0])
-        return subprocess.run([program, *args[1:]], cwd=self.cwd, env=self.env, capture_output=True, text=True, timeout=300)
+        command = [program, *args[1:]]
+        return subprocess.run(command, cwd=self.cwd, env=self.env, capture_output=True, text=True, timeout=300)
 
     def asset(self, relative: str) -> Path:
         """Where the installed simbot says its own asset lies."""
@@ -71,7 +72,8 @@ def clean_env() -> dict[str, str]:
 
 def pip(python: Path | str, *args: str, cwd: Path, env: dict[str, str]) -> None:
     """Run pip, failing with its output."""
-    done = subprocess.run([str(python), "-m", "pip", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
+    command = [str(python), "-m", "pip", *args]
+    done = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, f"pip {' '.join(args)}:\n{done.stdout}\n{done.stderr}"
 
 
@@ -85,9 +87,10 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     (wheel,) = dist.glob("simbot-*.whl")
     subprocess.run([sys.executable, "-m", "venv", str(venv)], cwd=cwd, env=env, check=True, timeout=300)
     pip(venv / "bin" / "python", "install", str(wheel), cwd=cwd, env=env)
-    code = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
-    purelib = subprocess.run([str(venv / "bin" / "python"), "-c", code], cwd=cwd, env=env, capture_output=True, text=True, check=True)
-    return Installed(wheel, venv, Path(purelib.stdout.strip()).resolve(), cwd, env)
+    installed = Installed(wheel, venv, Path(), cwd, env)
+    purelib = installed.run("python", "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+    assert purelib.returncode == 0, purelib.stderr
+    return replace(installed, site_packages=Path(purelib.stdout.strip()).resolve())
 
 
 def test_wheel_carries_the_assets(installed: Installed) -> None:
