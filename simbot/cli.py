@@ -9,7 +9,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from simbot.description import DescriptionError, Model, load_description, load_model, model_to_urdf
+from simbot.description import DescriptionError, load_description, load_model, model_to_urdf
 from simbot.description.summary import summarize
 
 EXIT_USAGE = 2

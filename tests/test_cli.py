@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 import yourdfpy
-
 from conftest import REPO, ROBOT_SDF, run_cli
 
 GOOD_LINK = '<link name="a"><inertial><mass>1</mass></inertial></link>'
@@ -43,7 +42,7 @@ def test_describe_world() -> None:
     """describe of the warehouse lists its models, the trolley among them."""
     result = run_cli("describe", str(REPO / "worlds" / "warehouse.sdf"))
     assert result.returncode == 0, result.stderr
-    assert re.search(r"^trolley\s+1 0.2 0", result.stdout, re.M)
+    assert re.search(r"^trolley\s+1 0.2 0", result.stdout, re.MULTILINE)
 
 
 BAD_INPUTS = {

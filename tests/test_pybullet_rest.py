@@ -8,10 +8,9 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 import pytest
+from conftest import ROBOT_URDF, TROLLEY_SDF
 
 from simbot.description import load_model, model_to_urdf
-
-from conftest import ROBOT_URDF, TROLLEY_SDF
 
 STEP = 0.001  # 1 kHz, the worlds' step
 SETTLE_STEPS = 2000  # 2 s

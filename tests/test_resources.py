@@ -6,11 +6,10 @@ import logging
 from pathlib import Path
 
 import pytest
+from conftest import REPO
 
 from simbot.description import load_model
 from simbot.description.resources import asset, resolve
-
-from conftest import REPO
 
 
 def _tree(root: Path, *files: str) -> Path:

@@ -6,12 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from conftest import ROBOT_SDF
 
 from simbot.description import Model, load_model
 from simbot.description.model import Box, Cylinder, Sphere
 from simbot.description.poses import Pose
-
-from conftest import ROBOT_SDF
 
 PI = math.pi
 TOL = 1e-9

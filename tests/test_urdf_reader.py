@@ -7,11 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROBOT_SDF, ROBOT_URDF, run_cli
 
 from simbot.description import DescriptionError, load_description, load_model, model_to_urdf
 from simbot.description.model import Cylinder
-
-from conftest import ROBOT_SDF, ROBOT_URDF, run_cli
 
 XACRO = Path(__file__).parent / "fixtures" / "two_wheels.urdf.xacro"
 

@@ -8,11 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yourdfpy
+from conftest import REFERENCE, ROBOT_SDF, ROBOT_URDF, TROLLEY_SDF
 
 from simbot.description import Model, load_model, model_to_urdf
 from simbot.description.model import Plane
-
-from conftest import REFERENCE, ROBOT_SDF, ROBOT_URDF, TROLLEY_SDF
 
 POSE_TOL = 1e-6
 

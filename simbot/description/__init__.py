@@ -23,8 +23,8 @@ __all__ = [
     "load_description",
     "load_model",
     "load_sdf",
-    "load_world",
     "load_urdf_model",
+    "load_world",
     "model_to_urdf",
 ]
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Union
 
 from simbot.description.poses import IDENTITY, Pose, Vec3
 
@@ -49,7 +48,7 @@ class Mesh:
     path: Path | None = None
 
 
-Geometry = Union[Box, Cylinder, Sphere, Plane, Mesh]
+Geometry = Box | Cylinder | Sphere | Plane | Mesh
 
 
 @dataclass(frozen=True)

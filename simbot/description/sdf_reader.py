@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from simbot.description.errors import DescriptionError
+from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
     Axis,
     Box,
@@ -46,7 +47,6 @@ from simbot.description.model import (
     Visual,
     World,
 )
-from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.poses import IDENTITY, Pose, quaternion_to_matrix, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file

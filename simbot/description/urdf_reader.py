@@ -15,6 +15,7 @@ import xacro
 import yourdfpy
 
 from simbot.description.errors import DescriptionError
+from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
     Axis,
     Box,
@@ -30,7 +31,6 @@ from simbot.description.model import (
     Sphere,
     Visual,
 )
-from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import resolve
 from simbot.description.xml import parse_text
@@ -77,7 +77,12 @@ def load_urdf(path: Path | str) -> yourdfpy.URDF:
         filename_handler=lambda fname: _mesh_path(fname, path.parent),
     )
     errors: list[Exception] = []
-    if not urdf.validate(validation_fn=lambda found: errors.extend(found) or not found):
+
+    def collect(found: list[Exception]) -> bool:
+        errors.extend(found)
+        return not found
+
+    if not urdf.validate(validation_fn=collect):
         raise DescriptionError(path, f"invalid URDF: {errors[0]}")
     return urdf
 

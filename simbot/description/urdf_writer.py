@@ -201,6 +201,7 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
     """The joint as a chain of URDF joints at the SDF joint frame, ending at the child link."""
     on_child = (child.pose.inverse() @ joint.pose).is_identity(1e-9)
     end = child.name if on_child else f"{joint.name}__frame"
+    steps: list[tuple[str, str, str, Axis | None, tuple[float, float, float] | None]]
     if joint.type == "ball":
         names = [f"{joint.name}__{axis_name}" for axis_name, _ in BALL_AXES]
         links = [f"{joint.name}__{axis_name}_link" for axis_name, _ in BALL_AXES[:-1]] + [end]

@@ -10,10 +10,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lxml import etree
+from lxml.etree import _Element as Element
 
 from simbot.description.errors import DescriptionError
-
-Element = etree._Element
 
 _PARSER = etree.XMLParser(remove_comments=True, remove_pis=True, resolve_entities=False, no_network=True)
 
