@@ -96,10 +96,10 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
     if root.tag != "sdf":
         raise reader.error(root, "not an SDF file: the root element must be <sdf>")
     text = reader.attr(root, "version")
-    try:
-        major, minor = (int(part) for part in text.split("."))
-    except ValueError:
-        raise reader.error(root, f"malformed version {text!r}") from None
+    version = _version_key(text)
+    if len(version) != 2:
+        raise reader.error(root, f"malformed version {text!r}")
+    major, minor = version
     low, high = SUPPORTED_VERSIONS
     if not low <= (major, minor) <= high:
         raise reader.error(root, f"unsupported SDF version {text} (supported: 1.4 to 1.11)")
@@ -539,15 +539,23 @@ def _model_file(reader: Reader, include: Element, found: Path) -> Path:
         return found
     config = found / "model.config"
     if config.is_file():
-        config_reader = Reader(config)
-        entries = parse_file(config).findall("sdf")
+        root = parse_file(config)
+        entries = [e for e in root.findall("sdf") if (e.text or "").strip()]
         if not entries:
-            raise config_reader.error(parse_file(config), "model.config names no <sdf> file")
-        best = max(entries, key=lambda e: tuple(int(p) for p in (e.get("version") or "0.0").split(".")))
+            raise Reader(config).error(root, "model.config names no <sdf> file")
+        best = max(entries, key=lambda e: _version_key(e.get("version")))
         return found / (best.text or "").strip()
     if (found / "model.sdf").is_file():
         return found / "model.sdf"
     raise reader.error(include, f"{found} holds neither model.config nor model.sdf")
+
+
+def _version_key(text: str | None) -> tuple[int, ...]:
+    """(major, minor) of an SDF version; () when unreadable, which sorts first."""
+    try:
+        return tuple(int(part) for part in (text or "").split("."))
+    except ValueError:
+        return ()
 
 
 def _read_include(reader: Reader, element: Element) -> Model:
