@@ -99,11 +99,10 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
     version = _version_key(text)
     if len(version) != 2:
         raise reader.error(root, f"malformed version {text!r}")
-    major, minor = version
     low, high = SUPPORTED_VERSIONS
-    if not low <= (major, minor) <= high:
+    if not low <= version <= high:
         raise reader.error(root, f"unsupported SDF version {text} (supported: 1.4 to 1.11)")
-    return (major, minor)
+    return (version[0], version[1])
 
 
 # ---------------------------------------------------------------- poses and frames

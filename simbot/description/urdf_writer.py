@@ -211,7 +211,8 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
         steps = [(joint.name, kind, end, joint.axis, None)]
     parent = joint.parent
     for name, kind, link, axis, xyz in steps:
-        urdf.add_link(link, child.pose if link == child.name else joint.pose, child if link == child.name else None)
+        holds = child if link == child.name else None
+        urdf.add_link(link, child.pose if holds else joint.pose, holds)
         urdf.add_joint(name, kind, parent, link, axis, xyz)
         parent = link
     if not on_child:
