@@ -1,0 +1,305 @@
+"""The PyBullet world: the one module that loads bodies into PyBullet and steps it.
+
+Systems never see body or link indices: they name a model, a link or a joint, and this module
+maps names to PyBullet's indices. Poses are always those of the SDF frames (PyBullet reports a
+body's centre of mass; the offset is undone here once).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pybullet as pb
+
+from simbot.description import model_to_urdf
+from simbot.description.model import Joint, Model, World
+from simbot.description.poses import Pose
+from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
+
+log = logging.getLogger(__name__)
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+Transform = tuple[Vec3, Quat]
+
+SDF_DEFAULT_MU = 1.0
+"""SDF's friction default. PyBullet multiplies two surfaces' coefficients, so with 1.0 on every
+surface that states none, a pair where one side states μ behaves as ODE's min(μ1, μ2)."""
+
+MOVABLE = {"revolute": pb.JOINT_REVOLUTE, "continuous": pb.JOINT_REVOLUTE, "prismatic": pb.JOINT_PRISMATIC}
+FIXED_CONSTRAINT_FORCE = 1e6
+"""Newtons a detachable joint may exert: rigid for anything the tug can pull."""
+
+
+def pose_to_transform(pose: Pose) -> Transform:
+    """(xyz, quaternion xyzw) of an SDF pose, PyBullet's pose form."""
+    quat = pb.getQuaternionFromEuler(pose.rpy)
+    return pose.xyz, (quat[0], quat[1], quat[2], quat[3])
+
+
+def _as_transform(pos: object, orn: object) -> Transform:
+    x, y, z = pos  # type: ignore[misc]
+    qx, qy, qz, qw = orn  # type: ignore[misc]
+    return (float(x), float(y), float(z)), (float(qx), float(qy), float(qz), float(qw))
+
+
+def compose(a: Transform, b: Transform) -> Transform:
+    """a ∘ b for (position, quaternion) pairs."""
+    return _as_transform(*pb.multiplyTransforms(a[0], a[1], b[0], b[1]))
+
+
+def invert(a: Transform) -> Transform:
+    """The inverse transform."""
+    return _as_transform(*pb.invertTransform(a[0], a[1]))
+
+
+@dataclass
+class Body:
+    """A model as loaded: its PyBullet id and its names."""
+
+    name: str
+    model: Model
+    id: int
+    links: dict[str, int]
+    joints: dict[str, int]
+    com_to_frame: Transform
+    """The root link's SDF model frame seen from PyBullet's base (centre of mass) frame."""
+    initial: Transform
+
+
+@dataclass
+class Physics:
+    """A PyBullet world built from an SDF world description; stepped at the world's step size."""
+
+    world: World
+    client: int = field(init=False)
+    bodies: dict[str, Body] = field(default_factory=dict)
+    constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
+    _wheels: list[WheelFriction] = field(default_factory=list)
+    _saved_state: int | None = None
+    _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
+
+    def __post_init__(self) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        pb.setGravity(*self.world.gravity, physicsClientId=self.client)
+        pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
+
+    @property
+    def step_size(self) -> float:
+        return self.world.physics.max_step_size
+
+    def close(self) -> None:
+        """Disconnects PyBullet and removes the generated URDF files."""
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self._tmp.cleanup()
+
+    # building
+
+    def add_model(self, model: Model, name: str | None = None, pose: Pose | None = None) -> Body:
+        """Loads `model` (through its URDF) as `name` at `pose` (default: the model's own pose)."""
+        name = name or model.name
+        if name in self.bodies:
+            raise ValueError(f"a model named {name!r} is already in the world")
+        urdf = Path(self._tmp.name) / f"{name}.urdf"
+        urdf.write_text(model_to_urdf(model))
+        root = _root_link(model)
+        frame = pose_to_transform(pose if pose is not None else model.pose)
+        root_pose = compose(frame, pose_to_transform(model.link(root).pose)) if root else frame
+        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+        body_id = pb.loadURDF(str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client)
+        body = self._index(name, model, body_id, root)
+        self.bodies[name] = body
+        self._configure_joints(body)
+        self._configure_friction(body)
+        return body
+
+    def _index(self, name: str, model: Model, body_id: int, root: str | None) -> Body:
+        links = {root or "world": -1}
+        joints = {}
+        for j in range(pb.getNumJoints(body_id, physicsClientId=self.client)):
+            info = pb.getJointInfo(body_id, j, physicsClientId=self.client)
+            joints[info[1].decode()] = j
+            links[info[12].decode()] = j
+        base = self._base_com(body_id)
+        root_in_model = pose_to_transform(model.link(root).pose) if root else pose_to_transform(Pose())
+        base_in_world = _as_transform(*pb.getBasePositionAndOrientation(body_id, physicsClientId=self.client))
+        model_in_world = compose(compose(base_in_world, invert(base)), invert(root_in_model))
+        com_to_frame = compose(invert(base), invert(root_in_model))
+        return Body(name, model, body_id, links, joints, com_to_frame, model_in_world)
+
+    def _base_com(self, body_id: int) -> Transform:
+        """The base's centre of mass in its link frame."""
+        info = pb.getDynamicsInfo(body_id, -1, physicsClientId=self.client)
+        return _as_transform(info[3], info[4])
+
+    def _configure_joints(self, body: Body) -> None:
+        """PyBullet puts a velocity motor on every joint; SDF joints are passive until a system drives them."""
+        for joint in body.model.joints:
+            for urdf_name, index in body.joints.items():
+                if urdf_name == joint.name or urdf_name.startswith(f"{joint.name}__"):
+                    friction = joint.axis.friction if joint.axis else 0.0
+                    pb.setJointMotorControl2(body.id, index, pb.VELOCITY_CONTROL, force=friction, physicsClientId=self.client)
+
+    def _configure_friction(self, body: Body) -> None:
+        """SDF μ per link; wheels with μ ≠ μ2 get the anisotropic model PyBullet lacks (see wheel_friction)."""
+        wheels = []
+        for link in body.model.links:
+            index = body.links.get(link.name)
+            if index is None:
+                continue
+            friction = next((c.friction for c in link.collisions if c.friction is not None), None)
+            mu = friction.mu if friction else SDF_DEFAULT_MU
+            joint = self._wheel_joint(body.model, link.name) if friction and friction.mu != friction.mu2 else None
+            if friction and joint is not None and joint.axis is not None:
+                wheels.append(Wheel(index, friction.mu, friction.mu2, _axis_in_link(joint, link.pose)))
+                mu = 0.0
+            pb.changeDynamics(body.id, index, lateralFriction=mu, rollingFriction=0, spinningFriction=0, physicsClientId=self.client)
+        if wheels:
+            self._wheels.append(WheelFriction(self.client, body.id, tuple(wheels)))
+            self._soften_tyres(body, wheels)
+
+    def _soften_tyres(self, body: Body, wheels: list[Wheel]) -> None:
+        """Tyre compliance, critically damped for each wheel's share of the body's mass."""
+        mass = sum(pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in body.links.values())
+        damping = 2.0 * math.sqrt(TYRE_STIFFNESS * mass / len(wheels))
+        for wheel in wheels:
+            pb.changeDynamics(body.id, wheel.link, contactStiffness=TYRE_STIFFNESS, contactDamping=damping, physicsClientId=self.client)
+
+    @staticmethod
+    def _wheel_joint(model: Model, link: str) -> Joint | None:
+        return next((j for j in model.joints if j.child == link and j.type in ("revolute", "continuous")), None)
+
+    def save_initial_state(self) -> None:
+        """Remembers the world as built, for `reset`."""
+        self._saved_state = pb.saveState(physicsClientId=self.client)
+
+    # stepping
+
+    def step(self) -> None:
+        """One physics step: wheel friction from the last contacts, then PyBullet."""
+        for wheels in self._wheels:
+            wheels.apply()
+        pb.stepSimulation(physicsClientId=self.client)
+
+    def reset(self) -> None:
+        """Every body back to where it was built, at rest; detachable joints are the systems' to undo."""
+        if self._saved_state is not None:
+            pb.restoreState(self._saved_state, physicsClientId=self.client)
+
+    # state, by name
+
+    def body(self, model: str) -> Body:
+        try:
+            return self.bodies[model]
+        except KeyError:
+            raise KeyError(f"no model named {model!r} in the world (models: {', '.join(self.bodies)})") from None
+
+    def model_pose(self, model: str) -> Transform:
+        """The model frame in the world (SDF semantics: not the centre of mass)."""
+        body = self.body(model)
+        com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        return compose(com, body.com_to_frame)
+
+    def model_velocity(self, model: str) -> tuple[Vec3, Vec3]:
+        """Linear velocity of the base's centre of mass and angular velocity, world frame."""
+        lin, ang = pb.getBaseVelocity(self.body(model).id, physicsClientId=self.client)
+        return _as_transform(lin, (*ang, 0.0))[0], (float(ang[0]), float(ang[1]), float(ang[2]))
+
+    def set_model_pose(self, model: str, pose: Transform) -> None:
+        """Teleports the model frame to `pose` and stops it."""
+        body = self.body(model)
+        com = compose(pose, invert(body.com_to_frame))
+        pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
+        pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
+
+    def link_pose(self, model: str, link: str) -> Transform:
+        """A link's SDF frame in the world."""
+        body = self.body(model)
+        index = self._link(body, link)
+        if index == -1:
+            return compose(self.model_pose(model), pose_to_transform(body.model.link(link).pose))
+        state = pb.getLinkState(body.id, index, computeForwardKinematics=1, physicsClientId=self.client)
+        return _as_transform(state[4], state[5])
+
+    def _link(self, body: Body, link: str) -> int:
+        try:
+            return body.links[link]
+        except KeyError:
+            raise KeyError(f"model {body.name!r} has no link {link!r}") from None
+
+    def _joint(self, body: Body, joint: str) -> int:
+        try:
+            return body.joints[joint]
+        except KeyError:
+            raise KeyError(f"model {body.name!r} has no movable joint {joint!r}") from None
+
+    def joint_states(self, model: str, joints: list[str]) -> list[tuple[float, float, float]]:
+        """(position, velocity, motor effort) of each named joint."""
+        body = self.body(model)
+        indices = [self._joint(body, j) for j in joints]
+        states = pb.getJointStates(body.id, indices, physicsClientId=self.client)
+        return [(float(s[0]), float(s[1]), float(s[3])) for s in states]
+
+    def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:
+        """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo."""
+        body = self.body(model)
+        pb.setJointMotorControl2(
+            body.id, self._joint(body, joint), pb.VELOCITY_CONTROL, targetVelocity=velocity, force=max_effort, physicsClientId=self.client
+        )
+
+    def attach(self, parent: tuple[str, str], child: tuple[str, str]) -> int:
+        """Fixes child (model, link) to parent (model, link) at their current relative pose."""
+        pbody, plink, pcom = self._com_frame(*parent)
+        cbody, clink, ccom = self._com_frame(*child)
+        relative = compose(invert(pcom), ccom)
+        cid = pb.createConstraint(
+            pbody, plink, cbody, clink, pb.JOINT_FIXED, (0, 0, 0), relative[0], (0, 0, 0), relative[1], (0, 0, 0, 1),
+            physicsClientId=self.client,
+        )  # fmt: skip
+        pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
+        self.constraints[cid] = (f"{parent[0]}::{parent[1]}", f"{child[0]}::{child[1]}")
+        return cid
+
+    def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
+        """(body id, link index, the link's centre-of-mass frame in the world): PyBullet constrains those."""
+        body = self.body(model)
+        index = self._link(body, link)
+        if index == -1:
+            return body.id, index, _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        state = pb.getLinkState(body.id, index, physicsClientId=self.client)
+        return body.id, index, _as_transform(state[0], state[1])
+
+    def detach(self, constraint: int) -> None:
+        """Removes a joint made by `attach`."""
+        if self.constraints.pop(constraint, None) is not None:
+            pb.removeConstraint(constraint, physicsClientId=self.client)
+
+
+def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:
+    """A joint's axis (given in the joint frame) in its child link's frame; both poses are in the model frame."""
+    assert joint.axis is not None
+    rotation = (link_pose.inverse() @ joint.pose).matrix()[:3, :3]
+    x, y, z = rotation @ joint.axis.xyz
+    return float(x), float(y), float(z)
+
+
+def _root_link(model: Model) -> str | None:
+    """The URDF root: the link no joint has as its child (None when the model is fixed to the world)."""
+    children = {j.child for j in model.joints}
+    if any(j.parent == "world" for j in model.joints):
+        return None
+    roots = [link.name for link in model.links if link.name not in children]
+    return roots[0] if roots else None
+
+
+
+def yaw_of(quat: Quat) -> float:
+    """Heading (rotation about z) of a quaternion, radians."""
+    x, y, z, w = quat
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
