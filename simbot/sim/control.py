@@ -1,0 +1,137 @@
+"""World control: Gazebo's `/world/<name>/control`, `set_pose` and `state` as JSON Zenoh queryables.
+
+Keys (with the namespace prefix when one is set) and payloads, shaped like Gazebo's messages:
+
+- `world/<name>/control`: `{"pause": true}`, `{"pause": false}`, `{"step": true}`,
+  `{"multi_step": N}`, `{"reset": {"all": true}}` (or `"reset": true`). The reply comes when
+  the steps are done: `{"ok": true, "sim_time": s, "iterations": n}`.
+- `world/<name>/set_pose`: `{"name": "trolley", "position": {"x": 1, "y": 0, "z": 0},
+  "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
+- `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
+  factor, every model's pose, and the dropped-input counters with their last reasons.
+
+A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
+Requests are polled by the simulation loop between steps, never acted on in a bus callback.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from simbot.bus import BadRequest, Node, Request
+from simbot.sim.simulation import Mode, Simulation
+from simbot.sim.system import Drops
+
+MAX_STEPS = 10_000_000
+"""A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
+
+Handler = Callable[[Request, dict[str, Any]], None]
+
+
+class WorldControl:
+    """The three queryables of one world."""
+
+    def __init__(self, node: Node, world: str, sim: Simulation, drops: Drops) -> None:
+        self.sim = sim
+        self.drops = drops
+        self._handlers: dict[str, tuple[Any, Handler]] = {
+            name: (node.queryable(f"world/{world}/{name}"), handler)
+            for name, handler in (("control", self._control), ("set_pose", self._set_pose), ("state", self._state))
+        }
+        self._keys = {name: node.key(f"world/{world}/{name}") for name in self._handlers}
+
+    def poll(self) -> None:
+        """Handles every request that arrived since the last call."""
+        for name, (queryable, handler) in self._handlers.items():
+            for request in queryable.poll():
+                self._handle(name, request, handler)
+
+    def _handle(self, name: str, request: Request, handler: Handler) -> None:
+        try:
+            body = request.json() if name != "state" else {}
+            handler(request, body)
+        except (BadRequest, ValueError, TypeError, KeyError) as exc:
+            reason = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+            self.drops.drop(self._keys[name], reason)
+            request.reply({"ok": False, "error": reason})
+
+    def _control(self, request: Request, body: dict[str, Any]) -> None:
+        unknown = set(body) - {"pause", "step", "multi_step", "reset"}
+        if unknown:
+            raise ValueError(f"unknown field(s) {', '.join(sorted(unknown))}; expected pause, step, multi_step, reset")
+        if "reset" in body:
+            self._reset(body["reset"])
+        if "pause" in body:
+            self._pause(body["pause"])
+        steps = _steps(body)
+        self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
+
+    def _reset(self, value: Any) -> None:
+        if value is True or (isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))):
+            self.sim.reset()
+            return
+        raise ValueError(f"reset expects true or {{\"all\": true}}, got {value!r}")
+
+    def _pause(self, value: Any) -> None:
+        if not isinstance(value, bool):
+            raise ValueError(f"pause expects true or false, got {value!r}")
+        if not value and self.sim.mode is Mode.LOCKSTEP:
+            raise ValueError("in lockstep mode the world advances only on step or multi_step")
+        self.sim.set_paused(value)
+
+    def _set_pose(self, request: Request, body: dict[str, Any]) -> None:
+        name = body.get("name")
+        if not isinstance(name, str):
+            raise ValueError("set_pose needs a model \"name\"")
+        position = _vector(body.get("position", {}), "xyz", "position", 0.0)
+        orientation = _vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0)
+        norm = math.sqrt(sum(v * v for v in orientation))
+        if norm < 1e-9:
+            raise ValueError("orientation must be a non-zero quaternion")
+        quat = tuple(v / norm for v in orientation)
+        self.sim.physics.set_model_pose(name, ((position[0], position[1], position[2]), (quat[0], quat[1], quat[2], quat[3])))
+        request.reply(self._time(ok=True))
+
+    def _state(self, request: Request, body: dict[str, Any]) -> None:
+        physics = self.sim.physics
+        models = {}
+        for name in physics.bodies:
+            xyz, quat = physics.model_pose(name)
+            models[name] = {"position": list(xyz), "orientation": list(quat)}
+        state = self._time(ok=True) | {
+            "paused": self.sim.paused,
+            "mode": self.sim.mode.value,
+            "real_time_factor": self.sim.rtf.value(),
+            "models": models,
+            "dropped": dict(self.drops.counts),
+            "last_errors": dict(self.drops.last_error),
+        }
+        request.reply(state)
+
+    def _time(self, ok: bool) -> dict[str, Any]:
+        return {"ok": ok, "sim_time": self.sim.clock.now_ns / 1e9, "iterations": self.sim.clock.iterations}
+
+
+def _steps(body: dict[str, Any]) -> int:
+    """The number of steps a control request asks for (0 when none)."""
+    count = body.get("multi_step", 1 if body.get("step") is True else 0)
+    if isinstance(count, bool) or not isinstance(count, int) or not 0 <= count <= MAX_STEPS:
+        raise ValueError(f"multi_step expects an integer from 0 to {MAX_STEPS}, got {count!r}")
+    if "step" in body and not isinstance(body["step"], bool):
+        raise ValueError(f"step expects true or false, got {body['step']!r}")
+    return count
+
+
+def _vector(value: Any, axes: str, field: str, default: float) -> list[float]:
+    """{"x": .., "y": .., ...} → finite floats, missing axes at `default`."""
+    if not isinstance(value, dict):
+        raise ValueError(f"{field} expects an object with {', '.join(axes)}, got {value!r}")
+    numbers = []
+    for axis in axes:
+        number = value.get(axis, default)
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number):
+            raise ValueError(f"{field}.{axis} expects a finite number, got {number!r}")
+        numbers.append(float(number))
+    return numbers

@@ -1,0 +1,53 @@
+"""From an SDF `<plugin>` to a system class, through the `simbot.systems` entry-point group.
+
+Gazebo names one system several ways: `gz::sim::systems::DiffDrive`, `ignition::gazebo::systems::
+DiffDrive`, and the library files `gz-sim-diff-drive-system`, `libignition-gazebo6-diff-drive-
+system.so`. All reduce to one canonical name (`DiffDrive`), which is the entry point's name. simbot
+registers its own systems in its pyproject.toml the same way a third party would in theirs.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from functools import cache
+from importlib.metadata import entry_points
+
+from simbot.description.model import Plugin
+
+log = logging.getLogger(__name__)
+
+GROUP = "simbot.systems"
+_LIBRARY = re.compile(r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$")
+
+
+def canonical_name(plugin: Plugin) -> str:
+    """`DiffDrive` for every spelling Gazebo accepts; other names unchanged."""
+    if "::" in plugin.name:
+        return plugin.name.rsplit("::", 1)[1]
+    match = _LIBRARY.match(plugin.filename.rsplit("/", 1)[-1])
+    if match:
+        return "".join(part.capitalize() for part in match["name"].split("-"))
+    return plugin.name or plugin.filename
+
+
+@cache
+def registered() -> dict[str, Callable[..., object]]:
+    """Canonical name → system class, for every installed entry point of the group."""
+    systems = {}
+    for point in entry_points(group=GROUP):
+        try:
+            systems[point.name] = point.load()
+        except Exception as exc:  # a broken third-party package must not stop the server
+            log.warning("system %s from %s cannot be loaded: %s", point.name, point.value, exc)
+    return systems
+
+
+def lookup(plugin: Plugin) -> Callable[..., object] | None:
+    """The class for `plugin`, or None with a warning naming it."""
+    name = canonical_name(plugin)
+    system = registered().get(name)
+    if system is None:
+        log.warning("unknown plugin %s (%s): no system named %r is registered; ignored", plugin.name, plugin.filename, name)
+    return system

@@ -1,0 +1,185 @@
+"""The simulation loop: the sim clock, the three run modes, and the order of a step.
+
+One step: every system's `pre_update` (commands in), the physics step, the clock advances, every
+system's `post_update` (state out). The loop only schedules; what happens in a step is the
+systems' and the physics module's business.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import Enum
+
+from simbot.sim.physics import Physics
+from simbot.sim.system import PostUpdate, PreUpdate, Resettable
+
+log = logging.getLogger(__name__)
+
+IDLE_SLEEP_S = 0.001
+"""How often a paused or lockstep world looks for requests."""
+MAX_LAG_S = 0.1
+"""In real time, a loop that falls this far behind the wall clock starts afresh rather than rushing."""
+RTF_WINDOW_S = 1.0
+
+
+class Mode(str, Enum):
+    REALTIME = "realtime"
+    FAST = "fast"
+    LOCKSTEP = "lockstep"
+
+
+@dataclass
+class SimClock:
+    """Sim time in integer nanoseconds: float seconds would lose steps after a few days."""
+
+    step_ns: int
+    now_ns: int = 0
+    iterations: int = 0
+
+    def advance(self) -> None:
+        self.now_ns += self.step_ns
+        self.iterations += 1
+
+    def reset(self) -> None:
+        self.now_ns = self.iterations = 0
+
+
+@dataclass
+class RealTimeFactor:
+    """Sim seconds per wall second over the last second."""
+
+    samples: deque[tuple[float, int]] = field(default_factory=deque)
+
+    def sample(self, wall: float, sim_ns: int) -> None:
+        if self.samples and wall - self.samples[-1][0] < 0.05:
+            return
+        self.samples.append((wall, sim_ns))
+        while len(self.samples) > 2 and wall - self.samples[1][0] >= RTF_WINDOW_S:
+            self.samples.popleft()
+
+    def value(self) -> float:
+        if len(self.samples) < 2:
+            return 0.0
+        (w0, s0), (w1, s1) = self.samples[0], self.samples[-1]
+        return (s1 - s0) / 1e9 / (w1 - w0) if w1 > w0 else 0.0
+
+    def clear(self) -> None:
+        self.samples.clear()
+
+
+@dataclass
+class Pacer:
+    """Holds sim time to wall time in real-time mode."""
+
+    wall0: float = 0.0
+    sim0_ns: int = 0
+
+    def anchor(self, sim_ns: int) -> None:
+        self.wall0, self.sim0_ns = time.perf_counter(), sim_ns
+
+    def wait(self, sim_ns: int) -> None:
+        ahead = (sim_ns - self.sim0_ns) / 1e9 - (time.perf_counter() - self.wall0)
+        if ahead > IDLE_SLEEP_S:
+            time.sleep(ahead)
+        elif ahead < -MAX_LAG_S:
+            log.debug("real time lost by %.3f s; re-anchoring", -ahead)
+            self.anchor(sim_ns)
+
+
+@dataclass
+class StepRequest:
+    """Steps asked for through world control, and what to do when they are done (reply)."""
+
+    left: int
+    done: Callable[[], None]
+
+
+@dataclass
+class Simulation:
+    """The world, its systems, and the loop that advances them."""
+
+    physics: Physics
+    systems: list[object]
+    mode: Mode = Mode.REALTIME
+    clock: SimClock = field(init=False)
+    paused: bool = False
+    rtf: RealTimeFactor = field(default_factory=RealTimeFactor)
+    _pre: list[PreUpdate] = field(init=False)
+    _post: list[PostUpdate] = field(init=False)
+    _steps: deque[StepRequest] = field(default_factory=deque)
+    _pacer: Pacer = field(default_factory=Pacer)
+
+    def __post_init__(self) -> None:
+        self.clock = SimClock(round(self.physics.step_size * 1e9))
+        self._pre = [s for s in self.systems if isinstance(s, PreUpdate)]
+        self._post = [s for s in self.systems if isinstance(s, PostUpdate)]
+
+    def step(self) -> None:
+        """One step of every system and the physics."""
+        for system in self._pre:
+            system.pre_update(self.clock.now_ns)
+        self.physics.step()
+        self.clock.advance()
+        for system in self._post:
+            system.post_update(self.clock.now_ns)
+
+    def request_steps(self, count: int, done: Callable[[], None]) -> None:
+        """`count` more steps, then `done()`; these run even when paused or in lockstep."""
+        if count <= 0:
+            done()
+            return
+        self._steps.append(StepRequest(count, done))
+
+    def set_paused(self, paused: bool) -> None:
+        self.paused = paused
+        self._pacer.anchor(self.clock.now_ns)
+        self.rtf.clear()
+
+    def reset(self) -> None:
+        """Time to zero, every model where it began, every system forgets."""
+        self.physics.reset()
+        self.clock.reset()
+        for system in self.systems:
+            if isinstance(system, Resettable):
+                system.reset(0)
+        self._pacer.anchor(0)
+        self.rtf.clear()
+
+    @property
+    def runs_freely(self) -> bool:
+        return not self.paused and self.mode is not Mode.LOCKSTEP
+
+    def run(self, stop: threading.Event, poll: Callable[[], None], every_second: Callable[[], None] | None = None) -> None:
+        """Steps until `stop` is set; `poll` handles requests between steps."""
+        self._pacer.anchor(self.clock.now_ns)
+        next_tick = time.monotonic() + 1.0
+        while not stop.is_set():
+            poll()
+            if self._steps:
+                self._step_requested()
+            elif self.runs_freely:
+                self.step()
+                if self.mode is Mode.REALTIME:
+                    self._pacer.wait(self.clock.now_ns)
+            else:
+                time.sleep(IDLE_SLEEP_S)
+            wall = time.monotonic()
+            self.rtf.sample(wall, self.clock.now_ns)
+            if every_second is not None and wall >= next_tick:
+                next_tick = wall + 1.0
+                every_second()
+
+    def _step_requested(self) -> None:
+        request = self._steps[0]
+        self.step()
+        request.left -= 1
+        if request.left == 0:
+            self._steps.popleft()
+            request.done()
+        if self.mode is Mode.REALTIME:
+            self._pacer.anchor(self.clock.now_ns)

@@ -1,0 +1,191 @@
+"""The contract between the simulation loop and its systems, as in Gazebo Sim.
+
+A system is a class built once from a `SystemContext` (its SDF element, the model it belongs to,
+the world and the bus). It then implements only the phases it needs:
+
+- `pre_update(now_ns)`: before the physics step; drain commands, write joint targets.
+- `post_update(now_ns)`: after the step; read state, publish at its own rate.
+- `reset(now_ns)`: the world was reset; forget what was integrated.
+
+The loop keeps one list per phase. Bus callbacks only queue (see `Input`); systems act in the
+loop, so everything a system does happens at a definite sim time.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from simbot.bus import DecodeError, Node, Publisher, decode
+from simbot.description.model import Model, Plugin, World
+from simbot.sim.physics import Physics
+
+log = logging.getLogger(__name__)
+
+WARN_INTERVAL_S = 1.0
+"""At most one warning per key and second about dropped input: a flood must not flood the log."""
+
+
+class SystemConfigError(ValueError):
+    """A system's SDF parameters are unusable; the message names the plugin and the parameter."""
+
+
+@runtime_checkable
+class PreUpdate(Protocol):
+    def pre_update(self, now_ns: int) -> None: ...
+
+
+@runtime_checkable
+class PostUpdate(Protocol):
+    def post_update(self, now_ns: int) -> None: ...
+
+
+@runtime_checkable
+class Resettable(Protocol):
+    def reset(self, now_ns: int) -> None: ...
+
+
+@dataclass
+class Drops:
+    """Dropped inputs per key, with the last reason: world control's `state` reports them."""
+
+    counts: dict[str, int] = field(default_factory=dict)
+    last_error: dict[str, str] = field(default_factory=dict)
+    _last_warning: dict[str, float] = field(default_factory=dict)
+
+    def drop(self, key: str, reason: str) -> None:
+        """Counts a dropped input and warns, rate-limited per key."""
+        self.counts[key] = self.counts.get(key, 0) + 1
+        self.last_error[key] = reason
+        now = time.monotonic()
+        if now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
+            self._last_warning[key] = now
+            log.warning("dropped input on %s (%d so far): %s", key, self.counts[key], reason)
+
+
+Check = Callable[[Any], "str | None"]
+"""Returns why a decoded message is unacceptable, or None."""
+
+
+class Input:
+    """Commands on one key: queued by the bus, decoded and checked in the loop; bad ones dropped and counted."""
+
+    def __init__(self, node: Node, drops: Drops, topic: str, typename: str, check: Check | None = None) -> None:
+        self.key = node.key(topic)
+        self._inbox = node.inbox(topic)
+        self._drops = drops
+        self._typename = typename
+        self._check = check
+
+    def drain(self) -> list[Any]:
+        """The valid messages that arrived since the last call, oldest first."""
+        messages = []
+        for payload in self._inbox.drain():
+            try:
+                message = decode(payload, self._typename)
+            except DecodeError as exc:
+                self._drops.drop(self.key, f"not a {self._typename}: {exc}")
+                continue
+            problem = self._check(message) if self._check else None
+            if problem:
+                self._drops.drop(self.key, problem)
+                continue
+            messages.append(message)
+        return messages
+
+
+@dataclass
+class SimBus:
+    """What systems may do on the bus: publish, and take commands through an `Input`."""
+
+    node: Node
+    drops: Drops = field(default_factory=Drops)
+
+    def publisher(self, topic: str, *, latched: bool = False) -> Publisher:
+        return self.node.publisher(topic, latched=latched)
+
+    def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
+        return Input(self.node, self.drops, topic, typename, check)
+
+
+@dataclass(frozen=True)
+class SystemContext:
+    """Everything a system is built from."""
+
+    physics: Physics
+    bus: SimBus
+    world: World
+    rng: np.random.Generator
+    model: Model | None = None
+    model_name: str | None = None
+    """The model's name in the running world (the robot is `flexley_tug` whatever its SDF says)."""
+    plugin: Plugin | None = None
+
+    def require_model(self, system: str) -> tuple[Model, str]:
+        """The model a model-level system belongs to."""
+        if self.model is None or self.model_name is None:
+            raise SystemConfigError(f"{system} belongs in a <model>, not in the <world>")
+        return self.model, self.model_name
+
+
+def param(plugin: Plugin, *tags: str, default: str | None = None) -> str | None:
+    """The first of `tags` the plugin sets (Gazebo renamed several; the old names still work)."""
+    for tag in tags:
+        value = plugin.get(tag)
+        if value is not None and value.strip() != "":
+            return value.strip()
+    return default
+
+
+def number_param(plugin: Plugin, *tags: str, default: float | None = None, positive: bool = False) -> float | None:
+    """A numeric parameter; a value that is not a (positive) number is an error naming it."""
+    text = param(plugin, *tags)
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        raise SystemConfigError(f"{plugin.name}: <{tags[0]}> expected a number, got {text!r}") from None
+    if not math.isfinite(value) or (positive and value <= 0):
+        raise SystemConfigError(f"{plugin.name}: <{tags[0]}> must be a {'positive ' if positive else ''}finite number, got {text!r}")
+    return value
+
+
+def bool_param(plugin: Plugin, *tags: str, default: bool) -> bool:
+    """SDF booleans: true/false/1/0."""
+    text = param(plugin, *tags)
+    if text is None:
+        return default
+    if text.lower() in ("true", "1"):
+        return True
+    if text.lower() in ("false", "0"):
+        return False
+    raise SystemConfigError(f"{plugin.name}: <{tags[0]}> expected true or false, got {text!r}")
+
+
+@dataclass
+class Every:
+    """Fires at a fixed sim-time period: a system's own rate, independent of the step size."""
+
+    period_ns: int
+    next_ns: int = 0
+
+    @staticmethod
+    def hz(rate: float) -> Every:
+        return Every(max(1, round(1e9 / rate)))
+
+    def due(self, now_ns: int) -> bool:
+        """True at the first step at or after each multiple of the period (so 30 Hz stays 30 Hz on 1 ms steps)."""
+        if now_ns < self.next_ns:
+            return False
+        self.next_ns = (now_ns // self.period_ns + 1) * self.period_ns
+        return True
+
+    def restart(self) -> None:
+        self.next_ns = 0

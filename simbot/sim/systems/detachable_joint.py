@@ -1,0 +1,80 @@
+"""DetachableJoint: `attach` fixes a child model's link to ours at their current relative pose; `detach` frees it.
+
+| parameter | default |
+|---|---|
+| `parent_link` | required |
+| `child_model`, `child_link` | required |
+| `attach_topic` | `attach` |
+| `detach_topic` | `detach` |
+| `output_topic` | `detachable_joint/state` (`attached` / `detached`, on change and to late joiners) |
+
+Unlike Gazebo's, it starts detached: the tug must drive under the trolley first.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from simbot.bus import messages
+from simbot.sim.system import SystemConfigError, SystemContext, param
+
+log = logging.getLogger(__name__)
+
+EMPTY = "std_msgs/msg/Empty"
+
+
+class DetachableJoint:
+    """Requests are queued by the bus and acted on before the next physics step."""
+
+    def __init__(self, ctx: SystemContext) -> None:
+        plugin = ctx.plugin
+        assert plugin is not None
+        model, self._name = ctx.require_model("DetachableJoint")
+        parent_link, child_model, child_link = (param(plugin, tag) for tag in ("parent_link", "child_model", "child_link"))
+        if parent_link is None or child_model is None or child_link is None:
+            raise SystemConfigError(f"{plugin.name}: <parent_link>, <child_model> and <child_link> are required")
+        if parent_link not in {link.name for link in model.links}:
+            raise SystemConfigError(f"{plugin.name}: model {model.name!r} has no link {parent_link!r}")
+        self._parent = (self._name, parent_link)
+        self._child = (child_model, child_link)
+        self._physics = ctx.physics
+        self._attach = ctx.bus.input(param(plugin, "attach_topic", default="attach") or "attach", EMPTY)
+        self._detach = ctx.bus.input(param(plugin, "detach_topic", default="detach") or "detach", EMPTY)
+        self._state = ctx.bus.publisher(param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state", latched=True)
+        self._joint: int | None = None
+        self._publish()
+
+    @property
+    def attached(self) -> bool:
+        return self._joint is not None
+
+    def pre_update(self, now_ns: int) -> None:
+        # Both within one step: attach, then detach (the bus keeps no order between two keys).
+        wants_attach, wants_detach = bool(self._attach.drain()), bool(self._detach.drain())
+        if wants_attach and not self.attached:
+            self._do_attach()
+        if wants_detach and self.attached:
+            self._do_detach()
+
+    def _do_attach(self) -> None:
+        try:
+            self._joint = self._physics.attach(self._parent, self._child)
+        except KeyError as exc:
+            log.warning("cannot attach: %s", exc.args[0])
+            return
+        log.info("attached %s::%s to %s::%s", *self._child, *self._parent)
+        self._publish()
+
+    def _do_detach(self) -> None:
+        assert self._joint is not None
+        self._physics.detach(self._joint)
+        self._joint = None
+        log.info("detached %s::%s", *self._child)
+        self._publish()
+
+    def _publish(self) -> None:
+        self._state.put(messages.string("attached" if self.attached else "detached"))
+
+    def reset(self, now_ns: int) -> None:
+        if self.attached:
+            self._do_detach()

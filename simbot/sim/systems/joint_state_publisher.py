@@ -1,0 +1,41 @@
+"""JointStatePublisher: the position, velocity and effort of a model's joints on `joint_states`.
+
+| parameter | default |
+|---|---|
+| `joint_name` (repeatable) | every movable joint of the model |
+| `topic` | `joint_states` |
+| `update_rate` | 30 Hz |
+"""
+
+from __future__ import annotations
+
+from simbot.bus import messages
+from simbot.sim.system import Every, SystemConfigError, SystemContext, number_param, param
+
+MOVABLE = ("revolute", "continuous", "prismatic")
+
+
+class JointStatePublisher:
+    """Publishes sensor_msgs/JointState at its rate, stamped with sim time."""
+
+    def __init__(self, ctx: SystemContext) -> None:
+        assert ctx.plugin is not None
+        model, self._name = ctx.require_model("JointStatePublisher")
+        names = ctx.plugin.get_all("joint_name") or [j.name for j in model.joints if j.type in MOVABLE]
+        known = {j.name for j in model.joints if j.type in MOVABLE}
+        for name in names:
+            if name not in known:
+                raise SystemConfigError(f"{ctx.plugin.name}: model {model.name!r} has no movable joint {name!r}")
+        self._joints = list(names)
+        self._physics = ctx.physics
+        self._pub = ctx.bus.publisher(param(ctx.plugin, "topic", default="joint_states") or "joint_states")
+        self._every = Every.hz(number_param(ctx.plugin, "update_rate", default=30.0, positive=True) or 30.0)
+
+    def post_update(self, now_ns: int) -> None:
+        if not self._every.due(now_ns):
+            return
+        states = self._physics.joint_states(self._name, self._joints)
+        self._pub.put(messages.joint_state(now_ns, self._joints, [s[0] for s in states], [s[1] for s in states], [s[2] for s in states]))
+
+    def reset(self, now_ns: int) -> None:
+        self._every.restart()
