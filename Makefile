@@ -4,19 +4,23 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test urdf meshes clean
+.PHONY: run test bench urdf meshes clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 	touch $(STAMP)
 
-## The main job. For now: the robot's description (the simulator comes with the server issue).
+## The main job: the simulator in the warehouse, real time, one status line a second (Ctrl-C ends it).
 run: $(STAMP)
-	$(BIN)/simbot describe urdf/flexley_tug.sdf
+	$(BIN)/simbot-server --world warehouse
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+## Speed, as ratios against a baseline measured in the same run (figures in the README).
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_server.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)

@@ -22,6 +22,8 @@ log = logging.getLogger(__name__)
 
 IDLE_SLEEP_S = 0.001
 """How often a paused or lockstep world looks for requests."""
+POLL_EVERY = 10
+"""A freely running world looks for requests every this many steps (10 ms of sim time at 1 kHz)."""
 MAX_LAG_S = 0.1
 """In real time, a loop that falls this far behind the wall clock starts afresh rather than rushing."""
 RTF_WINDOW_S = 1.0
@@ -159,7 +161,8 @@ class Simulation:
         self._pacer.anchor(self.clock.now_ns)
         next_tick = time.monotonic() + 1.0
         while not stop.is_set():
-            poll()
+            if not self.runs_freely or self.clock.iterations % POLL_EVERY == 0:
+                poll()
             if self._steps:
                 self._step_requested()
             elif self.runs_freely:

@@ -59,10 +59,6 @@ def _cross(a: Vec3, b: Vec3) -> Vec3:
     return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
 
 
-def _dot(a: Vec3, b: Vec3) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 class WheelFriction:
     """The wheels of one body; `apply` once before every physics step (plain floats: it runs at 1 kHz)."""
 
@@ -76,37 +72,45 @@ class WheelFriction:
         """Friction forces from the last step's contacts and the current velocities."""
         loads: dict[int, list[float]] = {}
         for c in pb.getContactPoints(bodyA=self._body, physicsClientId=self._client):
-            if c[3] in self._wheels and c[9] > 0:
-                acc = loads.setdefault(c[3], [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-                n = c[9]
-                acc[0] += n
-                for i in range(3):
-                    acc[1 + i] += n * c[5][i]
-                    acc[4 + i] += n * c[7][i]
+            n = c[9]
+            if n > 0 and c[3] in self._wheels:
+                (px, py, pz), (nx, ny, nz) = c[5], c[7]
+                acc = loads.get(c[3])
+                if acc is None:
+                    loads[c[3]] = [n, n * px, n * py, n * pz, n * nx, n * ny, n * nz]
+                else:
+                    acc[0] += n
+                    acc[1] += n * px
+                    acc[2] += n * py
+                    acc[3] += n * pz
+                    acc[4] += n * nx
+                    acc[5] += n * ny
+                    acc[6] += n * nz
         if not loads:
             return
-        states = dict(zip(self._links, pb.getLinkStates(self._body, self._links, computeLinkVelocity=1, physicsClientId=self._client)))
-        for link, acc in loads.items():
-            n = acc[0]
-            point = (acc[1] / n, acc[2] / n, acc[3] / n)
-            normal = (acc[4] / n, acc[5] / n, acc[6] / n)
-            self._apply_one(self._wheels[link], point, normal, n, states[link])
+        states = pb.getLinkStates(self._body, self._links, computeLinkVelocity=1, physicsClientId=self._client)
+        for link, state in zip(self._links, states):
+            acc = loads.get(link)
+            if acc is not None:
+                n = acc[0]
+                self._apply_one(self._wheels[link], (acc[1] / n, acc[2] / n, acc[3] / n), (acc[4] / n, acc[5] / n, acc[6] / n), n, state)
 
     def _apply_one(self, wheel: Wheel, point: Vec3, normal: Vec3, load: float, state: tuple) -> None:  # type: ignore[type-arg]
-        centre, orientation, linear, angular = state[0], state[5], state[6], state[7]
-        m = pb.getMatrixFromQuaternion(orientation)
+        centre, linear, angular = state[0], state[6], state[7]
+        m = pb.getMatrixFromQuaternion(state[5])
         a = wheel.axle
         axle = (m[0] * a[0] + m[1] * a[1] + m[2] * a[2], m[3] * a[0] + m[4] * a[1] + m[5] * a[2], m[6] * a[0] + m[7] * a[1] + m[8] * a[2])
         along = _cross(axle, normal)
-        norm = _dot(along, along) ** 0.5
+        norm = (along[0] * along[0] + along[1] * along[1] + along[2] * along[2]) ** 0.5
         if norm < 1e-6:  # touching with its side: no rolling direction
             return
         along = (along[0] / norm, along[1] / norm, along[2] / norm)
         across = _cross(normal, along)
-        lever = (point[0] - centre[0], point[1] - centre[1], point[2] - centre[2])
-        spin = _cross(angular, lever)
-        slip = (linear[0] + spin[0], linear[1] + spin[1], linear[2] + spin[2])
-        f_along = -wheel.mu * load * max(-1.0, min(1.0, _dot(slip, along) / SLIP_SPEED))
-        f_across = -wheel.mu2 * load * max(-1.0, min(1.0, _dot(slip, across) / SLIP_SPEED))
-        force = [f_along * along[i] + f_across * across[i] for i in range(3)]
+        spin = _cross(angular, (point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]))
+        sx, sy, sz = linear[0] + spin[0], linear[1] + spin[1], linear[2] + spin[2]
+        slip_along = (sx * along[0] + sy * along[1] + sz * along[2]) / SLIP_SPEED
+        slip_across = (sx * across[0] + sy * across[1] + sz * across[2]) / SLIP_SPEED
+        f1 = -wheel.mu * load * (1.0 if slip_along > 1.0 else -1.0 if slip_along < -1.0 else slip_along)
+        f2 = -wheel.mu2 * load * (1.0 if slip_across > 1.0 else -1.0 if slip_across < -1.0 else slip_across)
+        force = (f1 * along[0] + f2 * across[0], f1 * along[1] + f2 * across[1], f1 * along[2] + f2 * across[2])
         pb.applyExternalForce(self._body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)
