@@ -127,7 +127,7 @@ def check_twist(msg: Any) -> str | None:
 
 @dataclass
 class Odometry:
-    """Dead reckoning from the mean encoder angle of each side (exact arc integration)."""
+    """Dead reckoning from the mean encoder angle of each side: each update is an exact circular arc."""
 
     x: float = 0.0
     y: float = 0.0
@@ -143,10 +143,14 @@ class Odometry:
         dl, dr = (left - self.left) * radius, (right - self.right) * radius
         self.left, self.right = left, right
         distance, turn = (dl + dr) / 2, (dr - dl) / separation
-        heading = self.yaw + turn / 2
-        self.x += distance * math.cos(heading)
-        self.y += distance * math.sin(heading)
-        self.yaw = math.atan2(math.sin(self.yaw + turn), math.cos(self.yaw + turn))
+        end = self.yaw + turn
+        if abs(turn) > 1e-9:
+            self.x += distance / turn * (math.sin(end) - math.sin(self.yaw))
+            self.y -= distance / turn * (math.cos(end) - math.cos(self.yaw))
+        else:
+            self.x += distance * math.cos(self.yaw)
+            self.y += distance * math.sin(self.yaw)
+        self.yaw = math.atan2(math.sin(end), math.cos(end))
         return distance, turn
 
 

@@ -1,0 +1,218 @@
+"""Small constructors for the ROS 2 messages simbot sends, on the rosbags typestore classes.
+
+They spell out the nesting once (an Odometry is six levels deep) so that the server and clients
+write `odometry(ns, "odom", "base_footprint", xyz, quat, ...)`, and they convert inputs to what
+the CDR serializer expects: Python floats, float64 numpy arrays for covariances and joint values.
+Times are integer nanoseconds throughout, as the sim clock keeps them: no float rounding.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from rosbags.typesys.stores import ros2_humble as _ros
+
+# The typestore's own classes (codec.TYPESTORE holds the same ones), under their ROS names.
+Time = _ros.builtin_interfaces__msg__Time
+Point = _ros.geometry_msgs__msg__Point
+Pose = _ros.geometry_msgs__msg__Pose
+PoseStamped = _ros.geometry_msgs__msg__PoseStamped
+PoseWithCovariance = _ros.geometry_msgs__msg__PoseWithCovariance
+Quaternion = _ros.geometry_msgs__msg__Quaternion
+Transform = _ros.geometry_msgs__msg__Transform
+TransformStamped = _ros.geometry_msgs__msg__TransformStamped
+Twist = _ros.geometry_msgs__msg__Twist
+TwistWithCovariance = _ros.geometry_msgs__msg__TwistWithCovariance
+Vector3 = _ros.geometry_msgs__msg__Vector3
+Odometry = _ros.nav_msgs__msg__Odometry
+Clock = _ros.rosgraph_msgs__msg__Clock
+JointState = _ros.sensor_msgs__msg__JointState
+Empty = _ros.std_msgs__msg__Empty
+Header = _ros.std_msgs__msg__Header
+String = _ros.std_msgs__msg__String
+TFMessage = _ros.tf2_msgs__msg__TFMessage
+
+__all__ = [
+    "Clock",
+    "Empty",
+    "Header",
+    "JointState",
+    "Odometry",
+    "PoseStamped",
+    "String",
+    "TFMessage",
+    "Time",
+    "TransformStamped",
+    "Twist",
+    "Vector3",
+    "clock",
+    "empty",
+    "header",
+    "joint_state",
+    "odometry",
+    "pose_stamped",
+    "quaternion",
+    "stamp_ns",
+    "string",
+    "tf_message",
+    "time_msg",
+    "transform_stamped",
+    "twist",
+    "vector3",
+]
+
+NS_PER_S = 1_000_000_000
+COVARIANCE_SIZE = 36
+
+Floats = Sequence[float] | npt.NDArray[np.floating[Any]]
+
+
+def _three(values: Floats, what: str) -> tuple[float, float, float]:
+    x, y, z = _floats(values, 3, what)
+    return x, y, z
+
+
+def _floats(values: Floats, size: int, what: str) -> list[float]:
+    result = [float(v) for v in values]
+    if len(result) != size:
+        raise ValueError(f"{what}: expected {size} values, got {len(result)}")
+    return result
+
+
+def _float_array(values: Floats, what: str, size: int | None = None) -> npt.NDArray[np.float64]:
+    array = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
+    if size is not None and array.size != size:
+        raise ValueError(f"{what}: expected {size} values, got {array.size}")
+    return array
+
+
+def time_msg(ns: int) -> Time:
+    """builtin_interfaces/Time from integer nanoseconds (nanosec always in [0, 1e9), as ROS does)."""
+    sec, nanosec = divmod(int(ns), NS_PER_S)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_ns(stamp: Header | Time) -> int:
+    """Integer nanoseconds of a Header's stamp or of a Time: the inverse of `time_msg`."""
+    time = stamp.stamp if isinstance(stamp, Header) else stamp
+    if not isinstance(time, Time):
+        raise TypeError(f"stamp_ns takes a Header or a Time, not {type(stamp).__name__}")
+    return int(time.sec) * NS_PER_S + int(time.nanosec)
+
+
+def header(ns: int, frame_id: str) -> Header:
+    """std_msgs/Header stamped `ns` in `frame_id`."""
+    return Header(stamp=time_msg(ns), frame_id=frame_id)
+
+
+def vector3(x: float, y: float, z: float) -> Vector3:
+    """geometry_msgs/Vector3."""
+    return Vector3(x=float(x), y=float(y), z=float(z))
+
+
+def quaternion(x: float, y: float, z: float, w: float) -> Quaternion:
+    """geometry_msgs/Quaternion, in ROS order x, y, z, w."""
+    return Quaternion(x=float(x), y=float(y), z=float(z), w=float(w))
+
+
+def _quaternion(quat_xyzw: Floats) -> Quaternion:
+    return quaternion(*_floats(quat_xyzw, 4, "quaternion (x, y, z, w)"))
+
+
+def transform_stamped(ns: int, parent: str, child: str, xyz: Floats, quat_xyzw: Floats) -> TransformStamped:
+    """geometry_msgs/TransformStamped: the pose of `child` in `parent`."""
+    translation = vector3(*_three(xyz, "translation"))
+    return TransformStamped(
+        header=header(ns, parent),
+        child_frame_id=child,
+        transform=Transform(translation=translation, rotation=_quaternion(quat_xyzw)),
+    )
+
+
+def tf_message(transforms: Iterable[TransformStamped]) -> TFMessage:
+    """tf2_msgs/TFMessage holding `transforms`."""
+    return TFMessage(transforms=list(transforms))
+
+
+def string(text: str) -> String:
+    """std_msgs/String."""
+    return String(data=text)
+
+
+def empty() -> Empty:
+    """std_msgs/Empty (one padding byte on the wire, as in every ROS 2 middleware)."""
+    return Empty(structure_needs_at_least_one_member=0)
+
+
+def clock(ns: int) -> Clock:
+    """rosgraph_msgs/Clock at `ns`."""
+    return Clock(clock=time_msg(ns))
+
+
+def twist(linear_xyz: Floats = (0.0, 0.0, 0.0), angular_xyz: Floats = (0.0, 0.0, 0.0)) -> Twist:
+    """geometry_msgs/Twist; no arguments is a stop."""
+    return Twist(linear=vector3(*_three(linear_xyz, "linear")), angular=vector3(*_three(angular_xyz, "angular")))
+
+
+def _pose(xyz: Floats, quat_xyzw: Floats) -> Pose:
+    x, y, z = _three(xyz, "position")
+    return Pose(position=Point(x=x, y=y, z=z), orientation=_quaternion(quat_xyzw))
+
+
+def pose_stamped(ns: int, frame: str, xyz: Floats, quat_xyzw: Floats) -> PoseStamped:
+    """geometry_msgs/PoseStamped in `frame`."""
+    return PoseStamped(header=header(ns, frame), pose=_pose(xyz, quat_xyzw))
+
+
+def odometry(
+    ns: int,
+    frame_id: str,
+    child_frame_id: str,
+    xyz: Floats,
+    quat_xyzw: Floats,
+    linear_xyz: Floats,
+    angular_xyz: Floats,
+    pose_covariance: Floats = (0.0,) * COVARIANCE_SIZE,
+    twist_covariance: Floats = (0.0,) * COVARIANCE_SIZE,
+) -> Odometry:
+    """nav_msgs/Odometry: pose in `frame_id`, twist in `child_frame_id`, 6×6 row-major covariances."""
+    return Odometry(
+        header=header(ns, frame_id),
+        child_frame_id=child_frame_id,
+        pose=PoseWithCovariance(
+            pose=_pose(xyz, quat_xyzw),
+            covariance=_float_array(pose_covariance, "pose covariance", COVARIANCE_SIZE),
+        ),
+        twist=TwistWithCovariance(
+            twist=twist(linear_xyz, angular_xyz),
+            covariance=_float_array(twist_covariance, "twist covariance", COVARIANCE_SIZE),
+        ),
+    )
+
+
+def joint_state(
+    ns: int,
+    names: Sequence[str],
+    positions: Floats,
+    velocities: Floats = (),
+    efforts: Floats = (),
+) -> JointState:
+    """sensor_msgs/JointState; velocities and efforts may be empty (ROS allows it), else one per name."""
+    position = _float_array(positions, "positions")
+    velocity = _float_array(velocities, "velocities")
+    effort = _float_array(efforts, "efforts")
+    if position.size != len(names):
+        raise ValueError(f"joint_state: {position.size} positions for {len(names)} joints")
+    for what, array in (("velocities", velocity), ("efforts", effort)):
+        if array.size not in (0, len(names)):
+            raise ValueError(f"joint_state: {array.size} {what} for {len(names)} joints (give one per joint or none)")
+    return JointState(
+        header=header(ns, ""),
+        name=list(names),
+        position=position,
+        velocity=velocity,
+        effort=effort,
+    )

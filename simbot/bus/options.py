@@ -1,0 +1,164 @@
+"""The bus options every simbot program shares, and the Zenoh configuration they make.
+
+Secure by default (SPEC §4): the server listens on `tcp/127.0.0.1:7447` only, clients connect
+there and listen on nothing, multicast scouting is off. Anything wider is an explicit `--listen`
+/ `--connect` or a Zenoh config file; what the config file sets is kept, what it leaves at
+Zenoh's defaults gets ours.
+
+Roles map to Zenoh modes: the server is a `peer`, a client program is a Zenoh `client`. A client
+session is brokered by the peer it connects to, so two client programs (the lidar merger and a
+monitor) reach each other through the server; two non-listening *peers* would not (Zenoh 1.x
+peers do not forward between other peers). A client waits up to `connect_timeout` seconds for
+the server when it starts, then fails with one line; once connected it reconnects by itself.
+Timestamping is on, which latched publishers (`zenoh.ext` advanced publishers) require.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import zenoh
+
+from simbot.bus.keys import topic_key
+
+logger = logging.getLogger(__name__)
+
+Role = Literal["server", "client"]
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DEFAULT_CONNECT_TIMEOUT_S = 10.0
+ROLE_MODES: dict[str, str] = {"server": "peer", "client": "client"}
+
+
+class BusConfigError(ValueError):
+    """A bad bus option or Zenoh config file; str() is the one line a CLI prints."""
+
+
+def zenoh_reason(exc: BaseException) -> str:
+    """Zenoh's error text on one line, without the Rust source location it appends."""
+    text = " ".join(str(exc).split())
+    return re.sub(r" at /\S+\.rs:\d+\.?$", "", text).strip()
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add --listen, --connect, --zenoh-config, --namespace and --connect-timeout to `parser`."""
+    group = parser.add_argument_group("bus (Zenoh)")
+    group.add_argument(
+        "--listen", action="append", default=[], metavar="ENDPOINT",
+        help=f"Zenoh endpoint to listen on, repeatable (server default: {DEFAULT_ENDPOINT}; clients: none)",
+    )  # fmt: skip
+    group.add_argument(
+        "--connect", action="append", default=[], metavar="ENDPOINT",
+        help=f"Zenoh endpoint to connect to, repeatable (client default: {DEFAULT_ENDPOINT})",
+    )  # fmt: skip
+    group.add_argument("--zenoh-config", type=Path, metavar="FILE", help="Zenoh JSON5 config file (kept as given)")
+    group.add_argument("--namespace", default="", metavar="NS", help="prefix of every key, like a ROS namespace")
+    group.add_argument(
+        "--connect-timeout", type=float, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="SECONDS",
+        help=f"how long a client waits for the server at start (default {DEFAULT_CONNECT_TIMEOUT_S:g})",
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class BusOptions:
+    """Where to listen and connect, an optional Zenoh config file, and the key namespace."""
+
+    listen: tuple[str, ...] = ()
+    connect: tuple[str, ...] = ()
+    config_file: Path | None = None
+    namespace: str = ""
+    connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S
+
+    def __post_init__(self) -> None:
+        if self.namespace.strip("/"):
+            try:
+                topic_key("x", self.namespace)
+            except ValueError as exc:
+                raise BusConfigError(f"--namespace {self.namespace!r}: {exc}") from None
+        if not self.connect_timeout >= 0:
+            raise BusConfigError(f"--connect-timeout {self.connect_timeout}: must be a number of seconds ≥ 0")
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> BusOptions:
+        """The options parsed by a parser that `add_bus_arguments` set up."""
+        config = getattr(args, "zenoh_config", None)
+        return cls(
+            listen=tuple(getattr(args, "listen", None) or ()),
+            connect=tuple(getattr(args, "connect", None) or ()),
+            config_file=Path(config) if config is not None else None,
+            namespace=getattr(args, "namespace", "") or "",
+            connect_timeout=float(getattr(args, "connect_timeout", DEFAULT_CONNECT_TIMEOUT_S)),
+        )
+
+
+def _load_file(path: Path) -> zenoh.Config:
+    if not path.is_file():
+        raise BusConfigError(f"{path}: no such Zenoh config file")
+    try:
+        return zenoh.Config.from_file(str(path))
+    except zenoh.ZError as exc:
+        reason = zenoh_reason(exc)
+        where = re.search(r"--> (\d+):(\d+)", reason)
+        expected = re.search(r"= (.+)$", reason)
+        if where and expected:
+            raise BusConfigError(f"{path}:{where[1]}:{where[2]}: invalid Zenoh config: {expected[1]}") from None
+        raise BusConfigError(f"{path}: invalid Zenoh config: {reason}") from None
+
+
+def _insert(config: zenoh.Config, key: str, value: Any, option: str) -> None:
+    try:
+        config.insert_json5(key, json.dumps(value))
+    except zenoh.ZError as exc:
+        raise BusConfigError(f"{option}: {zenoh_reason(exc)}") from None
+
+
+def _check_endpoints(option: str, endpoints: tuple[str, ...]) -> None:
+    """Each endpoint alone, so that the error names the bad one."""
+    scratch = zenoh.Config()
+    for endpoint in endpoints:
+        try:
+            scratch.insert_json5("connect/endpoints", json.dumps([endpoint]))
+        except zenoh.ZError:
+            raise BusConfigError(
+                f"{option} {endpoint!r}: not a Zenoh endpoint (expected PROTOCOL/ADDRESS, e.g. {DEFAULT_ENDPOINT})"
+            ) from None
+
+
+def zenoh_config(options: BusOptions, role: Role) -> zenoh.Config:
+    """The Zenoh configuration of a server or client session with `options` applied."""
+    if role not in ROLE_MODES:
+        raise ValueError(f"role must be 'server' or 'client', not {role!r}")
+    _check_endpoints("--listen", options.listen)
+    _check_endpoints("--connect", options.connect)
+    config = _load_file(options.config_file) if options.config_file is not None else zenoh.Config()
+    defaults = zenoh.Config()
+
+    def unset(key: str) -> bool:
+        """True when the config file left `key` at Zenoh's default."""
+        return options.config_file is None or config.get_json(key) == defaults.get_json(key)
+
+    source = str(options.config_file) if options.config_file is not None else "defaults"
+    if unset("mode"):
+        _insert(config, "mode", ROLE_MODES[role], source)
+    if unset("scouting/multicast/enabled"):
+        _insert(config, "scouting/multicast/enabled", False, source)
+    if unset("timestamping/enabled"):
+        _insert(config, "timestamping/enabled", True, source)
+    if options.listen:
+        _insert(config, "listen/endpoints", list(options.listen), "--listen")
+    elif unset("listen/endpoints"):
+        _insert(config, "listen/endpoints", [DEFAULT_ENDPOINT] if role == "server" else [], source)
+    if options.connect:
+        _insert(config, "connect/endpoints", list(options.connect), "--connect")
+    elif unset("connect/endpoints"):
+        _insert(config, "connect/endpoints", [DEFAULT_ENDPOINT] if role == "client" else [], source)
+    if role == "client" and unset("connect/timeout_ms"):
+        _insert(config, "connect/timeout_ms", round(options.connect_timeout * 1000), "--connect-timeout")
+    logger.debug("zenoh %s config: mode %s, listen %s, connect %s", role, config.get_json("mode"),
+                 config.get_json("listen/endpoints"), config.get_json("connect/endpoints"))  # fmt: skip
+    return config

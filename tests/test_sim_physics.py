@@ -1,0 +1,134 @@
+"""The physics module alone (no bus): poses by name, wheel friction bounded by load, the detachable joint."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import pybullet as pb
+import pytest
+from conftest import ROBOT_SDF, TROLLEY_SDF
+
+from simbot.description import load_model, load_world
+from simbot.description.model import Box, Collision, Link, Model
+from simbot.description.poses import Pose
+from simbot.description.resources import asset
+from simbot.sim.physics import Physics, yaw_of
+
+G = 9.8
+ROBOT_MASS = 100 + 4 * 0.765 + 4 * 0.103 + 2 * 1.17 + 0.001  # chassis, wheels, castors, lidars, token root
+WHEELS = ("front_left_wheel_joint", "back_left_wheel_joint", "front_right_wheel_joint", "back_right_wheel_joint")
+RADIUS = 0.075
+
+
+@pytest.fixture
+def physics() -> Iterator[Physics]:
+    """The empty world with the robot at the origin, settled for 0.5 s."""
+    world = load_world(asset("worlds/empty.sdf"))
+    sim = Physics(world)
+    for model in world.models:
+        sim.add_model(model)
+    sim.add_model(load_model(ROBOT_SDF), "flexley_tug", Pose((0.0, 0.0, 0.1)))
+    _run(sim, 0.5)
+    yield sim
+    sim.close()
+
+
+def _run(sim: Physics, seconds: float) -> None:
+    for _ in range(round(seconds / sim.step_size)):
+        sim.step()
+
+
+def _drive(sim: Physics, left: float, right: float) -> None:
+    """Wheel surface speeds in m/s on each side."""
+    for joint in WHEELS:
+        speed = left if "left" in joint else right
+        sim.set_joint_velocity("flexley_tug", joint, speed / RADIUS, 10000.0)
+
+
+def test_model_pose_is_the_model_frame_not_the_centre_of_mass() -> None:
+    """The trolley's centre of mass is 0.58 m up; its model frame stands on the floor."""
+    world = load_world(asset("worlds/empty.sdf"))
+    sim = Physics(world)
+    for model in world.models:
+        sim.add_model(model)
+    sim.add_model(load_model(TROLLEY_SDF), "trolley", Pose((1.0, 0.2, 0.0), (0.0, 0.0, 0.3)))
+    _run(sim, 0.5)
+    (x, y, z), quat = sim.model_pose("trolley")
+    assert (x, y) == pytest.approx((1.0, 0.2), abs=0.005)
+    assert z == pytest.approx(0.0, abs=0.005)
+    assert yaw_of(quat) == pytest.approx(0.3, abs=0.005)
+    sim.set_model_pose("trolley", ((-1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    assert sim.model_pose("trolley")[0] == pytest.approx((-1.0, 2.0, 0.0), abs=1e-6)
+    sim.close()
+
+
+def test_robot_stands_still_with_held_wheels(physics: Physics) -> None:
+    """Wheels held at zero speed: after 2 s the robot has not crept a millimetre."""
+    _drive(physics, 0.0, 0.0)
+    start = physics.model_pose("flexley_tug")[0]
+    _run(physics, 2.0)
+    assert math.dist(start, physics.model_pose("flexley_tug")[0]) < 1e-3
+
+
+def test_rolling_without_slip_matches_the_wheels(physics: Physics) -> None:
+    """0.5 m/s on both sides for 2 s: 1.0 m within 2 % (the wheels roll, they do not slide)."""
+    _drive(physics, 0.5, 0.5)
+    start = physics.model_pose("flexley_tug")[0]
+    _run(physics, 2.0)
+    assert math.dist(start[:2], physics.model_pose("flexley_tug")[0][:2]) == pytest.approx(1.0, rel=0.02)
+
+
+def test_turns_in_place_despite_four_wheels(physics: Physics) -> None:
+    """±0.1 m/s (0.5 rad/s commanded) for 4 s: about 2 rad; with isotropic friction it would be 0.006 rad.
+
+    The bound follows from the friction: scrubbing four wheels sideways (μ2 0.25 at x ±0.58) costs
+    0.725 N of traction per newton of load against 0.9 available, so the wheels slip a little and
+    the robot turns at about 92 % of the command once up to speed."""
+    _drive(physics, -0.1, 0.1)
+    start = physics.model_pose("flexley_tug")
+    heading, turned = yaw_of(start[1]), 0.0
+    for _ in range(4000):
+        physics.step()
+        now = yaw_of(physics.model_pose("flexley_tug")[1])
+        turned += math.remainder(now - heading, math.tau)
+        heading = now
+    assert 0.7 * 2.0 < turned < 1.0 * 2.0
+    assert math.dist(start[0][:2], physics.model_pose("flexley_tug")[0][:2]) < 0.1
+
+
+def test_a_wall_pushes_back_and_traction_is_bounded_by_friction(physics: Physics) -> None:
+    """Driven into a wall, the robot stops, its wheels spin on, and the wall holds it with no more than μ·m·g."""
+    wall = Model("wall", static=True, links=(Link("box", collisions=(Collision("c", Box((0.2, 4.0, 1.0))),)),))
+    physics.add_model(wall, pose=Pose((1.5, 0.0, 0.5)))  # the chassis front is at x 1.05
+    _drive(physics, 0.5, 0.5)
+    _run(physics, 3.0)
+    x = physics.model_pose("flexley_tug")[0][0]
+    assert x == pytest.approx(1.5 - 0.1 - 1.05, abs=0.02), "the wall stops the chassis"
+    angle_before = physics.joint_states("flexley_tug", ["front_left_wheel_joint"])[0][0]
+    _run(physics, 1.0)
+    spun = physics.joint_states("flexley_tug", ["front_left_wheel_joint"])[0][0] - angle_before
+    assert spun * RADIUS == pytest.approx(0.5, rel=0.05), "the wheels keep turning, slipping on the floor"
+    body, wall_id = physics.body("flexley_tug").id, physics.body("wall").id
+    push = sum(c[9] for c in pb.getContactPoints(body, wall_id, physicsClientId=physics.client))
+    assert 0.5 * 0.9 * ROBOT_MASS * G < push < 1.05 * 0.9 * ROBOT_MASS * G
+
+
+def test_attach_holds_the_relative_pose_and_detach_frees(physics: Physics) -> None:
+    """A trolley fixed to base_link follows the robot 1 m; once detached it slides to a stop and stays behind."""
+    physics.add_model(load_model(TROLLEY_SDF), "trolley", Pose((0.0, 0.1, 0.0)))
+    _run(physics, 0.3)
+    joint = physics.attach(("flexley_tug", "base_link"), ("trolley", "base"))
+    trolley0 = physics.model_pose("trolley")[0]
+    _drive(physics, 0.5, 0.5)
+    _run(physics, 2.0)
+    trolley1 = physics.model_pose("trolley")[0]
+    assert trolley1[0] - trolley0[0] == pytest.approx(1.0, rel=0.05)
+    assert trolley1[2] == pytest.approx(trolley0[2], abs=0.01), "carried at its height"
+    physics.detach(joint)
+    _run(physics, 1.5)
+    slid = physics.model_pose("trolley")[0][0] - trolley1[0]
+    assert slid == pytest.approx(0.5**2 / (2 * 0.05 * G), rel=0.2), "freed at 0.5 m/s, it slides v²/(2μg) on μ 0.05 feet"
+    _run(physics, 1.0)
+    assert physics.model_pose("trolley")[0][0] - trolley1[0] == pytest.approx(slid, abs=0.005), "then stands while the robot drives on"
+    assert physics.model_pose("flexley_tug")[0][0] > trolley1[0] + 1.0

@@ -1,0 +1,116 @@
+"""Systems without a running server: the registry, their parameters, rates, limits and odometry."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import pytest
+from conftest import ROBOT_SDF
+
+from simbot.description import load_model, load_world
+from simbot.description.model import Param, Plugin
+from simbot.description.resources import asset
+from simbot.sim.registry import canonical_name, lookup, registered
+from simbot.sim.system import Every, SystemConfigError, number_param
+from simbot.sim.systems.diff_drive import DiffDriveParams, Limits, Odometry, check_twist
+from simbot.sim.systems.recognised import Recognised
+
+
+def _plugin(name: str, filename: str = "", **params: str) -> Plugin:
+    return Plugin(name, filename, tuple(Param(tag, text) for tag, text in params.items()))
+
+
+@pytest.mark.parametrize(
+    ("name", "filename"),
+    [
+        ("gz::sim::systems::DiffDrive", "gz-sim-diff-drive-system"),
+        ("ignition::gazebo::systems::DiffDrive", "libignition-gazebo-diff-drive-system.so"),
+        ("diff_drive", "libignition-gazebo6-diff-drive-system.so"),
+        ("dd", "gz-sim-diff-drive-system"),
+    ],
+)
+def test_every_gazebo_spelling_maps_to_one_system(name: str, filename: str) -> None:
+    assert canonical_name(_plugin(name, filename)) == "DiffDrive"
+
+
+def test_the_robot_and_world_plugins_are_all_registered() -> None:
+    """Through the entry-point group, as a third party's would be; nothing is unknown in our own files."""
+    plugins = list(load_model(ROBOT_SDF).plugins) + list(load_world(asset("worlds/warehouse.sdf")).plugins)
+    assert {canonical_name(p) for p in plugins} <= set(registered())
+    assert registered()["Physics"] is Recognised
+
+
+def test_an_unknown_plugin_is_a_warning_naming_it(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.WARNING):
+        assert lookup(_plugin("ignition::gazebo::systems::TriggeredPublisher", "libignition-gazebo-triggered-publisher-system.so")) is None
+    assert "TriggeredPublisher" in caplog.text
+
+
+def test_diff_drive_reads_gazebo_and_reference_names() -> None:
+    """`frame_id`/`child_frame_id` (gz-sim) and `odometry_frame`/`base_frame` (the original robot) both work."""
+    model = load_model(ROBOT_SDF)
+    ours = DiffDriveParams.parse(model.plugins[0], model)
+    assert (ours.frame_id, ours.child_frame_id, ours.odom_rate, len(ours.left)) == ("odom", "base_footprint", 50.0, 2)
+    joints = {"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint"}
+    legacy = _plugin("dd", odometry_frame="odom2", base_frame="base_link", update_rate="20", wheel_separation="0.4", wheel_radius="0.075", **joints)
+    params = DiffDriveParams.parse(legacy, model)
+    assert (params.frame_id, params.child_frame_id, params.odom_rate) == ("odom2", "base_link", 20.0)
+
+
+@pytest.mark.parametrize(
+    ("params", "message"),
+    [
+        ({"left_joint": "nope", "right_joint": "front_right_wheel_joint", "wheel_separation": "0.4", "wheel_radius": "0.075"}, "no joint 'nope'"),
+        ({"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint", "wheel_separation": "wide", "wheel_radius": "0.075"}, "<wheel_separation> expected a number"),
+        ({"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint", "wheel_separation": "0.4", "wheel_radius": "-1"}, "positive"),
+        ({"right_joint": "front_right_wheel_joint"}, "<left_joint>"),
+    ],
+)
+def test_bad_diff_drive_parameters_name_the_parameter(params: dict[str, str], message: str) -> None:
+    with pytest.raises(SystemConfigError, match=message):
+        DiffDriveParams.parse(_plugin("gz::sim::systems::DiffDrive", **params), load_model(ROBOT_SDF))
+
+
+def test_number_param_rejects_non_finite() -> None:
+    with pytest.raises(SystemConfigError, match="update_rate"):
+        number_param(_plugin("p", update_rate="nan"), "update_rate")
+
+
+@pytest.mark.parametrize("rate", [30.0, 50.0, 100.0, 200.0, 7.0])
+def test_every_fires_at_its_rate_on_1ms_steps(rate: float) -> None:
+    """Over 10 s of 1 ms steps (the first at 1 ms), exactly rate × 10 firings (30 Hz must not become 29.4 Hz)."""
+    every = Every.hz(rate)
+    fired = sum(every.due(step * 1_000_000) for step in range(1, 10_000))
+    assert fired == round(rate * 10)
+
+
+def test_limits_clamp_and_ramp() -> None:
+    limits = Limits(min_value=-0.5, max_value=1.0, min_rate=-2.0, max_rate=1.0)
+    assert (limits.clamp(3.0), limits.clamp(-3.0), limits.clamp(0.2)) == (1.0, -0.5, 0.2)
+    assert limits.ramp(0.0, 1.0, 0.1) == pytest.approx(0.1)
+    assert limits.ramp(1.0, 0.0, 0.1) == pytest.approx(0.8)
+    assert Limits().ramp(0.0, 5.0, 0.001) == 5.0
+
+
+def test_odometry_integrates_an_arc_exactly() -> None:
+    """Wheels that trace a quarter circle of 1 m arc, in 100 updates: the exact end pose."""
+    odom, radius, sep = Odometry(), 0.075, 0.4
+    turn = math.pi / 2
+    arc = 1.0  # metres travelled by the centre
+    left, right = (arc - turn * sep / 2) / radius, (arc + turn * sep / 2) / radius
+    for i in range(101):
+        odom.update(left * i / 100, right * i / 100, radius, sep)
+    r = arc / turn
+    assert (odom.x, odom.y, odom.yaw) == pytest.approx((r, r, turn), abs=1e-9)
+
+
+class _Twist:
+    def __init__(self, vx: float, wz: float) -> None:
+        self.linear = type("V", (), {"x": vx, "y": 0.0, "z": 0.0})()
+        self.angular = type("V", (), {"x": 0.0, "y": 0.0, "z": wz})()
+
+
+@pytest.mark.parametrize(("vx", "wz", "ok"), [(0.5, 0.5, True), (math.nan, 0, False), (0, math.inf, False), (1e6, 0, False), (-99, 99, True)])
+def test_check_twist(vx: float, wz: float, ok: bool) -> None:
+    assert (check_twist(_Twist(vx, wz)) is None) == ok
