@@ -76,7 +76,7 @@ class WorldControl:
 
     def _pause(self, value: Any) -> None:
         if not isinstance(value, bool):
-            raise ValueError(f"pause expects true or false, got {value!r}")
+            raise TypeError(f"pause expects true or false, got {value!r}")
         if not value and self.sim.mode is Mode.LOCKSTEP:
             raise ValueError("in lockstep mode the world advances only on step or multi_step")
         self.sim.set_paused(value)
@@ -84,7 +84,7 @@ class WorldControl:
     def _set_pose(self, request: Request, body: dict[str, Any]) -> None:
         name = body.get("name")
         if not isinstance(name, str):
-            raise ValueError("set_pose needs a model \"name\"")
+            raise TypeError("set_pose needs a model \"name\"")
         position = _vector(body.get("position", {}), "xyz", "position", 0.0)
         orientation = _vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0)
         norm = math.sqrt(sum(v * v for v in orientation))
@@ -127,7 +127,7 @@ def _steps(body: dict[str, Any]) -> int:
 def _vector(value: Any, axes: str, field: str, default: float) -> list[float]:
     """{"x": .., "y": .., ...} → finite floats, missing axes at `default`."""
     if not isinstance(value, dict):
-        raise ValueError(f"{field} expects an object with {', '.join(axes)}, got {value!r}")
+        raise TypeError(f"{field} expects an object with {', '.join(axes)}, got {value!r}")
     numbers = []
     for axis in axes:
         number = value.get(axis, default)

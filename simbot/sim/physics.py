@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import math
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,9 +42,9 @@ def pose_to_transform(pose: Pose) -> Transform:
     return pose.xyz, (quat[0], quat[1], quat[2], quat[3])
 
 
-def _as_transform(pos: object, orn: object) -> Transform:
-    x, y, z = pos  # type: ignore[misc]
-    qx, qy, qz, qw = orn  # type: ignore[misc]
+def _as_transform(pos: Sequence[float], orn: Sequence[float]) -> Transform:
+    x, y, z = pos
+    qx, qy, qz, qw = orn
     return (float(x), float(y), float(z)), (float(qx), float(qy), float(qz), float(qw))
 
 

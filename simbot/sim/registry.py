@@ -39,7 +39,7 @@ def registered() -> dict[str, Callable[..., object]]:
     for point in entry_points(group=GROUP):
         try:
             systems[point.name] = point.load()
-        except Exception as exc:  # a broken third-party package must not stop the server
+        except Exception as exc:  # noqa: BLE001 - a broken third-party package must not stop the server
             log.warning("system %s from %s cannot be loaded: %s", point.name, point.value, exc)
     return systems
 

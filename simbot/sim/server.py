@@ -98,9 +98,9 @@ class Server:
     def _systems(self, robot: Model) -> list[object]:
         """World plugins, then each model's plugins, then the server's own publishers."""
         systems: list[object] = []
-        placed = [(None, None, p) for p in self.world.plugins]
-        for name, body in self.physics.bodies.items():
-            placed += [(body.model, name, p) for p in body.model.plugins]
+        placed: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.world.plugins]
+        for body_name, body in self.physics.bodies.items():
+            placed += [(body.model, body_name, p) for p in body.model.plugins]
         for model, name, plugin in placed:
             factory = lookup(plugin)
             if factory is not None:

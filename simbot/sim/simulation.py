@@ -123,12 +123,12 @@ class Simulation:
 
     def step(self) -> None:
         """One step of every system and the physics."""
-        for system in self._pre:
-            system.pre_update(self.clock.now_ns)
+        for before in self._pre:
+            before.pre_update(self.clock.now_ns)
         self.physics.step()
         self.clock.advance()
-        for system in self._post:
-            system.post_update(self.clock.now_ns)
+        for after in self._post:
+            after.post_update(self.clock.now_ns)
 
     def request_steps(self, count: int, done: Callable[[], None]) -> None:
         """`count` more steps, then `done()`; these run even when paused or in lockstep."""

@@ -110,7 +110,7 @@ class WheelFriction:
         sx, sy, sz = linear[0] + spin[0], linear[1] + spin[1], linear[2] + spin[2]
         slip_along = (sx * along[0] + sy * along[1] + sz * along[2]) / SLIP_SPEED
         slip_across = (sx * across[0] + sy * across[1] + sz * across[2]) / SLIP_SPEED
-        f1 = -wheel.mu * load * (1.0 if slip_along > 1.0 else -1.0 if slip_along < -1.0 else slip_along)
-        f2 = -wheel.mu2 * load * (1.0 if slip_across > 1.0 else -1.0 if slip_across < -1.0 else slip_across)
+        f1 = -wheel.mu * load * max(-1.0, min(1.0, slip_along))
+        f2 = -wheel.mu2 * load * max(-1.0, min(1.0, slip_across))
         force = (f1 * along[0] + f2 * across[0], f1 * along[1] + f2 * across[1], f1 * along[2] + f2 * across[2])
         pb.applyExternalForce(self._body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)

@@ -30,7 +30,7 @@ from typing import Any
 
 from simbot.bus import messages
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import SystemConfigError, SystemContext, bool_param, Every, number_param, param
+from simbot.sim.system import Every, SystemConfigError, SystemContext, bool_param, number_param, param
 
 ABSURD_SPEED = 100.0
 """m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
