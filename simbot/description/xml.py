@@ -35,6 +35,11 @@ def parse_text(text: str, source: Path | str) -> Element:
         raise DescriptionError(source, f"malformed XML: {exc.msg}", line=exc.lineno) from None
 
 
+def parse_flag(text: str) -> bool | None:
+    """An SDF boolean (true/false/1/0), or None when `text` is none of them."""
+    return {"1": True, "true": True, "0": False, "false": False}.get(text.strip().lower())
+
+
 @dataclass(frozen=True)
 class Reader:
     """Typed accessors for the elements of one file; errors name that file."""
@@ -103,8 +108,7 @@ class Reader:
         value = self.text(element, tag)
         if value is None:
             return default
-        if value.lower() in ("1", "true"):
-            return True
-        if value.lower() in ("0", "false"):
-            return False
-        raise self.error(element.find(tag), f"expected true or false, got {value!r}")
+        flag = parse_flag(value)
+        if flag is None:
+            raise self.error(element.find(tag), f"expected true or false, got {value!r}")
+        return flag

@@ -24,6 +24,7 @@ import numpy as np
 
 from simbot.bus import DecodeError, Node, Publisher, decode
 from simbot.description.model import Model, Plugin, World
+from simbot.description.xml import parse_flag
 from simbot.sim.physics import Physics
 
 log = logging.getLogger(__name__)
@@ -162,11 +163,10 @@ def bool_param(plugin: Plugin, *tags: str, default: bool) -> bool:
     text = param(plugin, *tags)
     if text is None:
         return default
-    if text.lower() in ("true", "1"):
-        return True
-    if text.lower() in ("false", "0"):
-        return False
-    raise SystemConfigError(f"{plugin.name}: <{tags[0]}> expected true or false, got {text!r}")
+    flag = parse_flag(text)
+    if flag is None:
+        raise SystemConfigError(f"{plugin.name}: <{tags[0]}> expected true or false, got {text!r}")
+    return flag
 
 
 @dataclass
