@@ -42,26 +42,35 @@ class BusConfigError(ValueError):
 def zenoh_reason(exc: BaseException) -> str:
     """Zenoh's error text on one line, without the Rust source location it appends."""
     text = " ".join(str(exc).split())
-    return re.sub(r" at /\S+\.rs:\d+\.?$", "", text).strip()
+    return re.sub(r" at /\S+?\.rs:\d+\.?", "", text).strip()
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
     """Add --listen, --connect, --zenoh-config, --namespace and --connect-timeout to `parser`."""
     group = parser.add_argument_group("bus (Zenoh)")
     group.add_argument(
-        "--listen", action="append", default=[], metavar="ENDPOINT",
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
         help=f"Zenoh endpoint to listen on, repeatable (server default: {DEFAULT_ENDPOINT}; clients: none)",
-    )  # fmt: skip
+    )
     group.add_argument(
-        "--connect", action="append", default=[], metavar="ENDPOINT",
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
         help=f"Zenoh endpoint to connect to, repeatable (client default: {DEFAULT_ENDPOINT})",
-    )  # fmt: skip
+    )
     group.add_argument("--zenoh-config", type=Path, metavar="FILE", help="Zenoh JSON5 config file (kept as given)")
     group.add_argument("--namespace", default="", metavar="NS", help="prefix of every key, like a ROS namespace")
     group.add_argument(
-        "--connect-timeout", type=float, default=DEFAULT_CONNECT_TIMEOUT_S, metavar="SECONDS",
+        "--connect-timeout",
+        type=float,
+        default=DEFAULT_CONNECT_TIMEOUT_S,
+        metavar="SECONDS",
         help=f"how long a client waits for the server at start (default {DEFAULT_CONNECT_TIMEOUT_S:g})",
-    )  # fmt: skip
+    )
 
 
 @dataclass(frozen=True)
@@ -102,12 +111,18 @@ def _load_file(path: Path) -> zenoh.Config:
     try:
         return zenoh.Config.from_file(str(path))
     except zenoh.ZError as exc:
-        reason = zenoh_reason(exc)
-        where = re.search(r"--> (\d+):(\d+)", reason)
-        expected = re.search(r"= (.+)$", reason)
-        if where and expected:
-            raise BusConfigError(f"{path}:{where[1]}:{where[2]}: invalid Zenoh config: {expected[1]}") from None
-        raise BusConfigError(f"{path}: invalid Zenoh config: {reason}") from None
+        raise BusConfigError(f"{path}{_config_error(zenoh_reason(exc))}") from None
+
+
+def _config_error(reason: str) -> str:
+    """`:LINE:COL: invalid Zenoh config: WHAT` from the JSON5 parser's or the schema's message."""
+    syntax = re.search(r"--> (\d+):(\d+) .*= (.+)$", reason)
+    if syntax:
+        return f":{syntax[1]}:{syntax[2]}: invalid Zenoh config: {syntax[3]}"
+    schema = re.search(r'msg: "(.+)", location: Some\(Location \{ line: (\d+), column: (\d+)', reason)
+    if schema:
+        return f":{schema[2]}:{schema[3]}: invalid Zenoh config: {schema[1]}"
+    return f": invalid Zenoh config: {reason}"
 
 
 def _insert(config: zenoh.Config, key: str, value: Any, option: str) -> None:
@@ -159,6 +174,11 @@ def zenoh_config(options: BusOptions, role: Role) -> zenoh.Config:
         _insert(config, "connect/endpoints", [DEFAULT_ENDPOINT] if role == "client" else [], source)
     if role == "client" and unset("connect/timeout_ms"):
         _insert(config, "connect/timeout_ms", round(options.connect_timeout * 1000), "--connect-timeout")
-    logger.debug("zenoh %s config: mode %s, listen %s, connect %s", role, config.get_json("mode"),
-                 config.get_json("listen/endpoints"), config.get_json("connect/endpoints"))  # fmt: skip
+    logger.debug(
+        "zenoh %s config: mode %s, listen %s, connect %s",
+        role,
+        config.get_json("mode"),
+        config.get_json("listen/endpoints"),
+        config.get_json("connect/endpoints"),
+    )
     return config

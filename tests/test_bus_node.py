@@ -1,0 +1,324 @@
+"""Bus nodes on real Zenoh sessions over loopback: pub/sub, latched topics, inboxes, JSON services, options."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+from bus_helpers import BoundSocket, endpoint, free_port, node_pair, own_sockets, unique_namespace, wait_until
+
+from simbot.bus import (
+    BadRequest,
+    BusConfigError,
+    BusOpenError,
+    BusOptions,
+    Node,
+    Queryable,
+    Request,
+    ServiceError,
+    add_bus_arguments,
+    encode,
+    zenoh_config,
+)
+from simbot.bus import messages as m
+
+TWIST = "geometry_msgs/msg/Twist"
+STRING = "std_msgs/msg/String"
+
+
+def test_twist_round_trip_client_to_server_and_back() -> None:
+    """cmd_vel from a client reaches the server decoded; odom-like data flows the other way."""
+    with node_pair() as pair:
+        got: list[Any] = []
+        subscription = pair.server.subscribe("/cmd_vel", TWIST, got.append)
+        publisher = pair.client.publisher("/cmd_vel")
+        wait_until(lambda: publisher.has_subscribers, what="the server's cmd_vel subscription")
+        publisher.put(m.twist((0.5, 0.0, 0.0), (0.0, 0.0, -0.25)))
+        wait_until(lambda: got, what="the Twist")
+        assert got[0].linear.x == pytest.approx(0.5, abs=1e-12)
+        assert got[0].angular.z == pytest.approx(-0.25, abs=1e-12)
+        assert (subscription.received, subscription.dropped) == (1, 0)
+
+        back: list[Any] = []
+        pair.client.subscribe("odom_twist", TWIST, back.append)
+        server_publisher = pair.server.publisher("odom_twist")
+        wait_until(lambda: server_publisher.has_subscribers, what="the client's subscription")
+        server_publisher.put(m.twist((0.1, 0.2, 0.3), (0.4, 0.5, 0.6)))
+        wait_until(lambda: back, what="the server's Twist")
+        linear, angular = back[0].linear, back[0].angular
+        assert [linear.x, linear.y, linear.z, angular.x, angular.y, angular.z] == pytest.approx(
+            [0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
+        )
+
+
+def test_keys_carry_the_namespace() -> None:
+    """A node's keys are its namespace + the topic; samples carry the CDR encoding with the type name."""
+    with node_pair() as pair:
+        assert pair.server.key("/tf_static") == f"{pair.server.namespace}/tf_static"
+        samples: list[zenoh.Sample] = []
+        pair.client.session.declare_subscriber(f"{pair.client.namespace}/**", samples.append)
+        publisher = pair.server.publisher("/clock")
+        wait_until(lambda: publisher.has_subscribers, what="the plain subscriber")
+        publisher.put(m.clock(2_000_000_001))
+        wait_until(lambda: samples, what="the Clock sample")
+        assert str(samples[0].key_expr) == f"{pair.client.namespace}/clock"
+        assert str(samples[0].encoding) == "application/cdr;rosgraph_msgs/msg/Clock"
+        assert samples[0].payload.to_bytes() == encode(m.clock(2_000_000_001))
+
+
+def test_latched_topic_reaches_a_late_joiner_exactly_once() -> None:
+    """A subscriber that joins after the puts gets the latest value once, then every later put."""
+    with node_pair() as pair:
+        publisher = pair.server.publisher("/robot_description", latched=True, drop=False)
+        publisher.put(m.string("<robot name='v1'/>"))
+        publisher.put(m.string("<robot name='v2'/>"))
+        got: list[str] = []
+        pair.client.subscribe("/robot_description", STRING, lambda msg: got.append(msg.data), latched=True)
+        wait_until(lambda: got, what="the latched value")
+        publisher.put(m.string("<robot name='v3'/>"))
+        wait_until(lambda: len(got) >= 2, what="the update")
+        time.sleep(0.2)  # a duplicate from the history query would arrive within this
+        assert got == ["<robot name='v2'/>", "<robot name='v3'/>"]
+
+
+def test_latched_subscriber_before_the_publisher_and_across_a_server_restart() -> None:
+    """Late-publisher detection: a subscriber gets the values of publishers that appear after it."""
+    port, namespace = free_port(), unique_namespace()
+    server_options = BusOptions(listen=(endpoint(port),), namespace=namespace)
+    got: list[str] = []
+    with Node(server_options, "server") as server:
+        client = Node(BusOptions(connect=(endpoint(port),), namespace=namespace), "client")
+        client.subscribe("tf_static_names", STRING, lambda msg: got.append(msg.data), latched=True)
+        server.publisher("tf_static_names", latched=True).put(m.string("first"))
+        wait_until(lambda: got == ["first"], what="the first server's value")
+    with client, Node(server_options, "server") as restarted:
+        restarted.publisher("tf_static_names", latched=True).put(m.string("second"))  # before the client reconnects
+        wait_until(lambda: got == ["first", "second"], timeout=10.0, what="the restarted server's value")
+
+
+def test_latched_topic_answers_a_plain_zenoh_get() -> None:
+    """A plain Zenoh user reads the latest latched value with `get` on the key."""
+    with node_pair() as pair:
+        publisher = pair.server.publisher("detachable_joint/state", latched=True)
+        publisher.put(m.string("detached"))
+        publisher.put(m.string("attached"))
+        replies = list(pair.client.session.get(pair.client.key("detachable_joint/state"), timeout=2.0))
+        payloads = [reply.ok.payload.to_bytes() for reply in replies if reply.ok is not None]
+        assert payloads == [encode(m.string("attached"))]
+
+
+def test_inbox_drains_in_order_and_counts_overflow() -> None:
+    """Raw payloads queue up to maxlen (the oldest go first when full); drain returns and clears them."""
+    with node_pair() as pair:
+        inbox = pair.server.inbox("/cmd_vel", maxlen=3)
+        publisher = pair.client.publisher("/cmd_vel", drop=False)
+        wait_until(lambda: publisher.has_subscribers, what="the inbox subscription")
+        for i in range(5):
+            publisher.put(m.twist((float(i), 0.0, 0.0)))
+        wait_until(lambda: inbox.overflowed == 2, what="two overflows")
+        drained = inbox.drain()
+        assert drained == [encode(m.twist((float(i), 0.0, 0.0))) for i in (2, 3, 4)]
+        assert inbox.drain() == []
+
+
+def test_garbage_is_counted_and_good_messages_still_arrive(caplog: pytest.LogCaptureFixture) -> None:
+    """Undecodable payloads bump `dropped` with one rate-limited warning; the subscription keeps working."""
+    caplog.set_level(logging.WARNING, logger="simbot.bus.node")
+    with node_pair() as pair:
+        got: list[Any] = []
+        subscription = pair.server.subscribe("/cmd_vel", TWIST, got.append)
+        publisher = pair.client.publisher("/cmd_vel", drop=False)
+        wait_until(lambda: publisher.has_subscribers, what="the cmd_vel subscription")
+        publisher.put_raw(b"\x00\x01\x00\x00garbage")
+        publisher.put(m.string("a String is not a Twist"))
+        publisher.put_raw(encode(m.twist((1.0, 0.0, 0.0)))[:-3])  # truncated CDR
+        wait_until(lambda: subscription.dropped == 3, what="three drops")
+        publisher.put(m.twist((0.3, 0.0, 0.0)))
+        wait_until(lambda: got, what="the good Twist")
+        assert got[0].linear.x == pytest.approx(0.3)
+        assert (subscription.received, subscription.dropped) == (1, 3)
+    warnings = [r for r in caplog.records if "dropped a payload" in r.getMessage()]
+    assert len(warnings) == 1
+    assert "cmd_vel" in warnings[0].getMessage() and "geometry_msgs/msg/Twist" in warnings[0].getMessage()
+
+
+def _answer_next(service: Queryable, answer: Callable[[Request], object], timeout: float = 5.0) -> Request:
+    """Poll `service` until a request comes, answer it with `answer(request)`, return it."""
+    requests: list[Request] = []
+
+    def arrived() -> bool:
+        requests.extend(service.poll())
+        return bool(requests)
+
+    wait_until(arrived, timeout, "a request")
+    answer(requests[0])
+    return requests[0]
+
+
+def test_json_service_round_trip_and_deferred_reply() -> None:
+    """call → poll → reply, the reply possibly sent later from another thread."""
+    with node_pair() as pair, ThreadPoolExecutor(2) as pool:
+        service = pair.server.queryable("world/control")
+        assert service.poll() == []
+        future = pool.submit(pair.client.call, "world/control", {"step": 3})
+        request = _answer_next(service, lambda r: r.reply({"ok": True, "steps": r.json()["step"]}))
+        assert future.result(timeout=5) == {"ok": True, "steps": 3}
+        with pytest.raises(RuntimeError, match="already answered"):
+            request.reply({"ok": True})
+
+        start = time.monotonic()
+        future = pool.submit(pair.client.call, "world/control", {"pause": True})
+        _answer_next(service, lambda r: threading.Timer(0.3, r.reply, args=({"paused": True},)).start())
+        assert future.result(timeout=5) == {"paused": True}
+        assert time.monotonic() - start >= 0.3
+
+        future = pool.submit(pair.client.call, "world/control", b"")  # no payload reads as {}
+        _answer_next(service, lambda r: r.reply({"request": r.json()}))
+        assert future.result(timeout=5) == {"request": {}}
+
+
+def test_malformed_requests_are_bad_requests() -> None:
+    """Malformed JSON or a non-object is BadRequest on the server; its error reply is a ServiceError."""
+    with node_pair() as pair, ThreadPoolExecutor(1) as pool:
+        service = pair.server.queryable("world/control")
+        reasons: list[str] = []
+
+        def reject(request: Request) -> None:
+            with pytest.raises(BadRequest) as caught:
+                request.json()
+            reasons.append(str(caught.value))
+            request.reply_error(str(caught.value))
+
+        for payload, reason in ((b"{pause: true", "malformed JSON"), (b"[1, 2]", "expected a JSON object, got list")):
+            future = pool.submit(pair.client.call, "world/control", payload)
+            _answer_next(service, reject)
+            with pytest.raises(ServiceError, match=reason):
+                future.result(timeout=5)
+            assert "\n" not in reasons[-1] and reasons[-1].startswith(pair.server.key("world/control"))
+
+
+def test_call_times_out_naming_the_key() -> None:
+    """No answer within the timeout (or no service at all) is a TimeoutError naming the key."""
+    with node_pair() as pair:
+        pair.server.queryable("world/silent")
+        start = time.monotonic()
+        with pytest.raises(TimeoutError, match=f"{pair.client.namespace}/world/silent"):
+            pair.client.call("world/silent", {}, timeout=0.5)
+        assert 0.4 < time.monotonic() - start < 3.0
+        with pytest.raises(TimeoutError, match="world/none"):
+            pair.client.call("world/none", {}, timeout=0.5)
+
+
+def _tcp_listening(sockets: set[BoundSocket]) -> set[tuple[str, int]]:
+    return {(s.address, s.port) for s in sockets if s.proto.startswith("tcp")}
+
+
+def test_server_listens_only_on_its_loopback_port_and_client_on_nothing() -> None:
+    """The secure default: one TCP listener at 127.0.0.1:PORT for the server, none for a client, no UDP."""
+    before = own_sockets()
+    port = free_port()
+    namespace = unique_namespace()
+    with Node(BusOptions(listen=(endpoint(port),), namespace=namespace), "server"):
+        with_server = own_sockets()
+        assert with_server - before == {BoundSocket("tcp", "127.0.0.1", port, "0A")}
+        with Node(BusOptions(connect=(endpoint(port),), namespace=namespace), "client"):
+            assert own_sockets() == with_server
+    assert all(s.loopback for s in own_sockets() - before)
+
+
+def test_default_configs_are_loopback_only() -> None:
+    """Without options: server peer on 127.0.0.1:7447, client connects there, no multicast, timestamps."""
+    server = zenoh_config(BusOptions(), "server")
+    client = zenoh_config(BusOptions(), "client")
+    assert json.loads(server.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7447"]
+    assert json.loads(server.get_json("connect/endpoints")) == []
+    assert json.loads(client.get_json("listen/endpoints")) == []
+    assert json.loads(client.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
+    assert (json.loads(server.get_json("mode")), json.loads(client.get_json("mode"))) == ("peer", "client")
+    for config in (server, client):
+        assert json.loads(config.get_json("scouting/multicast/enabled")) is False
+        assert json.loads(config.get_json("timestamping/enabled")) is True
+
+
+def test_options_from_the_command_line_and_a_config_file(tmp_path: Path) -> None:
+    """--listen/--connect override; a config file's own settings are kept, the rest get our defaults."""
+    parser = argparse.ArgumentParser()
+    add_bus_arguments(parser)
+    config_file = tmp_path / "zenoh.json5"
+    config_file.write_text(
+        "{ // JSON5, as Zenoh reads it\n  scouting: { multicast: { enabled: true } },\n  listen: { endpoints: ['tcp/127.0.0.1:0'] },\n}\n"
+    )
+    args = parser.parse_args(
+        [
+            "--connect",
+            "tcp/127.0.0.1:7448",
+            "--connect",
+            "tcp/[::1]:7449",
+            "--zenoh-config",
+            str(config_file),
+            "--namespace",
+            "/robot1/",
+        ]
+    )
+    options = BusOptions.from_args(args)
+    assert options == BusOptions(
+        connect=("tcp/127.0.0.1:7448", "tcp/[::1]:7449"), config_file=config_file, namespace="/robot1/"
+    )
+    config = zenoh_config(options, "client")
+    assert json.loads(config.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7448", "tcp/[::1]:7449"]
+    assert json.loads(config.get_json("listen/endpoints")) == ["tcp/127.0.0.1:0"]  # the file said so
+    assert json.loads(config.get_json("scouting/multicast/enabled")) is True  # the file said so
+    assert json.loads(config.get_json("mode")) == "client"
+    assert BusOptions.from_args(parser.parse_args([])) == BusOptions()
+    listen = zenoh_config(BusOptions.from_args(parser.parse_args(["--listen", "tcp/127.0.0.1:7500"])), "server")
+    assert json.loads(listen.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7500"]
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        (None, "no such Zenoh config file"),
+        ("{ mode: ", "invalid Zenoh config"),
+        ("{ no_such_section: 1 }", "invalid Zenoh config"),
+    ],
+)
+def test_bad_zenoh_config_file_names_the_file(tmp_path: Path, content: str | None, reason: str) -> None:
+    """A missing or unreadable --zenoh-config file is one BusConfigError line naming the file."""
+    path = tmp_path / "bad.json5"
+    if content is not None:
+        path.write_text(content)
+    with pytest.raises(BusConfigError, match=reason) as caught:
+        Node(BusOptions(config_file=path), "server")
+    assert str(caught.value).startswith(str(path)) and "\n" not in str(caught.value)
+
+
+def test_bad_endpoints_and_namespace_name_the_option() -> None:
+    """An endpoint Zenoh cannot parse names its option; so does a namespace with wildcards."""
+    with pytest.raises(BusConfigError, match=r"^--listen '127\.0\.0\.1:7447': not a Zenoh endpoint"):
+        zenoh_config(BusOptions(listen=("127.0.0.1:7447",)), "server")
+    with pytest.raises(BusConfigError, match=r"^--connect 'bogus'"):
+        zenoh_config(BusOptions(connect=("tcp/127.0.0.1:7447", "bogus")), "client")
+    with pytest.raises(BusConfigError, match=r"^--namespace 'robot\*'"):
+        BusOptions(namespace="robot*")
+
+
+def test_open_failures_are_one_line_bus_open_errors() -> None:
+    """A port already in use, or no server within the client's connect timeout: BusOpenError."""
+    port = free_port()
+    with Node(BusOptions(listen=(endpoint(port),)), "server"):
+        with pytest.raises(BusOpenError, match="server") as caught:
+            Node(BusOptions(listen=(endpoint(port),)), "server")
+        assert "\n" not in str(caught.value)
+    start = time.monotonic()
+    with pytest.raises(BusOpenError, match="client"):
+        Node(BusOptions(connect=(endpoint(free_port()),), connect_timeout=0.3), "client")
+    assert time.monotonic() - start < 3.0
