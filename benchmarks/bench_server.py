@@ -21,12 +21,11 @@ import threading
 import time
 import uuid
 
-import pybullet as pb
-
 from simbot.bus import BusOptions, Node, messages
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
+from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
 
 STEP_S = 0.001

@@ -183,6 +183,7 @@ class Subscription(Generic[M]):
         self._callback = callback
         self._warnings = warnings
         self._lock = threading.Lock()
+        self._closed = False
         self._subscriber: _Undeclarable
         if latched:
             self._subscriber = zenoh.ext.declare_advanced_subscriber(
@@ -196,8 +197,8 @@ class Subscription(Generic[M]):
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         """Zenoh thread: decode, count, hand over; never raises into Zenoh."""
-        if sample.kind != zenoh.SampleKind.PUT:
-            return
+        if self._closed or sample.kind != zenoh.SampleKind.PUT:
+            return  # samples Zenoh queued before close() are not delivered after it
         try:
             msg = decode(sample.payload.to_bytes(), self.typename)
         except DecodeError as exc:
@@ -213,7 +214,8 @@ class Subscription(Generic[M]):
             logger.exception("%s: subscription callback failed", self.key)
 
     def close(self) -> None:
-        """Undeclare the subscriber."""
+        """Undeclare the subscriber; nothing reaches the callback afterwards."""
+        self._closed = True
         _undeclare(self._subscriber)
 
 
@@ -273,6 +275,8 @@ class Request:
             value = json.loads(self.payload)
         except (UnicodeDecodeError, ValueError) as exc:
             raise BadRequest(f"{self.key}: malformed JSON: {' '.join(str(exc).split())}") from None
+        except RecursionError:
+            raise BadRequest(f"{self.key}: JSON nested too deeply") from None
         if not isinstance(value, dict):
             raise BadRequest(f"{self.key}: expected a JSON object, got {type(value).__name__}")
         return value

@@ -27,6 +27,9 @@ from simbot.sim.system import Drops
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
 
+MAX_COORDINATE = 1e5
+"""Metres (and quaternion components) beyond which a pose is absurd: PyBullet's floats lose the world there."""
+
 Handler = Callable[[Request, dict[str, Any]], None]
 
 
@@ -61,25 +64,17 @@ class WorldControl:
         unknown = set(body) - {"pause", "step", "multi_step", "reset"}
         if unknown:
             raise ValueError(f"unknown field(s) {', '.join(sorted(unknown))}; expected pause, step, multi_step, reset")
-        if "reset" in body:
-            self._reset(body["reset"])
-        if "pause" in body:
-            self._pause(body["pause"])
-        steps = _steps(body)
-        self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
-
-    def _reset(self, value: Any) -> None:
-        if value is True or (isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))):
-            self.sim.reset()
-            return
-        raise ValueError(f"reset expects true or {{\"all\": true}}, got {value!r}")
-
-    def _pause(self, value: Any) -> None:
-        if not isinstance(value, bool):
-            raise TypeError(f"pause expects true or false, got {value!r}")
-        if not value and self.sim.mode is Mode.LOCKSTEP:
+        reset = "reset" in body and _reset(body["reset"])
+        pause = _pause(body["pause"]) if "pause" in body else None
+        if pause is False and self.sim.mode is Mode.LOCKSTEP:
             raise ValueError("in lockstep mode the world advances only on step or multi_step")
-        self.sim.set_paused(value)
+        steps = _steps(body)
+        # Everything is valid: only now does anything change.
+        if reset:
+            self.sim.reset()
+        if pause is not None:
+            self.sim.set_paused(pause)
+        self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
 
     def _set_pose(self, request: Request, body: dict[str, Any]) -> None:
         name = body.get("name")
@@ -99,7 +94,7 @@ class WorldControl:
         models = {}
         for name in physics.bodies:
             xyz, quat = physics.model_pose(name)
-            models[name] = {"position": list(xyz), "orientation": list(quat)}
+            models[name] = {"position": _finite(xyz), "orientation": _finite(quat)}
         state = self._time(ok=True) | {
             "paused": self.sim.paused,
             "mode": self.sim.mode.value,
@@ -112,6 +107,19 @@ class WorldControl:
 
     def _time(self, ok: bool) -> dict[str, Any]:
         return {"ok": ok, "sim_time": self.sim.clock.now_ns / 1e9, "iterations": self.sim.clock.iterations}
+
+
+def _reset(value: Any) -> bool:
+    """Whether a reset field asks for a reset (Gazebo's all, model_only and time_only all reset everything here)."""
+    if value is True or (isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))):
+        return True
+    raise ValueError(f"reset expects true or {{\"all\": true}}, got {value!r}")
+
+
+def _pause(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise TypeError(f"pause expects true or false, got {value!r}")
+    return value
 
 
 def _steps(body: dict[str, Any]) -> int:
@@ -131,7 +139,12 @@ def _vector(value: Any, axes: str, field: str, default: float) -> list[float]:
     numbers = []
     for axis in axes:
         number = value.get(axis, default)
-        if isinstance(number, bool) or not isinstance(number, (int, float)) or not math.isfinite(number):
-            raise ValueError(f"{field}.{axis} expects a finite number, got {number!r}")
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or not abs(number) <= MAX_COORDINATE:
+            raise ValueError(f"{field}.{axis} expects a number within ±{MAX_COORDINATE:g}, got {number!r}")
         numbers.append(float(number))
     return numbers
+
+
+def _finite(values: tuple[float, ...]) -> list[float | None]:
+    """JSON has no NaN or infinity: a body that has left the world reads as nulls."""
+    return [v if math.isfinite(v) else None for v in values]

@@ -14,11 +14,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import pybullet as pb
-
 from simbot.description import model_to_urdf
 from simbot.description.model import Joint, Model, World
 from simbot.description.poses import Pose
+from simbot.sim.bullet import pb
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 
 log = logging.getLogger(__name__)

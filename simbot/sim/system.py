@@ -60,9 +60,9 @@ class Drops:
     last_error: dict[str, str] = field(default_factory=dict)
     _last_warning: dict[str, float] = field(default_factory=dict)
 
-    def drop(self, key: str, reason: str) -> None:
-        """Counts a dropped input and warns, rate-limited per key."""
-        self.counts[key] = self.counts.get(key, 0) + 1
+    def drop(self, key: str, reason: str, count: int = 1) -> None:
+        """Counts dropped inputs and warns, rate-limited per key."""
+        self.counts[key] = self.counts.get(key, 0) + count
         self.last_error[key] = reason
         now = time.monotonic()
         if now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
@@ -83,9 +83,13 @@ class Input:
         self._drops = drops
         self._typename = typename
         self._check = check
+        self._overflowed = 0
 
     def drain(self) -> list[Any]:
         """The valid messages that arrived since the last call, oldest first."""
+        if self._inbox.overflowed != self._overflowed:
+            lost, self._overflowed = self._inbox.overflowed - self._overflowed, self._inbox.overflowed
+            self._drops.drop(self.key, "more commands arrived within one step than the queue holds; the oldest were dropped", lost)
         messages = []
         for payload in self._inbox.drain():
             try:

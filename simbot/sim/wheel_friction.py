@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import pybullet as pb
+from simbot.sim.bullet import pb
 
 SLIP_SPEED = 0.01
 """m/s of slip at which friction saturates. Small enough that the tug tracks commands within

@@ -1,0 +1,377 @@
+"""Test helpers for the server: a real `simbot-server` subprocess on a free loopback port, a client on it.
+
+`running_server(...)` starts `python -m simbot.sim.server` with its own port and namespace and
+`--quiet`, waits until its world control answers, and on the way out sends SIGTERM and asserts
+that the process exits with code 0 within 2 s. `SimServer` wraps the client node with the world
+control calls the tests use (state, step, reset, poses); `Collector` gathers messages from Zenoh
+callback threads into a list under a lock and waits for conditions with a timeout.
+
+Lockstep is the mode for exact sim durations: a command is put on the bus, then `step(n)` runs
+n physics steps. Zenoh delivers a client's samples and queries over one link in order, so the
+server's inbox holds the command before the step request is polled; `send` also waits a few
+milliseconds to leave no doubt. The command is consumed in the first of those steps.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+import pytest
+from bus_helpers import endpoint, free_port, unique_namespace
+
+from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError, Subscription, messages
+
+REPO = Path(__file__).resolve().parents[1]
+STARTUP_TIMEOUT_S = 30.0
+EXIT_TIMEOUT_S = 2.0
+SEND_SETTLE_S = 0.02
+
+TWIST = "geometry_msgs/msg/Twist"
+ODOMETRY = "nav_msgs/msg/Odometry"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+CLOCK = "rosgraph_msgs/msg/Clock"
+STRING = "std_msgs/msg/String"
+EMPTY = "std_msgs/msg/Empty"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+
+T = TypeVar("T")
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+# --- geometry -------------------------------------------------------------------------------
+
+
+def yaw_of(quat: Sequence[float]) -> float:
+    """Heading (rotation about z) of an xyzw quaternion."""
+    x, y, z, w = quat
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def wrap(angle: float) -> float:
+    """`angle` in (−π, π]."""
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+def unwrap(yaws: Sequence[float]) -> list[float]:
+    """A continuous heading from wrapped samples (successive samples less than π apart)."""
+    if not yaws:
+        return []
+    out = [yaws[0]]
+    for yaw in yaws[1:]:
+        out.append(out[-1] + wrap(yaw - out[-1]))
+    return out
+
+
+def planar_distance(a: Sequence[float], b: Sequence[float]) -> float:
+    return math.hypot(b[0] - a[0], b[1] - a[1])
+
+
+def pose_of(msg: Any) -> tuple[Vec3, Quat]:
+    """(xyz, xyzw) of a Pose message."""
+    p, o = msg.position, msg.orientation
+    return (p.x, p.y, p.z), (o.x, o.y, o.z, o.w)
+
+
+def stamp_ns(msg: Any) -> int:
+    """Integer nanoseconds of a message's header stamp (or of a Clock's clock)."""
+    if hasattr(msg, "header"):
+        return messages.stamp_ns(msg.header)
+    return messages.stamp_ns(msg.clock)
+
+
+# --- collecting -----------------------------------------------------------------------------
+
+
+class Collector(Generic[T]):
+    """Messages from a Zenoh callback thread, each with the monotonic time it arrived.
+
+    Use the instance as the callback; it only appends under a lock and notifies waiters.
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._items: list[tuple[float, T]] = []
+
+    def __call__(self, msg: T) -> None:
+        now = time.monotonic()
+        with self._cond:
+            self._items.append((now, msg))
+            self._cond.notify_all()
+
+    def __len__(self) -> int:
+        with self._cond:
+            return len(self._items)
+
+    def messages(self) -> list[T]:
+        """A snapshot of the messages so far, oldest first."""
+        with self._cond:
+            return [msg for _, msg in self._items]
+
+    def timed(self) -> list[tuple[float, T]]:
+        """A snapshot of (arrival time, message) pairs."""
+        with self._cond:
+            return list(self._items)
+
+    def clear(self) -> None:
+        with self._cond:
+            self._items.clear()
+
+    def wait_for(self, condition: Callable[[list[T]], object], timeout: float = 5.0, what: str = "messages") -> list[T]:
+        """Waits until `condition(messages)` holds; AssertionError naming `what` after `timeout` s."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                snapshot = [msg for _, msg in self._items]
+                if condition(snapshot):
+                    return snapshot
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f"timed out after {timeout} s waiting for {what} ({len(snapshot)} received)")
+                self._cond.wait(min(left, 0.05))
+
+    def wait_count(self, count: int, timeout: float = 5.0, what: str = "messages") -> list[T]:
+        return self.wait_for(lambda items: len(items) >= count, timeout, f"{count} {what}")
+
+    def wait_stamp(self, ns: int, timeout: float = 5.0, what: str = "message") -> T:
+        """The message stamped exactly `ns` (waits for it)."""
+        found = self.wait_for(lambda items: any(stamp_ns(m) == ns for m in items), timeout, f"{what} stamped {ns / 1e9:.3f} s")
+        return next(m for m in found if stamp_ns(m) == ns)
+
+
+def wait_until(condition: Callable[[], object], timeout: float = 5.0, what: str = "condition", poll: float = 0.01) -> None:
+    """Poll `condition` until it is true; AssertionError naming `what` after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(poll)
+
+
+# --- the server -----------------------------------------------------------------------------
+
+
+def server_command(*args: str) -> list[str]:
+    return [sys.executable, "-m", "simbot.sim.server", *args]
+
+
+@dataclass
+class SimServer:
+    """A running server process and a client node on its bus."""
+
+    process: subprocess.Popen[bytes]
+    port: int
+    namespace: str
+    world: str
+    mode: str
+    node: Node
+    stderr_path: Path
+    stopped: bool = False
+    _publishers: dict[str, Publisher] = field(default_factory=dict)
+    _subscriptions: list[Subscription[Any]] = field(default_factory=list)
+
+    # bus
+
+    @property
+    def endpoint(self) -> str:
+        return endpoint(self.port)
+
+    def key(self, topic: str) -> str:
+        """The Zenoh key of `topic` in the server's namespace (as in `dropped` and `last_errors`)."""
+        return self.node.key(topic)
+
+    def client(self) -> Node:
+        """A new client node on the server's bus (the caller closes it)."""
+        return Node(BusOptions(connect=(self.endpoint,), namespace=self.namespace, connect_timeout=10.0), "client")
+
+    def publisher(self, topic: str) -> Publisher:
+        """One reliable (BLOCK) publisher per topic, kept for the server's life."""
+        if topic not in self._publishers:
+            self._publishers[topic] = self.node.publisher(topic, drop=False)
+        return self._publishers[topic]
+
+    def subscribe(self, topic: str, typename: str, *, latched: bool = False) -> Collector[Any]:
+        """Messages of `topic` collected on the server's client node, until `unsubscribe_all`."""
+        collector: Collector[Any] = Collector()
+        self._subscriptions.append(self.node.subscribe(topic, typename, collector, latched=latched))
+        return collector
+
+    def unsubscribe_all(self) -> None:
+        """Undeclares what `subscribe` declared (a test's collectors do not outlive it)."""
+        subscriptions, self._subscriptions = self._subscriptions, []
+        for subscription in subscriptions:
+            subscription.close()
+
+    def send(self, topic: str, msg: Any) -> None:
+        """Puts `msg` on `topic` and leaves it a moment to arrive."""
+        self.publisher(topic).put(msg)
+        time.sleep(SEND_SETTLE_S)
+
+    def send_raw(self, topic: str, data: bytes) -> None:
+        self.publisher(topic).put_raw(data)
+
+    def drive(self, vx: float, wz: float = 0.0) -> None:
+        self.send("cmd_vel", messages.twist((vx, 0.0, 0.0), (0.0, 0.0, wz)))
+
+    # world control
+
+    def call(self, name: str, payload: dict[str, Any] | bytes, timeout: float = 10.0) -> dict[str, Any]:
+        return self.node.call(f"world/{self.world}/{name}", payload, timeout=timeout)
+
+    def control(self, body: dict[str, Any] | bytes, timeout: float = 60.0) -> dict[str, Any]:
+        return self.call("control", body, timeout)
+
+    def state(self) -> dict[str, Any]:
+        return self.call("state", {})
+
+    def step(self, steps: int) -> dict[str, Any]:
+        """`steps` physics steps; returns the reply (sim_time, iterations) once they are done."""
+        reply = self.control({"multi_step": steps})
+        assert reply.get("ok") is True, f"multi_step {steps} refused: {reply}"
+        return reply
+
+    def reset(self) -> None:
+        """Stop command first (it is consumed at the next step), then every model back where it began."""
+        if self.mode == "lockstep":
+            self.drive(0.0, 0.0)
+        reply = self.control({"reset": {"all": True}})
+        assert reply.get("ok") is True and reply["sim_time"] == 0.0, f"reset refused: {reply}"
+
+    def pose(self, model: str = "flexley_tug", state: dict[str, Any] | None = None) -> tuple[Vec3, Quat]:
+        """A model's ground-truth pose from the world state."""
+        models = (state or self.state())["models"]
+        assert model in models, f"no model {model!r} in the world state ({', '.join(models)})"
+        p, q = models[model]["position"], models[model]["orientation"]
+        return (p[0], p[1], p[2]), (q[0], q[1], q[2], q[3])
+
+    def prime(self, *collectors: Collector[Any], chunk: int = 20, timeout: float = 5.0) -> None:
+        """Lockstep: steps in small chunks until every collector has a message (subscriptions are live)."""
+        deadline = time.monotonic() + timeout
+        while not all(len(c) for c in collectors):
+            if time.monotonic() > deadline:
+                raise AssertionError(f"no messages within {timeout} s of subscribing: {[len(c) for c in collectors]}")
+            self.step(chunk)
+            time.sleep(0.01)
+
+    # process
+
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def stderr(self) -> str:
+        return self.stderr_path.read_text(errors="replace")
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = EXIT_TIMEOUT_S) -> float:
+        """Sends `sig` and asserts a clean exit (code 0) within `timeout` seconds; returns the seconds it took."""
+        self.node.close()
+        self.stopped = True
+        if self.process.poll() is not None:
+            raise AssertionError(f"server died before it was stopped (code {self.process.returncode}): {self.stderr()[-2000:]}")
+        start = time.monotonic()
+        self.process.send_signal(sig)
+        try:
+            code = self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            raise AssertionError(f"server did not exit within {timeout} s of {signal.Signals(sig).name}") from None
+        elapsed = time.monotonic() - start
+        assert code == 0, f"server exited with code {code} after {signal.Signals(sig).name}: {self.stderr()[-2000:]}"
+        return elapsed
+
+
+def _spawn(args: Sequence[str], stderr_path: Path) -> subprocess.Popen[bytes]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    with stderr_path.open("wb") as err:
+        return subprocess.Popen(server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=REPO, env=env)
+
+
+def _connect(process: subprocess.Popen[bytes], port: int, namespace: str, stderr_path: Path) -> Node:
+    """A client node on the server, tried a second at a time so that a server dying at start is seen at once."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    while True:
+        if process.poll() is not None:
+            raise AssertionError(f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}")
+        try:
+            return Node(BusOptions(connect=(endpoint(port),), namespace=namespace, connect_timeout=1.0), "client")
+        except BusOpenError:
+            if time.monotonic() > deadline:
+                raise
+
+
+def _wait_ready(process: subprocess.Popen[bytes], node: Node, world: str, stderr_path: Path) -> None:
+    deadline = time.monotonic() + STARTUP_TIMEOUT_S
+    while True:
+        if process.poll() is not None:
+            raise AssertionError(f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}")
+        try:
+            state = node.call(f"world/{world}/state", {}, timeout=0.5)
+        except (TimeoutError, ServiceError):
+            state = None
+        if state is not None and state.get("ok"):
+            return
+        if time.monotonic() > deadline:
+            raise AssertionError(f"server's world control did not answer within {STARTUP_TIMEOUT_S} s: {stderr_path.read_text()[-2000:]}")
+        time.sleep(0.05)
+
+
+@contextmanager
+def running_server(
+    world: str = "empty",
+    mode: str = "lockstep",
+    seed: int = 0,
+    extra: Sequence[str] = (),
+    world_name: str | None = None,
+) -> Iterator[SimServer]:
+    """A `simbot-server` on a fresh loopback port and namespace; stopped with SIGTERM, exit 0 within 2 s asserted."""
+    port = free_port()
+    namespace = unique_namespace()
+    name = world_name or Path(world).stem
+    tmp = tempfile.TemporaryDirectory(prefix="simbot-server-")
+    stderr_path = Path(tmp.name) / "stderr.txt"
+    args = ["--world", world, "--mode", mode, "--seed", str(seed), "--listen", endpoint(port), "--namespace", namespace, "--quiet", *extra]
+    process = _spawn(args, stderr_path)
+    node: Node | None = None
+    try:
+        node = _connect(process, port, namespace, stderr_path)
+        _wait_ready(process, node, name, stderr_path)
+        server = SimServer(process, port, namespace, name, mode, node, stderr_path)
+        yield server
+        if not server.stopped:
+            server.stop()
+    finally:
+        if node is not None:
+            node.close()
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        tmp.cleanup()
+
+
+@pytest.fixture
+def client_node(request: pytest.FixtureRequest) -> Iterator[Node]:
+    """A fresh client node on the bus of the test module's `sim` server (a late joiner)."""
+    sim: SimServer = request.getfixturevalue("sim")
+    with sim.client() as node:
+        yield node
+
+
+def fresh(sim: SimServer) -> Iterator[SimServer]:
+    """Body of a module's autouse fixture: the world reset before a test, its subscriptions gone after."""
+    sim.reset()
+    yield sim
+    sim.unsubscribe_all()

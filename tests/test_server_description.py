@@ -1,0 +1,164 @@
+"""What a running server says about the robot: `robot_description` (URDF) and `tf_static` agree with the SDF.
+
+Both are latched: this test's client subscribes after the server published them (a late joiner)
+and must still get them. The URDF is parsed with yourdfpy and its forward kinematics at the zero
+configuration must put every SDF link where the SDF does (link.pose, in the model frame); the
+tf_static tree, composed from base_footprint, must put every fixed link and every sensor frame
+where the SDF does, and hold the facts of SPEC §1 (base_link 0.09 up, six cameras at z 0.39).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+import yourdfpy
+from conftest import ROBOT_SDF
+from server_helpers import STRING, TF_MESSAGE, Collector, SimServer, running_server
+from server_helpers import client_node  # noqa: F401  (a fixture the fixtures below use)
+
+from simbot.bus import Node
+from simbot.description import load_model
+from simbot.description.model import Model
+from simbot.description.poses import Pose, quaternion_to_matrix
+
+TOL = 1e-6
+ROOT = "base_footprint"
+CAMERAS = {
+    "camera_front": (1.0, 0.0, 0.0),
+    "camera_back": (-1.0, 0.0, math.pi),
+    "camera_front_right": (1.0, -0.5, -math.pi / 2),
+    "camera_back_right": (-1.0, -0.5, -math.pi / 2),
+    "camera_front_left": (1.0, 0.5, math.pi / 2),
+    "camera_back_left": (-1.0, 0.5, math.pi / 2),
+}
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimServer]:
+    with running_server("warehouse", "lockstep") as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def model() -> Model:
+    return load_model(ROBOT_SDF)
+
+
+@pytest.fixture
+def urdf_text(client_node: Node) -> str:
+    got: Collector[Any] = Collector()
+    client_node.subscribe("robot_description", STRING, got, latched=True)
+    return str(got.wait_count(1, what="robot_description for a late joiner")[0].data)
+
+
+@pytest.fixture
+def tf_static(client_node: Node) -> dict[str, tuple[str, np.ndarray]]:
+    """child frame → (parent frame, 4×4 transform of the child in the parent)."""
+    got: Collector[Any] = Collector()
+    client_node.subscribe("tf_static", TF_MESSAGE, got, latched=True)
+    message = got.wait_count(1, what="tf_static for a late joiner")[0]
+    tree: dict[str, tuple[str, np.ndarray]] = {}
+    for transform in message.transforms:
+        child = transform.child_frame_id
+        assert child not in tree, f"tf_static gives {child!r} two parents"
+        t, r = transform.transform.translation, transform.transform.rotation
+        assert abs(math.sqrt(r.x**2 + r.y**2 + r.z**2 + r.w**2) - 1.0) < 1e-9, f"{child}: rotation is not a unit quaternion"
+        matrix = np.eye(4)
+        matrix[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
+        matrix[:3, 3] = (t.x, t.y, t.z)
+        tree[child] = (transform.header.frame_id, matrix)
+    return tree
+
+
+def _in_root(tree: dict[str, tuple[str, np.ndarray]], frame: str) -> np.ndarray:
+    """The pose of `frame` in base_footprint, composed along tf_static."""
+    matrix, seen = np.eye(4), []
+    while frame != ROOT:
+        assert frame in tree, f"tf_static does not connect {frame!r} to {ROOT} (chain {' <- '.join(seen + [frame])})"
+        assert frame not in seen, f"tf_static has a cycle through {frame!r}"
+        seen.append(frame)
+        parent, transform = tree[frame]
+        matrix = transform @ matrix
+        frame = parent
+    return matrix
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.abs(a - b).max())
+
+
+def test_robot_description_matches_the_sdf(urdf_text: str, model: Model) -> None:
+    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    assert urdf.validate(), "yourdfpy rejects the URDF on robot_description"
+    assert urdf.base_link == ROOT
+    assert model.link(ROOT).pose.is_identity()
+    for link in model.links:
+        assert link.name in urdf.link_map, f"the URDF lacks the SDF link {link.name!r}"
+        fk = urdf.get_transform(link.name, urdf.base_link)
+        error = _close(fk, link.pose.matrix())
+        assert error < TOL, f"{link.name}: URDF forward kinematics differs from the SDF pose by {error:.2e}"
+        inertial = urdf.link_map[link.name].inertial
+        if link.inertial is not None:
+            assert inertial is not None and inertial.mass == pytest.approx(link.inertial.mass)
+    wheels = {j.name: j for j in urdf.robot.joints if j.name.endswith("_wheel_joint")}
+    assert sorted(wheels) == sorted(f"{w}_wheel_joint" for w in ("front_left", "front_right", "back_left", "back_right"))
+    for joint in wheels.values():
+        assert joint.type in ("continuous", "revolute")
+        axis_in_root = urdf.get_transform(joint.child, ROOT)[:3, :3] @ np.asarray(joint.axis)
+        assert abs(abs(axis_in_root[1]) - 1.0) < TOL, f"{joint.name}: axis {axis_in_root} is not along y"
+    assert urdf.link_map["base_link"].inertial.mass == pytest.approx(100.0)
+
+
+def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]], model: Model) -> None:
+    tree = tf_static
+    # the facts of SPEC §1, edge by edge
+    parent, matrix = tree["base_link"]
+    assert parent == ROOT and _close(matrix, Pose((0.0, 0.0, 0.09), (0.0, 0.0, 0.0)).matrix()) < TOL
+    parent, matrix = tree["imu_link"]
+    assert parent == "base_link" and _close(matrix, Pose((0.0, 0.0, 0.06), (0.0, 0.0, 0.0)).matrix()) < TOL
+    for lidar, (x, yaw) in {"base_scan_front": (1.0, math.pi), "base_scan_back": (-0.9, 0.0)}.items():
+        expected = Pose((x, 0.0, 0.04), (0.0, 0.0, yaw)).matrix()
+        assert _close(_in_root(tree, lidar), expected) < TOL, f"{lidar} is not where SPEC §1 puts it"
+    for camera, (x, y, yaw) in CAMERAS.items():
+        assert camera in tree, f"tf_static lacks the camera frame {camera!r}"
+        parent, matrix = tree[camera]
+        assert parent == "base_link", f"{camera} hangs from {parent!r}, not base_link"
+        assert _close(matrix, Pose((x, y, 0.39), (0.0, 0.0, yaw)).matrix()) < TOL, f"{camera} is not at ({x}, {y}, 0.39) yaw {yaw:.4f}"
+
+    # every fixed link and every sensor frame, composed from base_footprint, where the SDF puts it
+    fixed = {j.child for j in model.joints if j.type == "fixed"}
+    checked = []
+    for link in model.links:
+        if link.name in fixed:
+            error = _close(_in_root(tree, link.name), link.pose.matrix())
+            assert error < TOL, f"tf_static puts {link.name} {error:.2e} from its SDF pose"
+            checked.append(link.name)
+        for sensor in link.sensors:
+            frame = sensor.frame_name or sensor.name
+            if frame in {lk.name for lk in model.links}:
+                continue  # the sensor reports in its link's frame (the lidars, the IMU)
+            expected = (link.pose @ sensor.pose).matrix()
+            error = _close(_in_root(tree, frame), expected)
+            assert error < TOL, f"tf_static puts {frame} {error:.2e} from the SDF pose of sensor {sensor.name}"
+            checked.append(frame)
+    assert {"base_link", "imu_link", "base_scan_front", "base_scan_back"} <= set(checked)
+    assert set(CAMERAS) <= set(checked)
+    # static means static: no wheel or castor (they move) and nothing from the odom tree
+    movable = {j.child for j in model.joints if j.type != "fixed"}
+    assert not movable & set(tree), f"tf_static holds moving links: {sorted(movable & set(tree))}"
+    assert "odom" not in tree and ROOT not in tree
+
+
+def test_tf_static_and_robot_description_agree(urdf_text: str, tf_static: dict[str, tuple[str, np.ndarray]]) -> None:
+    """Every tf_static frame that is a URDF link sits where the URDF's kinematics puts it."""
+    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    shared = [frame for frame in tf_static if frame in urdf.link_map]
+    assert len(shared) >= 4
+    for frame in shared:
+        error = _close(_in_root(tf_static, frame), urdf.get_transform(frame, ROOT))
+        assert error < TOL, f"{frame}: tf_static and robot_description differ by {error:.2e}"
