@@ -3,7 +3,9 @@
 All figures come from one run on one machine, so the ratio holds even where the machine is
 shared and noisy:
 
-1. bare loop: the same world and robot in PyBullet, `stepSimulation` at 1 kHz and nothing else;
+1. bare loop: the same world and robot in PyBullet, `stepSimulation` at 1 kHz and nothing else,
+   with the robot standing, and with its wheel motors turning as the server's drive turns them
+   (a moving robot's contacts cost PyBullet more than a standing one's);
 2. server: `simbot-server --mode fast` (physics, wheel friction, drive, odom, tf, clock, poses,
    joint states, world control) driving the robot, measured through its world-control state;
 3. start-up: wall time from launching `simbot-server` to the first `odom` message a client gets.
@@ -37,13 +39,21 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def bare_loop(seconds: float) -> float:
+LEFT, RIGHT = 0.3 - 0.1 * 0.2, 0.3 + 0.1 * 0.2
+"""Wheel surface speeds (m/s) of the server's command below: 0.3 m/s, 0.1 rad/s, track 0.4 m."""
+
+
+def bare_loop(seconds: float, driving: bool) -> float:
     """Sim seconds per wall second of PyBullet alone, with the warehouse and the robot loaded."""
     world = load_world(asset("worlds/warehouse.sdf"))
     physics = Physics(world)
     for model in world.models:
         physics.add_model(model)
     physics.add_model(load_model(asset("urdf/flexley_tug.sdf")), "flexley_tug", Pose((-2.5, 0.0, 0.1)))
+    if driving:
+        for side, speed in (("left", LEFT), ("right", RIGHT)):
+            for end in ("front", "back"):
+                physics.set_joint_velocity("flexley_tug", f"{end}_{side}_wheel_joint", speed / 0.075, 10000.0)
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         for _ in range(100):
@@ -85,13 +95,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds per measurement")
     args = parser.parse_args()
-    bare = bare_loop(args.seconds)
+    standing, driving = bare_loop(args.seconds, driving=False), bare_loop(args.seconds, driving=True)
     fast, startup = server(args.seconds)
     print("| measurement | figure |")
     print("| --- | --- |")
-    print(f"| bare PyBullet 1 kHz loop, warehouse + robot | {bare:.1f}× real time |")
+    print(f"| bare PyBullet 1 kHz loop, warehouse + robot standing | {standing:.1f}× real time |")
+    print(f"| bare PyBullet 1 kHz loop, robot's wheels driven | {driving:.1f}× real time |")
     print(f"| simbot-server --mode fast, driving | {fast:.1f}× real time |")
-    print(f"| server / bare loop | {fast / bare:.2f} |")
+    print(f"| server / bare loop (driving) | {fast / driving:.2f} |")
+    print(f"| server / bare loop (standing) | {fast / standing:.2f} |")
     print(f"| launch → first odom | {startup:.2f} s |")
 
 
