@@ -56,12 +56,6 @@ Quat = tuple[float, float, float, float]
 # --- geometry -------------------------------------------------------------------------------
 
 
-def yaw_of(quat: Sequence[float]) -> float:
-    """Heading (rotation about z) of an xyzw quaternion."""
-    x, y, z, w = quat
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
 def wrap(angle: float) -> float:
     """`angle` in (−π, π]."""
     return math.atan2(math.sin(angle), math.cos(angle))
@@ -370,8 +364,26 @@ def client_node(request: pytest.FixtureRequest) -> Iterator[Node]:
         yield node
 
 
-def fresh(sim: SimServer) -> Iterator[SimServer]:
-    """Body of a module's autouse fixture: the world reset before a test, its subscriptions gone after."""
-    sim.reset()
-    yield sim
-    sim.unsubscribe_all()
+def module_server(world: str, mode: str = "lockstep") -> Any:
+    """A test module's `sim` fixture: one server for the whole module (`sim = module_server("empty")`)."""
+
+    @pytest.fixture(scope="module", name="sim")
+    def sim() -> Iterator[SimServer]:
+        with running_server(world, mode) as server:
+            yield server
+
+    return sim
+
+
+def reset_before_each(settle_steps: int = 0) -> Any:
+    """A module's autouse fixture: the world reset (then stepped `settle_steps`) before each test, its subscriptions gone after."""
+
+    @pytest.fixture(autouse=True, name="fresh_world")
+    def fresh(sim: SimServer) -> Iterator[SimServer]:
+        sim.reset()
+        if settle_steps:
+            sim.step(settle_steps)
+        yield sim
+        sim.unsubscribe_all()
+
+    return fresh

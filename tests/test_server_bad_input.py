@@ -17,15 +17,24 @@ from __future__ import annotations
 import math
 import random
 import subprocess
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from bus_helpers import endpoint, free_port
-from server_helpers import STRING, SimServer, fresh, planar_distance, running_server, server_command, wrap, yaw_of
+from server_helpers import (
+    STRING,
+    SimServer,
+    module_server,
+    planar_distance,
+    reset_before_each,
+    running_server,
+    server_command,
+    wrap,
+)
 
 from simbot.bus import encode, messages
+from simbot.description.poses import yaw_of
 
 SEED = 20240611
 SETTLE_STEPS = 300
@@ -33,17 +42,8 @@ STILL_M = 1e-4
 STILL_RAD = 1e-4
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server("warehouse", "lockstep") as server:
-        yield server
-
-
-@pytest.fixture(autouse=True)
-def fresh_world(sim: SimServer) -> Iterator[SimServer]:
-    for world in fresh(sim):
-        world.step(SETTLE_STEPS)
-        yield world
+sim = module_server("warehouse")
+fresh_world = reset_before_each(SETTLE_STEPS)
 
 
 def _twist_bytes(linear: tuple[float, float, float], angular: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> bytes:

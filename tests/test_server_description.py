@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import io
 import math
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
 import yourdfpy
 from conftest import ROBOT_SDF
-from server_helpers import STRING, TF_MESSAGE, Collector, SimServer, running_server
-from server_helpers import client_node  # noqa: F401  (a fixture the fixtures below use)
+from server_helpers import (
+    STRING,
+    TF_MESSAGE,
+    Collector,
+    client_node,  # noqa: F401  (a fixture the fixtures below use)
+    module_server,
+)
 
 from simbot.bus import Node
 from simbot.description import load_model
@@ -38,10 +42,7 @@ CAMERAS = {
 }
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server("warehouse", "lockstep") as server:
-        yield server
+sim = module_server("warehouse")
 
 
 @pytest.fixture(scope="module")

@@ -10,23 +10,22 @@ Detached, the robot drives forward and slides out from under the deck: the troll
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import pytest
-from server_helpers import STRING, Collector, SimServer, fresh, planar_distance, running_server, wrap, yaw_of
+from server_helpers import (
+    STRING,
+    Collector,
+    SimServer,
+    module_server,
+    planar_distance,
+    reset_before_each,
+    wrap,
+)
 
 from simbot.bus import messages
+from simbot.description.poses import yaw_of
 
-
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server("warehouse", "lockstep") as server:
-        yield server
-
-
-@pytest.fixture(autouse=True)
-def fresh_world(sim: SimServer) -> Iterator[SimServer]:
-    yield from fresh(sim)
+sim = module_server("warehouse")
+fresh_world = reset_before_each()
 
 
 def _late_joiner_sees(sim: SimServer, expected: str) -> None:

@@ -11,7 +11,6 @@ and the heading stays put. Turning on the spot the four-wheeler must scrub its w
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 
 import pytest
 from server_helpers import (
@@ -20,15 +19,16 @@ from server_helpers import (
     POSE_STAMPED,
     TF_MESSAGE,
     SimServer,
+    module_server,
     planar_distance,
     pose_of,
-    fresh,
-    running_server,
+    reset_before_each,
     stamp_ns,
     unwrap,
     wrap,
-    yaw_of,
 )
+
+from simbot.description.poses import yaw_of
 
 STEP_NS = 1_000_000  # the empty world steps at 1 kHz
 SETTLE_STEPS = 500  # the robot spawns 0.1 m up and settles on its tyres first
@@ -37,15 +37,8 @@ W = 0.5
 WHEEL_RADIUS = 0.075
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server("empty", "lockstep") as server:
-        yield server
-
-
-@pytest.fixture(autouse=True)
-def fresh_world(sim: SimServer) -> Iterator[SimServer]:
-    yield from fresh(sim)
+sim = module_server("empty")
+fresh_world = reset_before_each()
 
 
 def _ns(sim: SimServer) -> int:

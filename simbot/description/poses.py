@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,12 @@ def quaternion_to_matrix(xyzw: tuple[float, float, float, float]) -> np.ndarray:
         ]
     )
 
+
+
+def yaw_of(xyzw: Sequence[float]) -> float:
+    """Heading (rotation about z) of an xyzw quaternion, radians."""
+    x, y, z, w = xyzw
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 @dataclass(frozen=True)
 class Pose:

@@ -186,6 +186,11 @@ def _tree(model: Model) -> tuple[str, dict[str, list[Joint]]]:
     return roots[0], children
 
 
+def urdf_root(model: Model) -> str:
+    """The link the URDF of `model` is rooted at, or "world" when the model is fixed to it."""
+    return _tree(model)[0]
+
+
 def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[Joint]], parent: str) -> None:
     for joint in children.get(parent, []):
         child = links[joint.child]

@@ -7,7 +7,6 @@ body's centre of mass; the offset is undone here once).
 
 from __future__ import annotations
 
-import logging
 import math
 import tempfile
 from collections.abc import Sequence
@@ -17,10 +16,9 @@ from pathlib import Path
 from simbot.description import model_to_urdf
 from simbot.description.model import Joint, Model, World
 from simbot.description.poses import Pose
+from simbot.description.urdf_writer import urdf_root
 from simbot.sim.bullet import pb
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
-
-log = logging.getLogger(__name__)
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -30,7 +28,6 @@ SDF_DEFAULT_MU = 1.0
 """SDF's friction default. PyBullet multiplies two surfaces' coefficients, so with 1.0 on every
 surface that states none, a pair where one side states μ behaves as ODE's min(μ1, μ2)."""
 
-MOVABLE = {"revolute": pb.JOINT_REVOLUTE, "continuous": pb.JOINT_REVOLUTE, "prismatic": pb.JOINT_PRISMATIC}
 FIXED_CONSTRAINT_FORCE = 1e6
 """Newtons a detachable joint may exert: rigid for anything the tug can pull."""
 
@@ -68,7 +65,8 @@ class Body:
     joints: dict[str, int]
     com_to_frame: Transform
     """The root link's SDF model frame seen from PyBullet's base (centre of mass) frame."""
-    initial: Transform
+    urdf: str
+    """The URDF PyBullet loaded (what `robot_description` publishes)."""
 
 
 @dataclass
@@ -78,7 +76,7 @@ class Physics:
     world: World
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
-    constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
+    constraints: set[int] = field(default_factory=set)
     _wheels: list[WheelFriction] = field(default_factory=list)
     _saved_state: int | None = None
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
@@ -106,32 +104,30 @@ class Physics:
         name = name or model.name
         if name in self.bodies:
             raise ValueError(f"a model named {name!r} is already in the world")
+        urdf_text = model_to_urdf(model)
         urdf = Path(self._tmp.name) / f"{name}.urdf"
-        urdf.write_text(model_to_urdf(model))
-        root = _root_link(model)
+        urdf.write_text(urdf_text)
+        root = urdf_root(model)
         frame = pose_to_transform(pose if pose is not None else model.pose)
-        root_pose = compose(frame, pose_to_transform(model.link(root).pose)) if root else frame
+        root_pose = frame if root == "world" else compose(frame, pose_to_transform(model.link(root).pose))
         flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
         body_id = pb.loadURDF(str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client)
-        body = self._index(name, model, body_id, root)
+        body = self._index(name, model, body_id, root, urdf_text)
         self.bodies[name] = body
         self._configure_joints(body)
         self._configure_friction(body)
         return body
 
-    def _index(self, name: str, model: Model, body_id: int, root: str | None) -> Body:
-        links = {root or "world": -1}
+    def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str) -> Body:
+        links = {root: -1}
         joints = {}
         for j in range(pb.getNumJoints(body_id, physicsClientId=self.client)):
             info = pb.getJointInfo(body_id, j, physicsClientId=self.client)
             joints[info[1].decode()] = j
             links[info[12].decode()] = j
-        base = self._base_com(body_id)
-        root_in_model = pose_to_transform(model.link(root).pose) if root else pose_to_transform(Pose())
-        base_in_world = _as_transform(*pb.getBasePositionAndOrientation(body_id, physicsClientId=self.client))
-        model_in_world = compose(compose(base_in_world, invert(base)), invert(root_in_model))
-        com_to_frame = compose(invert(base), invert(root_in_model))
-        return Body(name, model, body_id, links, joints, com_to_frame, model_in_world)
+        root_in_model = pose_to_transform(Pose() if root == "world" else model.link(root).pose)
+        com_to_frame = compose(invert(self._base_com(body_id)), invert(root_in_model))
+        return Body(name, model, body_id, links, joints, com_to_frame, urdf)
 
     def _base_com(self, body_id: int) -> Transform:
         """The base's centre of mass in its link frame."""
@@ -140,11 +136,12 @@ class Physics:
 
     def _configure_joints(self, body: Body) -> None:
         """PyBullet puts a velocity motor on every joint; SDF joints are passive until a system drives them."""
-        for joint in body.model.joints:
-            for urdf_name, index in body.joints.items():
-                if urdf_name == joint.name or urdf_name.startswith(f"{joint.name}__"):
-                    friction = joint.axis.friction if joint.axis else 0.0
-                    pb.setJointMotorControl2(body.id, index, pb.VELOCITY_CONTROL, force=friction, physicsClientId=self.client)
+        sdf_joints = {joint.name: joint for joint in body.model.joints}
+        for urdf_name, index in body.joints.items():
+            joint = sdf_joints.get(urdf_name.split("__", 1)[0])  # a ball joint's three parts are JOINT__yaw, ...
+            if joint is not None:
+                friction = joint.axis.friction if joint.axis else 0.0
+                pb.setJointMotorControl2(body.id, index, pb.VELOCITY_CONTROL, force=friction, physicsClientId=self.client)
 
     def _configure_friction(self, body: Body) -> None:
         """SDF μ per link; wheels with μ ≠ μ2 get the anisotropic model PyBullet lacks (see wheel_friction)."""
@@ -206,26 +203,12 @@ class Physics:
         com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
         return compose(com, body.com_to_frame)
 
-    def model_velocity(self, model: str) -> tuple[Vec3, Vec3]:
-        """Linear velocity of the base's centre of mass and angular velocity, world frame."""
-        lin, ang = pb.getBaseVelocity(self.body(model).id, physicsClientId=self.client)
-        return _as_transform(lin, (*ang, 0.0))[0], (float(ang[0]), float(ang[1]), float(ang[2]))
-
     def set_model_pose(self, model: str, pose: Transform) -> None:
         """Teleports the model frame to `pose` and stops it."""
         body = self.body(model)
         com = compose(pose, invert(body.com_to_frame))
         pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
         pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
-
-    def link_pose(self, model: str, link: str) -> Transform:
-        """A link's SDF frame in the world."""
-        body = self.body(model)
-        index = self._link(body, link)
-        if index == -1:
-            return compose(self.model_pose(model), pose_to_transform(body.model.link(link).pose))
-        state = pb.getLinkState(body.id, index, computeForwardKinematics=1, physicsClientId=self.client)
-        return _as_transform(state[4], state[5])
 
     def _link(self, body: Body, link: str) -> int:
         try:
@@ -263,7 +246,7 @@ class Physics:
             physicsClientId=self.client,
         )  # fmt: skip
         pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
-        self.constraints[cid] = (f"{parent[0]}::{parent[1]}", f"{child[0]}::{child[1]}")
+        self.constraints.add(cid)
         return cid
 
     def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
@@ -277,7 +260,8 @@ class Physics:
 
     def detach(self, constraint: int) -> None:
         """Removes a joint made by `attach`."""
-        if self.constraints.pop(constraint, None) is not None:
+        if constraint in self.constraints:
+            self.constraints.remove(constraint)
             pb.removeConstraint(constraint, physicsClientId=self.client)
 
 
@@ -287,19 +271,3 @@ def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:
     rotation = (link_pose.inverse() @ joint.pose).matrix()[:3, :3]
     x, y, z = rotation @ joint.axis.xyz
     return float(x), float(y), float(z)
-
-
-def _root_link(model: Model) -> str | None:
-    """The URDF root: the link no joint has as its child (None when the model is fixed to the world)."""
-    children = {j.child for j in model.joints}
-    if any(j.parent == "world" for j in model.joints):
-        return None
-    roots = [link.name for link in model.links if link.name not in children]
-    return roots[0] if roots else None
-
-
-
-def yaw_of(quat: Quat) -> float:
-    """Heading (rotation about z) of a quaternion, radians."""
-    x, y, z, w = quat
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))

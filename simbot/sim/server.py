@@ -24,10 +24,10 @@ import numpy as np
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, load_description, load_world
 from simbot.description.model import Model, Plugin, World
-from simbot.description.poses import Pose
+from simbot.description.poses import Pose, yaw_of
 from simbot.description.resources import asset
 from simbot.sim.control import WorldControl
-from simbot.sim.physics import Physics, yaw_of
+from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import SimBus, SystemConfigError, SystemContext
@@ -76,7 +76,6 @@ class Server:
     """A running world: physics, systems, world control, all on one bus node."""
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
-        self.config = config
         self.world: World = load_world(config.world)
         robot = load_robot(config.robot)
         self.physics = Physics(self.world)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 
 from simbot.bus import messages
-from simbot.description import model_to_urdf
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.sim.physics import pose_to_transform
@@ -44,8 +43,8 @@ class RobotStatePublisher:
     """Built into the server for the robot; publishes once, latched."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, _ = ctx.require_model("RobotStatePublisher")
-        urdf = model_to_urdf(model)
+        model, name = ctx.require_model("RobotStatePublisher")
+        urdf = ctx.physics.body(name).urdf
         ctx.bus.publisher("robot_description", latched=True).put(messages.string(urdf))
         transforms = [messages.transform_stamped(0, parent, child, *pose_to_transform(pose)) for parent, child, pose in static_transforms(model, urdf)]
         ctx.bus.publisher("tf_static", latched=True).put(messages.tf_message(transforms))
