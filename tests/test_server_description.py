@@ -29,6 +29,8 @@ from simbot.bus import Node
 from simbot.description import load_model
 from simbot.description.model import Model
 from simbot.description.poses import Pose, quaternion_to_matrix
+from simbot.description.urdf_writer import link_frame
+from simbot.bus.frames import optical_frame
 
 TOL = 1e-6
 ROOT = "base_footprint"
@@ -101,7 +103,7 @@ def test_robot_description_matches_the_sdf(urdf_text: str, model: Model) -> None
     for link in model.links:
         assert link.name in urdf.link_map, f"the URDF lacks the SDF link {link.name!r}"
         fk = urdf.get_transform(link.name, urdf.base_link)
-        error = _close(fk, link.pose.matrix())
+        error = _close(fk, link_frame(link).matrix())
         assert error < TOL, f"{link.name}: URDF forward kinematics differs from the SDF pose by {error:.2e}"
         inertial = urdf.link_map[link.name].inertial
         if link.inertial is not None:
@@ -122,28 +124,32 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
     assert parent == ROOT and _close(matrix, Pose((0.0, 0.0, 0.09), (0.0, 0.0, 0.0)).matrix()) < TOL
     parent, matrix = tree["imu_link"]
     assert parent == "base_link" and _close(matrix, Pose((0.0, 0.0, 0.06), (0.0, 0.0, 0.0)).matrix()) < TOL
-    for lidar, (x, yaw) in {"base_scan_front": (1.0, math.pi), "base_scan_back": (-0.9, 0.0)}.items():
-        expected = Pose((x, 0.0, 0.04), (0.0, 0.0, yaw)).matrix()
-        assert _close(_in_root(tree, lidar), expected) < TOL, f"{lidar} is not where SPEC §1 puts it"
+    # a lidar's frame is where its sensor is (SPEC §1: x 0.99 looking forward, x -0.95 looking back,
+    # 0.22 above a link 0.04 up), so its scans are where the rays start
+    for lidar, (x, yaw) in {"base_scan_front": (0.99, 0.0), "base_scan_back": (-0.95, math.pi)}.items():
+        expected = Pose((x, 0.0, 0.26), (0.0, 0.0, yaw)).matrix()
+        assert _close(_in_root(tree, lidar), expected) < TOL, f"{lidar} is not where SPEC §1 puts its sensor"
     for camera, (x, y, yaw) in CAMERAS.items():
         assert camera in tree, f"tf_static lacks the camera frame {camera!r}"
         parent, matrix = tree[camera]
         assert parent == "base_link", f"{camera} hangs from {parent!r}, not base_link"
         assert _close(matrix, Pose((x, y, 0.39), (0.0, 0.0, yaw)).matrix()) < TOL, f"{camera} is not at ({x}, {y}, 0.39) yaw {yaw:.4f}"
+        parent, optical = tree[optical_frame(camera)]
+        assert parent == camera and np.allclose(optical[:3, 3], 0.0), f"{camera}'s optical frame is not at the camera"
+        # z forward, x right, y down: the camera's x, -y, -z
+        assert np.allclose(optical[:3, :3], [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-9), f"{camera}'s optical frame is turned wrong"
 
     # every fixed link and every sensor frame, composed from base_footprint, where the SDF puts it
     fixed = {j.child for j in model.joints if j.type == "fixed"}
     checked = []
     for link in model.links:
         if link.name in fixed:
-            error = _close(_in_root(tree, link.name), link.pose.matrix())
+            error = _close(_in_root(tree, link.name), link_frame(link).matrix())
             assert error < TOL, f"tf_static puts {link.name} {error:.2e} from its SDF pose"
             checked.append(link.name)
         for sensor in link.sensors:
             frame = sensor.frame_name or sensor.name
-            if frame in {lk.name for lk in model.links}:
-                continue  # the sensor reports in its link's frame (the lidars, the IMU)
-            expected = (link.pose @ sensor.pose).matrix()
+            expected = (link.pose @ sensor.pose).matrix()  # the lidars' and the IMU's frames are their links'; they sit here too
             error = _close(_in_root(tree, frame), expected)
             assert error < TOL, f"tf_static puts {frame} {error:.2e} from the SDF pose of sensor {sensor.name}"
             checked.append(frame)

@@ -110,8 +110,12 @@ def test_a_wall_pushes_back_and_traction_is_bounded_by_friction(physics: Physics
     spun = physics.joint_states("flexley_tug", ["front_left_wheel_joint"])[0][0] - angle_before
     assert spun * RADIUS == pytest.approx(0.5, rel=0.05), "the wheels keep turning, slipping on the floor"
     body, wall_id = physics.body("flexley_tug").id, physics.body("wall").id
-    push = sum(c[9] for c in pb.getContactPoints(body, wall_id, physicsClientId=physics.client))
-    assert 0.5 * 0.9 * ROBOT_MASS * G < push < 1.05 * 0.9 * ROBOT_MASS * G
+    pushes = []
+    for _ in range(500):  # the chassis chatters on the wall (0.4-3 kN from step to step): take the mean over 0.5 s
+        physics.step()
+        pushes.append(sum(c[9] for c in pb.getContactPoints(body, wall_id, physicsClientId=physics.client)))
+    # at most μ·m·g from the wheels, plus a little: the wall's friction on the chassis presses it down
+    assert 0.5 * 0.9 * ROBOT_MASS * G < sum(pushes) / len(pushes) < 1.2 * 0.9 * ROBOT_MASS * G
 
 
 def test_attach_holds_the_relative_pose_and_detach_frees(physics: Physics) -> None:

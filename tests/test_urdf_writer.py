@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ from conftest import REFERENCE, ROBOT_SDF, ROBOT_URDF, TROLLEY_SDF
 
 from simbot.description import Model, load_model, model_to_urdf
 from simbot.description.model import Plane
+from simbot.description.urdf_writer import link_frame
 
 POSE_TOL = 1e-6
 
@@ -44,11 +46,11 @@ def test_world_poses_survive_conversion(sdf: Path, tmp_path: Path, caplog: pytes
     caplog.set_level(logging.ERROR)
     model = load_model(sdf)
     urdf = _write(model, tmp_path)
-    root = model.link(urdf.base_link).pose.matrix()
+    root = link_frame(model.link(urdf.base_link)).matrix()
     checked = 0
     for link in model.links:
         world = root @ urdf.get_transform(link.name, urdf.base_link)
-        assert np.abs(world - link.pose.matrix()).max() < POSE_TOL, link.name
+        assert np.abs(world - link_frame(link).matrix()).max() < POSE_TOL, link.name
         urdf_link = urdf.link_map[link.name]
         pairs = list(zip(link.collisions, urdf_link.collisions)) + list(zip(link.visuals, urdf_link.visuals))
         assert len(pairs) == len(link.collisions) + len(link.visuals) and len(urdf_link.visuals) == len(link.visuals)
@@ -111,3 +113,16 @@ def test_plane_becomes_a_box_with_its_top_on_the_plane(tmp_path: Path) -> None:
     box = urdf.link_map["link"].collisions[0]
     top = box.origin[2, 3] + box.geometry.box.size[2] / 2
     assert tuple(box.geometry.box.size[:2]) == (50, 40) and top == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_link_that_names_its_sensor_frame_has_its_urdf_frame_at_the_sensor(tmp_path: Path) -> None:
+    """The lidar links: the URDF frame (what tf publishes) is the sensor's, and the body stays put."""
+    model = load_model(ROBOT_SDF)
+    urdf = _write(model, tmp_path)
+    for name, (x, yaw) in {"base_scan_front": (0.99, 0.0), "base_scan_back": (-0.95, math.pi)}.items():
+        frame = urdf.get_transform(name, urdf.base_link)
+        assert np.allclose(frame[:3, 3], (x, 0.0, 0.26), atol=1e-9), name
+        assert math.isclose(math.atan2(frame[1, 0], frame[0, 0]) % (2 * math.pi), yaw % (2 * math.pi), abs_tol=1e-9), name
+        cylinder = frame @ _origin(urdf.link_map[name].collisions[0])
+        sdf_link = model.link(name)
+        assert np.allclose(cylinder, sdf_link.pose.matrix() @ sdf_link.collisions[0].pose.matrix(), atol=1e-9), name

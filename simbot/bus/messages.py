@@ -32,14 +32,23 @@ Clock = _ros.rosgraph_msgs__msg__Clock
 JointState = _ros.sensor_msgs__msg__JointState
 Empty = _ros.std_msgs__msg__Empty
 Header = _ros.std_msgs__msg__Header
+CameraInfo = _ros.sensor_msgs__msg__CameraInfo
+Image = _ros.sensor_msgs__msg__Image
+Imu = _ros.sensor_msgs__msg__Imu
+LaserScan = _ros.sensor_msgs__msg__LaserScan
+RegionOfInterest = _ros.sensor_msgs__msg__RegionOfInterest
 String = _ros.std_msgs__msg__String
 TFMessage = _ros.tf2_msgs__msg__TFMessage
 
 __all__ = [
+    "CameraInfo",
     "Clock",
     "Empty",
     "Header",
+    "Image",
+    "Imu",
     "JointState",
+    "LaserScan",
     "Odometry",
     "PoseStamped",
     "String",
@@ -48,10 +57,14 @@ __all__ = [
     "TransformStamped",
     "Twist",
     "Vector3",
+    "camera_info",
     "clock",
     "empty",
     "header",
+    "image",
+    "imu",
     "joint_state",
+    "laser_scan",
     "odometry",
     "pose_stamped",
     "quaternion",
@@ -215,4 +228,94 @@ def joint_state(
         position=position,
         velocity=velocity,
         effort=effort,
+    )
+
+
+def laser_scan(
+    ns: int,
+    frame: str,
+    angles: tuple[float, float, float],
+    times: tuple[float, float],
+    limits: tuple[float, float],
+    ranges: Floats,
+    intensities: Floats = (),
+) -> LaserScan:
+    """sensor_msgs/LaserScan: angles (min, max, increment), times (time_increment, scan_time), limits (range_min, range_max)."""
+    angle_min, angle_max, increment = (float(a) for a in angles)
+    time_increment, scan_time = (float(t) for t in times)
+    range_min, range_max = (float(r) for r in limits)
+    return LaserScan(
+        header=header(ns, frame),
+        angle_min=angle_min,
+        angle_max=angle_max,
+        angle_increment=increment,
+        time_increment=time_increment,
+        scan_time=scan_time,
+        range_min=range_min,
+        range_max=range_max,
+        ranges=np.ascontiguousarray(ranges, dtype=np.float32).reshape(-1),
+        intensities=np.ascontiguousarray(intensities, dtype=np.float32).reshape(-1),
+    )
+
+
+def imu(
+    ns: int,
+    frame: str,
+    quat_xyzw: Floats,
+    angular_xyz: Floats,
+    linear_xyz: Floats,
+    covariances: tuple[Floats, Floats, Floats] = ((0.0,) * 9, (0.0,) * 9, (0.0,) * 9),
+) -> Imu:
+    """sensor_msgs/Imu; covariances (orientation, angular velocity, linear acceleration), 3×3 row-major each."""
+    orientation, angular, linear = (_float_array(c, "imu covariance", 9) for c in covariances)
+    return Imu(
+        header=header(ns, frame),
+        orientation=_quaternion(quat_xyzw),
+        orientation_covariance=orientation,
+        angular_velocity=vector3(*_three(angular_xyz, "angular velocity")),
+        angular_velocity_covariance=angular,
+        linear_acceleration=vector3(*_three(linear_xyz, "linear acceleration")),
+        linear_acceleration_covariance=linear,
+    )
+
+
+IMAGE_ENCODINGS = {3: "rgb8", 1: "mono8"}
+"""sensor_msgs/image_encodings by channels of uint8 pixels."""
+
+
+def image(ns: int, frame: str, pixels: npt.NDArray[np.uint8]) -> Image:
+    """sensor_msgs/Image from an H×W×3 (rgb8) or H×W (mono8) uint8 array; the bytes are copied once."""
+    if pixels.dtype != np.uint8 or pixels.ndim not in (2, 3):
+        raise ValueError(f"image: expected H×W or H×W×3 uint8 pixels, got {pixels.dtype} {pixels.shape}")
+    channels = 1 if pixels.ndim == 2 else pixels.shape[2]
+    if channels not in IMAGE_ENCODINGS:
+        raise ValueError(f"image: {channels} channels; expected 1 or 3")
+    height, width = pixels.shape[:2]
+    return Image(
+        header=header(ns, frame),
+        height=height,
+        width=width,
+        encoding=IMAGE_ENCODINGS[channels],
+        is_bigendian=0,
+        step=width * channels,
+        data=np.ascontiguousarray(pixels).reshape(-1).copy(),
+    )
+
+
+def camera_info(ns: int, frame: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> CameraInfo:
+    """sensor_msgs/CameraInfo of an ideal pinhole camera (no distortion, identity rectification)."""
+    k = (fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0)
+    p = (fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0)
+    return CameraInfo(
+        header=header(ns, frame),
+        height=height,
+        width=width,
+        distortion_model="plumb_bob",
+        d=np.zeros(5, dtype=np.float64),
+        k=_float_array(k, "K", 9),
+        r=_float_array((1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), "R", 9),
+        p=_float_array(p, "P", 12),
+        binning_x=0,
+        binning_y=0,
+        roi=RegionOfInterest(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
     )

@@ -11,6 +11,10 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   root (like base_footprint) gets a token mass of ROOT_TOKEN; on a robot of tens of
   kilograms it changes nothing.
 - A plane becomes a thin box whose top face is the plane.
+- A link whose one sensor reports in the link's own frame (`<frame_name>` is the link's name)
+  has its URDF frame at that sensor, so a message stamped with that frame is where the sensor
+  is (the reference lidars sit 0.22 m above their link origin, turned by π). Everything the
+  link holds is re-expressed; the physics does not change.
 - Limits SDF calls unlimited: a revolute joint becomes continuous; effort or velocity, and a
   prismatic joint's range, are written as ±UNLIMITED.
 Sensors, plugins and friction, which URDF has no place for, stay in the parsed model.
@@ -191,11 +195,17 @@ def urdf_root(model: Model) -> str:
     return _tree(model)[0]
 
 
+def link_frame(link: Link) -> Pose:
+    """The link's URDF frame in the model frame: its SDF pose, or the pose of the one sensor that names the link as its frame."""
+    own = [sensor for sensor in link.sensors if sensor.frame_name == link.name]
+    return link.pose @ own[0].pose if len(own) == 1 else link.pose
+
+
 def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[Joint]], parent: str) -> None:
     for joint in children.get(parent, []):
         child = links[joint.child]
         if joint.type == "fixed":
-            urdf.add_link(child.name, child.pose, child)
+            urdf.add_link(child.name, link_frame(child), child)
             urdf.add_joint(joint.name, "fixed", parent, child.name)
         else:
             _add_movable(urdf, joint, child)
@@ -204,7 +214,8 @@ def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[J
 
 def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
     """The joint as a chain of URDF joints at the SDF joint frame, ending at the child link."""
-    on_child = (child.pose.inverse() @ joint.pose).is_identity(1e-9)
+    frame = link_frame(child)
+    on_child = (frame.inverse() @ joint.pose).is_identity(1e-9)
     end = child.name if on_child else f"{joint.name}__frame"
     steps: list[tuple[str, str, str, Axis | None, tuple[float, float, float] | None]]
     if joint.type == "ball":
@@ -217,11 +228,11 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
     parent = joint.parent
     for name, kind, link, axis, xyz in steps:
         holds = child if link == child.name else None
-        urdf.add_link(link, child.pose if holds else joint.pose, holds)
+        urdf.add_link(link, frame if holds else joint.pose, holds)
         urdf.add_joint(name, kind, parent, link, axis, xyz)
         parent = link
     if not on_child:
-        urdf.add_link(child.name, child.pose, child)
+        urdf.add_link(child.name, frame, child)
         urdf.add_joint(f"{joint.name}__offset", "fixed", end, child.name)
 
 
@@ -234,7 +245,7 @@ def model_to_urdf(model: Model, mesh_dir: Path | None = None) -> str:
         urdf.robot.append(ET.Element("link", name="world"))
         urdf.frames["world"] = IDENTITY
     else:
-        urdf.add_link(root, links[root].pose, links[root], token_mass=True)
+        urdf.add_link(root, link_frame(links[root]), links[root], token_mass=True)
     _add_subtree(urdf, links, children, root)
     unreached = [name for name in links if name not in urdf.frames]
     if unreached:

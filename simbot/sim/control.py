@@ -8,7 +8,8 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
 - `world/<name>/set_pose`: `{"name": "trolley", "position": {"x": 1, "y": 0, "z": 0},
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
 - `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
-  factor, every model's pose, and the dropped-input counters with their last reasons.
+  factor, every model's pose, each sensor's figures (its achieved rate in messages per sim
+  second, frames skipped), and the dropped-input counters with their last reasons.
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 Requests are polled by the simulation loop between steps, never acted on in a bus callback.
@@ -22,7 +23,7 @@ from typing import Any
 
 from simbot.bus import BadRequest, Node, Request
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import Drops
+from simbot.sim.system import Drops, Reporting
 
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
@@ -100,6 +101,7 @@ class WorldControl:
             "mode": self.sim.mode.value,
             "real_time_factor": self.sim.rtf.value(),
             "models": models,
+            "sensors": {s.name: s.report() for s in self.sim.systems if isinstance(s, Reporting)},
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),
         }

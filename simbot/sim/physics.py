@@ -14,9 +14,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from simbot.description import model_to_urdf
+import numpy as np
+import numpy.typing as npt
+
 from simbot.description.model import Joint, Model, World
-from simbot.description.poses import Pose
-from simbot.description.urdf_writer import urdf_root
+from simbot.description.poses import IDENTITY, Pose
+from simbot.description.urdf_writer import link_frame, urdf_root
 from simbot.sim.bullet import pb
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 
@@ -30,6 +33,10 @@ surface that states none, a pair where one side states μ behaves as ODE's min(�
 
 FIXED_CONSTRAINT_FORCE = 1e6
 """Newtons a detachable joint may exert: rigid for anything the tug can pull."""
+
+RAY_BLIND_GROUP = 1 << 10
+"""Collision group of the bodies a sensor's rays pass through (its own robot). PyBullet's own
+groups are 1 (dynamic) and 2 (static); a body in this group alone still collides with both."""
 
 
 def pose_to_transform(pose: Pose) -> Transform:
@@ -63,8 +70,10 @@ class Body:
     id: int
     links: dict[str, int]
     joints: dict[str, int]
+    com_to_root: Transform
+    """The root link's URDF frame seen from PyBullet's base (centre of mass) frame."""
     com_to_frame: Transform
-    """The root link's SDF model frame seen from PyBullet's base (centre of mass) frame."""
+    """The SDF model frame seen from PyBullet's base (centre of mass) frame."""
     urdf: str
     """The URDF PyBullet loaded (what `robot_description` publishes)."""
 
@@ -109,7 +118,7 @@ class Physics:
         urdf.write_text(urdf_text)
         root = urdf_root(model)
         frame = pose_to_transform(pose if pose is not None else model.pose)
-        root_pose = frame if root == "world" else compose(frame, pose_to_transform(model.link(root).pose))
+        root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
         flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
         body_id = pb.loadURDF(str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client)
         body = self._index(name, model, body_id, root, urdf_text)
@@ -125,9 +134,9 @@ class Physics:
             info = pb.getJointInfo(body_id, j, physicsClientId=self.client)
             joints[info[1].decode()] = j
             links[info[12].decode()] = j
-        root_in_model = pose_to_transform(Pose() if root == "world" else model.link(root).pose)
-        com_to_frame = compose(invert(self._base_com(body_id)), invert(root_in_model))
-        return Body(name, model, body_id, links, joints, com_to_frame, urdf)
+        root_in_model = pose_to_transform(Pose() if root == "world" else link_frame(model.link(root)))
+        com_to_root = invert(self._base_com(body_id))
+        return Body(name, model, body_id, links, joints, com_to_root, compose(com_to_root, invert(root_in_model)), urdf)
 
     def _base_com(self, body_id: int) -> Transform:
         """The base's centre of mass in its link frame."""
@@ -209,6 +218,58 @@ class Physics:
         com = compose(pose, invert(body.com_to_frame))
         pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
         pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
+
+    def frame_pose(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> Transform:
+        """World pose of a frame fixed to `link`, given in the SDF link frame (where a sensor is)."""
+        body = self.body(model)
+        sdf_link = body.model.link(link)
+        offset = pose_to_transform(link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link)
+        return compose(self._urdf_frame(body, self._link(body, link)), offset)
+
+    def _urdf_frame(self, body: Body, index: int) -> Transform:
+        """A link's URDF frame in the world, current even right after a teleport."""
+        if index == -1:
+            com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+            return compose(com, body.com_to_root)
+        state = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)
+        return _as_transform(state[4], state[5])
+
+    def frame_velocity(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """(linear velocity of the frame's origin, angular velocity), both in the world frame."""
+        body = self.body(model)
+        index = self._link(body, link)
+        if index == -1:
+            com = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)[0]
+            linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+        else:
+            state = pb.getLinkState(body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client)
+            com, linear, angular = state[0], state[6], state[7]
+        omega = np.asarray(angular, dtype=float)
+        lever = np.asarray(self.frame_pose(model, link, pose_in_link)[0]) - np.asarray(com)
+        return np.asarray(linear, dtype=float) + np.cross(omega, lever), omega
+
+    def blind_rays_to(self, model: str) -> None:
+        """Rays cast with `cast_rays` pass through `model` (a sensor never sees its own robot)."""
+        body = self.body(model)
+        for index in body.links.values():
+            pb.setCollisionFilterGroupMask(body.id, index, RAY_BLIND_GROUP, -1, physicsClientId=self.client)
+
+    def cast_rays(self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing."""
+        hits = pb.rayTestBatch(starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client)
+        return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
+
+    def moving_bodies(self) -> list[str]:
+        """Names of the models that can move (not static)."""
+        return [name for name, body in self.bodies.items() if not body.model.static]
+
+    def body_state(self, model: str) -> tuple[Transform, tuple[float, ...]]:
+        """PyBullet's base (centre-of-mass) pose and every joint position, in joint index order: enough to redraw the body."""
+        body = self.body(model)
+        com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        count = pb.getNumJoints(body.id, physicsClientId=self.client)
+        states = pb.getJointStates(body.id, range(count), physicsClientId=self.client) if count else []
+        return com, tuple(float(s[0]) for s in states)
 
     def _link(self, body: Body, link: str) -> int:
         try:

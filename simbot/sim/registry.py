@@ -1,4 +1,7 @@
-"""From an SDF `<plugin>` to a system class, through the `simbot.systems` entry-point group.
+"""From an SDF `<plugin>` or `<sensor>` to a system class, through entry-point groups.
+
+Plugins go through `simbot.systems`, keyed by canonical name; sensors through `simbot.sensors`,
+keyed by the SDF sensor type (`gpu_lidar`, `ray`, `camera`, `imu`, ...).
 
 Gazebo names one system several ways: `gz::sim::systems::DiffDrive`, `ignition::gazebo::systems::
 DiffDrive`, and the library files `gz-sim-diff-drive-system`, `libignition-gazebo6-diff-drive-
@@ -14,11 +17,12 @@ from collections.abc import Callable
 from functools import cache
 from importlib.metadata import entry_points
 
-from simbot.description.model import Plugin
+from simbot.description.model import Plugin, Sensor
 
 log = logging.getLogger(__name__)
 
 GROUP = "simbot.systems"
+SENSOR_GROUP = "simbot.sensors"
 _LIBRARY = re.compile(r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$")
 
 
@@ -33,10 +37,10 @@ def canonical_name(plugin: Plugin) -> str:
 
 
 @cache
-def registered() -> dict[str, Callable[..., object]]:
-    """Canonical name → system class, for every installed entry point of the group."""
+def registered(group: str = GROUP) -> dict[str, Callable[..., object]]:
+    """Name → system class, for every installed entry point of `group`."""
     systems = {}
-    for point in entry_points(group=GROUP):
+    for point in entry_points(group=group):
         try:
             systems[point.name] = point.load()
         except Exception as exc:  # noqa: BLE001 - a broken third-party package must not stop the server
@@ -50,4 +54,12 @@ def lookup(plugin: Plugin) -> Callable[..., object] | None:
     system = registered().get(name)
     if system is None:
         log.warning("unknown plugin %s (%s): no system named %r is registered; ignored", plugin.name, plugin.filename, name)
+    return system
+
+
+def sensor_lookup(sensor: Sensor) -> Callable[..., object] | None:
+    """The class for a `<sensor>` of this type, or None with a warning naming it."""
+    system = registered(SENSOR_GROUP).get(sensor.type)
+    if system is None:
+        log.warning("sensor %s of type %r: no sensor system of that type is registered; ignored", sensor.name, sensor.type)
     return system

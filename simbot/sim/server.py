@@ -1,7 +1,8 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
     simbot-server [--world NAME|PATH] [--robot PATH] [--spawn X Y Z YAW] [--namespace NS]
-                  [--mode realtime|fast|lockstep] [--seed N] [--listen E] [--connect E] [--zenoh-config F]
+                  [--mode realtime|fast|lockstep] [--seed N] [--renderer tiny|egl]
+                  [--camera-size WxH] [--camera-rate HZ] [--listen E] [--connect E] [--zenoh-config F]
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
 config) is one line on stderr and exit code 2. SIGINT and SIGTERM end it cleanly.
@@ -23,14 +24,14 @@ import numpy as np
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, load_description, load_world
-from simbot.description.model import Model, Plugin, World
+from simbot.description.model import Link, Model, Plugin, Sensor, World
 from simbot.description.poses import Pose, yaw_of
 from simbot.description.resources import asset
 from simbot.sim.control import WorldControl
 from simbot.sim.physics import Physics
-from simbot.sim.registry import lookup
+from simbot.sim.registry import lookup, sensor_lookup
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import SimBus, SystemConfigError, SystemContext
+from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext
 from simbot.sim.systems.clock_publisher import ClockPublisher
 from simbot.sim.systems.pose_publisher import PosePublisher
 from simbot.sim.systems.robot_state_publisher import RobotStatePublisher
@@ -50,6 +51,12 @@ class ServerConfig:
     spawn: tuple[float, float, float, float] = DEFAULT_SPAWN
     mode: Mode = Mode.REALTIME
     seed: int = 0
+    renderer: str = "tiny"
+    camera_size: tuple[int, int] | None = None
+    camera_rate: float | None = None
+
+    def sensor_settings(self) -> SensorSettings:
+        return SensorSettings(self.mode is Mode.LOCKSTEP, self.renderer, self.camera_size, self.camera_rate)
 
 
 def world_path(name_or_path: str) -> Path:
@@ -86,16 +93,20 @@ class Server:
         self.physics.save_initial_state()
         self.bus = SimBus(node)
         self._seeds = np.random.SeedSequence(config.seed)
+        self._settings = config.sensor_settings()
         systems = self._systems(robot)
         self.sim = Simulation(self.physics, systems, config.mode)
         self.control = WorldControl(node, self.world.name, self.sim, self.bus.drops)
 
-    def _context(self, model: Model | None = None, name: str | None = None, plugin: Plugin | None = None) -> SystemContext:
+    def _context(
+        self, model: Model | None = None, name: str | None = None, plugin: Plugin | None = None, sensor: tuple[Link, Sensor] | None = None
+    ) -> SystemContext:
         rng = np.random.default_rng(self._seeds.spawn(1)[0])
-        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin)
+        link, sdf_sensor = sensor if sensor else (None, None)
+        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings)
 
     def _systems(self, robot: Model) -> list[object]:
-        """World plugins, then each model's plugins, then the server's own publishers."""
+        """World plugins, then each model's plugins and sensors, then the server's own publishers."""
         systems: list[object] = []
         placed: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.world.plugins]
         for body_name, body in self.physics.bodies.items():
@@ -104,9 +115,24 @@ class Server:
             factory = lookup(plugin)
             if factory is not None:
                 systems.append(factory(self._context(model, name, plugin)))
+        systems += self._sensors()
         robot_ctx = self._context(robot, ROBOT_NAME)
         systems += [ClockPublisher(robot_ctx), PosePublisher(robot_ctx), RobotStatePublisher(robot_ctx)]
         return systems
+
+    def _sensors(self) -> list[object]:
+        """A system for each `<sensor>` of each model; if one fails, those already started stop."""
+        sensors: list[object] = []
+        try:
+            for body_name, body in self.physics.bodies.items():
+                for link, sensor in body.model.sensors():
+                    factory = sensor_lookup(sensor)
+                    if factory is not None:
+                        sensors.append(factory(self._context(body.model, body_name, sensor=(link, sensor))))
+        except BaseException:
+            Simulation.close_all(sensors)
+            raise
+        return sensors
 
     def run(self, stop: threading.Event, status: bool = False) -> None:
         """Until `stop`; with `status`, one line a second on stdout."""
@@ -122,6 +148,7 @@ class Server:
         )
 
     def close(self) -> None:
+        self.sim.close()
         self.physics.close()
 
 
@@ -132,15 +159,45 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--spawn", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), default=DEFAULT_SPAWN, help="robot pose in the world")
     parser.add_argument("--mode", choices=[m.value for m in Mode], default=Mode.REALTIME.value, help="realtime (default), fast, or lockstep")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
+    parser.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="camera renderer: tiny (CPU, default) or egl (GPU where present)")
+    parser.add_argument("--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240")
+    parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
     parser.add_argument("--quiet", action="store_true", help="no status line")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
     return parser
 
 
+MAX_CAMERA_SIDE = 8192
+
+
+def _size(text: str) -> tuple[int, int]:
+    """`WxH` in pixels, each 1..8192."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected WxH such as 320x240, got {text!r}")
+    width, height = (int(p) for p in parts)
+    if not (1 <= width <= MAX_CAMERA_SIDE and 1 <= height <= MAX_CAMERA_SIDE):
+        raise argparse.ArgumentTypeError(f"width and height must be 1..{MAX_CAMERA_SIDE}, got {text!r}")
+    return width, height
+
+
+def _rate(text: str) -> float:
+    """A positive finite rate in Hz."""
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a rate in Hz, got {text!r}") from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise argparse.ArgumentTypeError(f"the rate must be a positive number of Hz, got {text!r}")
+    return rate
+
+
 def _config(args: argparse.Namespace) -> ServerConfig:
     robot = args.robot if args.robot is not None else asset("urdf/flexley_tug.sdf")
-    return ServerConfig(world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed)
+    return ServerConfig(
+        world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, args.renderer, args.camera_size, args.camera_rate
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from simbot.sim.physics import Physics
-from simbot.sim.system import PostUpdate, PreUpdate, Resettable
+from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable
 
 log = logging.getLogger(__name__)
 
@@ -151,6 +151,16 @@ class Simulation:
                 system.reset(0)
         self._pacer.anchor(0)
         self.rtf.clear()
+
+    def close(self) -> None:
+        """Every system that holds something outside the process (render workers) lets it go."""
+        self.close_all(self.systems)
+
+    @staticmethod
+    def close_all(systems: list[object]) -> None:
+        for system in systems:
+            if isinstance(system, Closable):
+                system.close()
 
     @property
     def runs_freely(self) -> bool:

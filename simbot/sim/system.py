@@ -6,6 +6,11 @@ the world and the bus). It then implements only the phases it needs:
 - `pre_update(now_ns)`: before the physics step; drain commands, write joint targets.
 - `post_update(now_ns)`: after the step; read state, publish at its own rate.
 - `reset(now_ns)`: the world was reset; forget what was integrated.
+- `report()`: figures for world control's `state` (a sensor's achieved rate).
+- `close()`: the server is stopping; end worker processes.
+
+Systems come from SDF `<plugin>` elements (by plugin name) and `<sensor>` elements (by sensor
+type); both kinds get the same context, a sensor's with its link and sensor filled in.
 
 The loop keeps one list per phase. Bus callbacks only queue (see `Input`); systems act in the
 loop, so everything a system does happens at a definite sim time.
@@ -16,6 +21,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -23,7 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from simbot.bus import DecodeError, Node, Publisher, decode
-from simbot.description.model import Model, Plugin, World
+from simbot.description.model import Link, Model, Plugin, Sensor, World
 from simbot.description.xml import parse_flag
 from simbot.sim.physics import Physics
 
@@ -50,6 +56,18 @@ class PostUpdate(Protocol):
 @runtime_checkable
 class Resettable(Protocol):
     def reset(self, now_ns: int) -> None: ...
+
+
+@runtime_checkable
+class Reporting(Protocol):
+    name: str
+
+    def report(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class Closable(Protocol):
+    def close(self) -> None: ...
 
 
 @dataclass
@@ -120,6 +138,20 @@ class SimBus:
 
 
 @dataclass(frozen=True)
+class SensorSettings:
+    """What the command line may say over the SDF, for every sensor of the world."""
+
+    lockstep: bool = False
+    """Lockstep renders every camera frame at its sim time; otherwise a busy camera skips frames."""
+    renderer: str = "tiny"
+    """`tiny` (PyBullet's TinyRenderer, CPU) or `egl` (PyBullet's EGL plugin, GPU where present)."""
+    camera_size: tuple[int, int] | None = None
+    """(width, height) for every camera instead of the SDF's."""
+    camera_rate: float | None = None
+    """Hz for every camera instead of the SDF's update_rate."""
+
+
+@dataclass(frozen=True)
 class SystemContext:
     """Everything a system is built from."""
 
@@ -131,12 +163,36 @@ class SystemContext:
     model_name: str | None = None
     """The model's name in the running world (the robot is `flexley_tug` whatever its SDF says)."""
     plugin: Plugin | None = None
+    link: Link | None = None
+    sensor: Sensor | None = None
+    settings: SensorSettings = field(default_factory=SensorSettings)
 
     def require_model(self, system: str) -> tuple[Model, str]:
         """The model a model-level system belongs to."""
         if self.model is None or self.model_name is None:
             raise SystemConfigError(f"{system} belongs in a <model>, not in the <world>")
         return self.model, self.model_name
+
+    def require_sensor(self) -> tuple[str, Link, Sensor]:
+        """(running model name, link, sensor) of a sensor system."""
+        if self.model_name is None or self.link is None or self.sensor is None:
+            raise SystemConfigError("a sensor system needs the <sensor> element of a model's link")
+        return self.model_name, self.link, self.sensor
+
+
+def sensor_topic(sensor: Sensor) -> str:
+    """The sensor's `<topic>` as a ROS topic without the leading slash, or its name."""
+    return (sensor.topic or "").strip().strip("/") or sensor.name
+
+
+def sensor_frame(sensor: Sensor) -> str:
+    """The frame its data are stamped in: `<frame_name>`, else the sensor's name (tf_static places it)."""
+    return (sensor.frame_name or "").strip() or sensor.name
+
+
+def sensor_rate(sensor: Sensor, default: float) -> float:
+    """The SDF update_rate; 0 (SDF: "as fast as possible") or absent gives `default`."""
+    return sensor.update_rate if sensor.update_rate > 0 else default
 
 
 def param(plugin: Plugin, *tags: str, default: str | None = None) -> str | None:
@@ -193,3 +249,56 @@ class Every:
 
     def restart(self) -> None:
         self.next_ns = 0
+
+
+@dataclass
+class RateMeter:
+    """Messages per second of sim time over the last second: the rate a subscriber sees."""
+
+    window_ns: int = 1_000_000_000
+    stamps: deque[int] = field(default_factory=deque)
+    count: int = 0
+
+    def tick(self, stamp_ns: int) -> None:
+        self.count += 1
+        self.stamps.append(stamp_ns)
+        while self.stamps and self.stamps[0] <= stamp_ns - self.window_ns:
+            self.stamps.popleft()
+
+    def rate(self, now_ns: int) -> float:
+        """Over the window ending `now_ns` (the window is shorter right after start or reset)."""
+        span = min(self.window_ns, now_ns)
+        recent = sum(1 for stamp in self.stamps if stamp > now_ns - self.window_ns)
+        return recent * 1e9 / span if span > 0 else 0.0
+
+    def reset(self) -> None:
+        self.stamps.clear()
+
+
+class Sampled:
+    """What every sensor shares: its name, its rate, the rate it achieved, and forgetting on reset.
+
+    A sensor system derives from it, calls `due(now_ns)` each step and `published(stamp_ns)` for
+    each message; world state's `sensors` reports what it achieved.
+    """
+
+    def __init__(self, name: str, rate_hz: float) -> None:
+        self.name = name
+        self.every = Every.hz(rate_hz)
+        self.meter = RateMeter()
+        self._now_ns = 0
+
+    def due(self, now_ns: int) -> bool:
+        self._now_ns = now_ns
+        return self.every.due(now_ns)
+
+    def published(self, stamp_ns: int) -> None:
+        self.meter.tick(stamp_ns)
+
+    def report(self) -> dict[str, Any]:
+        return {"rate_hz": round(self.meter.rate(self._now_ns), 3), "messages": self.meter.count}
+
+    def reset(self, now_ns: int) -> None:
+        self.every.restart()
+        self.meter.reset()
+        self._now_ns = now_ns
