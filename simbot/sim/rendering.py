@@ -146,15 +146,15 @@ class CameraSpec:
 
 @dataclass(frozen=True)
 class Light:
-    """TinyRenderer's directional light. ambient + diffuse + specular = 1, so a face that looks at
-    the light shows its material colour exactly (no clipping, hue kept) and faces away from it
-    keep 60 % of it."""
+    """TinyRenderer's directional light. ambient + diffuse = 1, so a face that looks at the light
+    shows its material colour exactly (no clipping, hue kept) and faces away from it keep 60 % of
+    it. No specular term: its highlight depends on the view and adds nothing for perception."""
 
     direction: Vec3 = (-0.5, 0.1, -0.9)
     """Direction the light travels, world frame (SDF <direction>); PyBullet wants the opposite."""
     ambient: float = 0.6
-    diffuse: float = 0.35
-    specular: float = 0.05
+    diffuse: float = 0.4
+    specular: float = 0.0
     color: Vec3 = (1.0, 1.0, 1.0)
 
 
@@ -231,6 +231,11 @@ class RenderPool:
             len(self.cameras), n, self.renderer_used, f" ({self.gl_renderer})" if self.gl_renderer else "",
         )
 
+    @property
+    def pids(self) -> tuple[int | None, ...]:
+        """The worker processes' ids, one per worker (for monitoring)."""
+        return tuple(w.process.pid for w in self._workers)
+
     def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
         """Start rendering camera `camera` at the camera's world pose (looking along its +x, z up)
         with the moving bodies where `states` puts them. Returns at once; raises if busy."""
@@ -284,6 +289,7 @@ class RenderPool:
         _stop_workers(self._workers)
         self._views.clear()
         self._finished.clear()
+        self._outstanding.clear()
         for shm in self._shms:
             _free(shm)
 
@@ -355,22 +361,14 @@ class RenderPool:
         """Take every message the worker has sent; notice its death."""
         if worker.death is not None:
             return
+        exited = not worker.process.is_alive()  # asked first: what it sent before exiting is in the pipe
         try:
             while worker.conn.poll():
                 self._receive(worker.conn.recv())
         except (EOFError, OSError):
+            exited = True
+        if exited:
             self._mark_dead(worker)
-            return
-        if not worker.process.is_alive():
-            self._drain_after_exit(worker)
-
-    def _drain_after_exit(self, worker: _Worker) -> None:
-        try:
-            while worker.conn.poll():
-                self._receive(worker.conn.recv())
-        except (EOFError, OSError):
-            pass
-        self._mark_dead(worker)
 
     def _receive(self, message: tuple[Any, ...]) -> None:
         kind, camera, stamp = message[0], message[1], message[2]
@@ -415,7 +413,7 @@ class RenderPool:
             f"render worker {worker.index} (pid {worker.process.pid}) died ({how}); "
             f"its cameras: {self._camera_names(worker)}"
         )
-        log.error("%s", worker.death)
+        log.error("%s", worker.death)  # also raised to the caller; logged here in case it swallows that
 
     def _spec(self, camera: int) -> CameraSpec:
         if not 0 <= camera < len(self.cameras):
@@ -491,8 +489,8 @@ def _worker_main(
         from simbot.sim.bullet import pb
 
         scene = _Scene(pb, bodies, jobs, renderer, light)
-    except Exception:
-        conn.send(("error", traceback.format_exc()))
+    except Exception as exc:
+        conn.send(("error", "".join(traceback.format_exception_only(type(exc), exc)).strip()))
         return
     conn.send(("ready", scene.renderer, scene.fallback_reason, scene.gl_renderer))
     try:
@@ -502,21 +500,19 @@ def _worker_main(
 
 
 def _serve(conn: Connection, scene: _Scene) -> None:
-    while True:
-        try:
-            message = conn.recv()
-        except (EOFError, OSError):
-            return  # the server is gone
-        if message[0] != "render":
-            return
-        _, camera, stamp, pose, states = message
-        start = time.perf_counter()
-        try:
-            scene.render(camera, pose, states)
-        except Exception as exc:
-            conn.send(("failed", camera, stamp, f"{type(exc).__name__}: {exc}"))
-            continue
-        conn.send(("frame", camera, stamp, time.perf_counter() - start))
+    """Render requests in order until told to stop or the server is gone (EOF, broken pipe)."""
+    try:
+        while (message := conn.recv())[0] == "render":
+            _, camera, stamp, pose, states = message
+            start = time.perf_counter()
+            try:
+                scene.render(camera, pose, states)
+            except Exception as exc:
+                conn.send(("failed", camera, stamp, f"{type(exc).__name__}: {exc}"))
+                continue
+            conn.send(("frame", camera, stamp, time.perf_counter() - start))
+    except (EOFError, OSError):
+        return
 
 
 def _silence_stdio() -> None:
@@ -592,7 +588,7 @@ class _Scene:
     def __post_init__(self) -> None:
         self.client = self.pb.connect(self.pb.DIRECT)
         if self.asked == "egl":
-            self._load_egl()
+            self._load_egl()  # before the bodies: the plugin draws only the shapes loaded after it
         self._load_bodies()
         for index, (spec, shm_name) in self.jobs.items():
             self.cameras[index] = self._camera(spec, shm_name)
@@ -620,9 +616,10 @@ class _Scene:
                 path = os.path.join(folder, f"{n}.urdf")
                 with open(path, "w", encoding="utf-8") as file:
                     file.write(body.urdf)
-                body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
-                if body_id < 0:
-                    raise RuntimeError(f"PyBullet could not load body {body.name!r}")
+                try:
+                    body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
+                except pb.error as exc:
+                    raise RuntimeError(f"body {body.name!r}: {exc}") from None
                 # loadURDF places the URDF root link frame; the base pose given is the COM frame's
                 pb.resetBasePositionAndOrientation(body_id, *body.base, physicsClientId=self.client)
                 self.ids[body.name] = body_id

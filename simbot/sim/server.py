@@ -94,6 +94,7 @@ class Server:
         self.bus = SimBus(node)
         self._seeds = np.random.SeedSequence(config.seed)
         self._settings = config.sensor_settings()
+        self._shared: dict[str, object] = {}
         systems = self._systems(robot)
         self.sim = Simulation(self.physics, systems, config.mode)
         self.control = WorldControl(node, self.world.name, self.sim, self.bus.drops)
@@ -103,7 +104,7 @@ class Server:
     ) -> SystemContext:
         rng = np.random.default_rng(self._seeds.spawn(1)[0])
         link, sdf_sensor = sensor if sensor else (None, None)
-        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings)
+        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings, self._shared)
 
     def _systems(self, robot: Model) -> list[object]:
         """World plugins, then each model's plugins and sensors, then the server's own publishers."""

@@ -166,6 +166,9 @@ class SystemContext:
     link: Link | None = None
     sensor: Sensor | None = None
     settings: SensorSettings = field(default_factory=SensorSettings)
+    shared: dict[str, Any] = field(default_factory=dict)
+    """What the systems of one world share, by name: all cameras render through one pool of
+    workers, as Gazebo's Sensors system gives all sensors one render engine."""
 
     def require_model(self, system: str) -> tuple[Model, str]:
         """The model a model-level system belongs to."""
@@ -266,10 +269,11 @@ class RateMeter:
             self.stamps.popleft()
 
     def rate(self, now_ns: int) -> float:
-        """Over the window ending `now_ns` (the window is shorter right after start or reset)."""
-        span = min(self.window_ns, now_ns)
-        recent = sum(1 for stamp in self.stamps if stamp > now_ns - self.window_ns)
-        return recent * 1e9 / span if span > 0 else 0.0
+        """Intervals per second between the stamps of the window ending `now_ns`; 0 with fewer than two."""
+        recent = [stamp for stamp in self.stamps if stamp > now_ns - self.window_ns]
+        if len(recent) < 2 or recent[-1] == recent[0]:
+            return 0.0
+        return (len(recent) - 1) * 1e9 / (recent[-1] - recent[0])
 
     def reset(self) -> None:
         self.stamps.clear()

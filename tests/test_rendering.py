@@ -1,0 +1,342 @@
+"""The render pool with real PyBullet in real worker processes: geometry of the images (pinhole
+facts), the light convention, moving bodies and joints, pixel formats and noise, the one
+outstanding request per camera, EGL or its fallback, and a dead or busy worker never hanging the caller."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+
+from simbot.sim.bullet import pb
+from simbot.sim.rendering import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, Transform
+
+W, H = 160, 120
+FX = 100.0
+HFOV = 2.0 * math.atan((W / 2) / FX)  # so that fx = fy = 100 px
+WAIT = 10.0  # seconds a test waits for a frame before failing (a bug fails, never hangs)
+
+RED = (1.0, 0.0, 0.0, 1.0)
+GREEN = (0.0, 1.0, 0.0, 1.0)
+ORANGE = (0.8, 0.5, 0.2, 1.0)
+FRONT_LIT = Light(direction=(1.0, 0.0, 0.0))  # travels along +x: lights the faces that look back at -x
+
+# The scene: each test's objects sit in their own region, 100 m apart (beyond the far clip).
+RED_FACE = 2.0  # the red box's front face, metres ahead of a camera at the origin
+RED_SIZE = 1.0
+MOVER_AT = (100.0, 0.0, 0.0)  # the camera looking at the green mover sits here
+MOVER_FACE = 2.0
+ARM_AT = (200.0, 0.0, 0.0)  # the swinging arm's joint, and the camera looking along it
+ARM_REACH = 2.5
+OFFSET_AT = (300.0, 0.0, 0.0)  # a body whose centre of mass is beside its visual
+ORANGE_AT = (400.0, 0.0, 0.0)
+GREY_AT = (500.0, 0.0, 0.0)  # a grey wall filling the view: a flat region for the noise
+
+AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+INERTIA = '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/>'
+
+
+def box_urdf(
+    size: tuple[float, float, float], rgba: tuple[float, ...], com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+) -> str:
+    """A one-link box; `com` puts its centre of mass beside the visual."""
+    return f"""<robot name="box"><link name="box">
+      <inertial><origin xyz="{com[0]} {com[1]} {com[2]}"/><mass value="1"/>{INERTIA}</inertial>
+      <visual><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry>
+        <material name="c"><color rgba="{' '.join(map(str, rgba))}"/></material></visual>
+    </link></robot>"""
+
+
+ARM_URDF = f"""<robot name="arm">
+  <link name="hub"><inertial><mass value="1"/>{INERTIA}</inertial></link>
+  <joint name="swing" type="revolute"><parent link="hub"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="10"/></joint>
+  <link name="arm"><inertial><mass value="1"/>{INERTIA}</inertial>
+    <visual><origin xyz="{ARM_REACH} 0 0"/><geometry><box size="0.2 0.2 0.2"/></geometry>
+      <material name="g"><color rgba="0 1 0 1"/></material></visual></link>
+</robot>"""
+
+
+def at(xyz: tuple[float, float, float]) -> Transform:
+    return (xyz, (0.0, 0.0, 0.0, 1.0))
+
+
+def yawed(xyz: tuple[float, float, float], yaw: float) -> Transform:
+    return (xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+
+
+def com_pose(urdf: str, link_pose: tuple[float, float, float]) -> Transform:
+    """Where PyBullet puts the base (centre-of-mass) frame of a body loaded at `link_pose`, as the server reads it."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as file:
+            file.write(urdf)
+        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+        body = pb.loadURDF(file.name, link_pose, flags=flags, physicsClientId=client)
+        position, orientation = pb.getBasePositionAndOrientation(body, physicsClientId=client)
+        return (tuple(position), tuple(orientation))  # type: ignore[return-value]
+    finally:
+        os.unlink(file.name)
+        pb.disconnect(client)
+
+
+def scene() -> list[SceneBody]:
+    offset_urdf = box_urdf((0.1, 0.4, 0.4), RED, com=(0.0, 0.4, 0.0))
+    return [
+        SceneBody("red", box_urdf((0.1, RED_SIZE, RED_SIZE), RED), True, at((RED_FACE + 0.05, 0.0, 0.0))),
+        SceneBody("mover", box_urdf((0.1, 0.4, 0.4), GREEN), False, at((MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0))),
+        SceneBody("arm", ARM_URDF, False, at(ARM_AT)),
+        SceneBody("offset", offset_urdf, True, com_pose(offset_urdf, (OFFSET_AT[0] + 2.05, 0.0, 0.0))),
+        SceneBody("orange", box_urdf((0.1, 1.0, 1.0), ORANGE), True, at((ORANGE_AT[0] + 2.05, 0.0, 0.0))),
+        SceneBody("grey", box_urdf((0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0)), True, at((GREY_AT[0] + 2.05, 0.0, 0.0))),
+    ]
+
+
+CAMERAS = [
+    CameraSpec("rgb", W, H, HFOV, 0.05, 50.0),
+    CameraSpec("mono", W, H, HFOV, 0.05, 50.0, channels=1),
+    CameraSpec("full", 640, 480, HFOV, 0.05, 50.0),
+    CameraSpec("noisy_a", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
+    CameraSpec("noisy_b", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
+    CameraSpec("noisy_c", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=8),
+]
+RGB, MONO, FULL, NOISY_A, NOISY_B, NOISY_C = range(len(CAMERAS))
+
+
+@pytest.fixture(scope="module")
+def shared_pool() -> Iterator[RenderPool]:
+    """Six cameras on two workers, the front faces lit."""
+    with RenderPool(scene(), CAMERAS, workers=2, light=FRONT_LIT) as render_pool:
+        yield render_pool
+
+
+@pytest.fixture
+def pool(shared_pool: RenderPool) -> Iterator[RenderPool]:
+    """The shared pool, left with no outstanding request whatever the test did."""
+    yield shared_pool
+    for camera in range(len(CAMERAS)):
+        if shared_pool.busy(camera):
+            shared_pool.collect(wait_for=camera, timeout=WAIT)
+
+
+def render(pool: RenderPool, camera: int, pose: Transform, states: dict[str, BodyState] | None = None) -> Frame:
+    """One frame, in lockstep; a copy of its pixels, which are the pool's until the next request."""
+    pool.request(camera, 42, pose, states or {})
+    frames = [f for f in pool.collect(wait_for=camera, timeout=WAIT) if f.camera == camera]
+    assert len(frames) == 1
+    return frames[0]._replace(pixels=frames[0].pixels.copy())
+
+
+def mask(pixels: npt.NDArray[np.uint8], channel: int) -> npt.NDArray[np.bool_]:
+    """Pixels of a saturated primary colour (channel 0 red, 1 green)."""
+    others = [c for c in range(3) if c != channel]
+    return (pixels[..., channel] > 150) & (pixels[..., others[0]] < 60) & (pixels[..., others[1]] < 60)
+
+
+def centroid_column(m: npt.NDArray[np.bool_]) -> float:
+    assert m.any(), "the object is not in the image"
+    return float(np.nonzero(m)[1].mean())
+
+
+def test_box_ahead_fills_the_centre_with_its_pinhole_width(pool: RenderPool) -> None:
+    """A 1 m red face 2 m ahead: red at the centre, fx·size/d pixels wide; looking back, nothing."""
+    pixels = render(pool, RGB, AHEAD).pixels
+    assert pixels.shape == (H, W, 3) and pixels.dtype == np.uint8
+    red = mask(pixels, 0)
+    assert red[H // 2, W // 2]
+    assert red[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+    assert red[:, W // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)  # square pixels: fy = fx
+    behind = render(pool, RGB, yawed((0.0, 0.0, 0.0), math.pi)).pixels
+    assert not mask(behind, 0).any()
+
+
+def test_camera_pose_moves_the_image(pool: RenderPool) -> None:
+    """A camera 0.2 m to the left sees the box 10 px further right; tilted up, the box moves down."""
+    left = render(pool, RGB, at((0.0, 0.2, 0.0))).pixels
+    assert centroid_column(mask(left, 0)) == pytest.approx(W / 2 + FX * 0.2 / RED_FACE - 0.5, abs=2)
+    pitch = -0.1  # a negative pitch about y raises the optical axis (z up)
+    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)))).pixels
+    rows = np.nonzero(mask(up, 0))[0]
+    assert rows.mean() == pytest.approx(H / 2 + FX * math.tan(0.1) - 0.5, abs=2)  # row 0 is the top
+
+
+def test_full_size_image(pool: RenderPool) -> None:
+    """640×480 RGB, the box in the middle, four times as wide as at 160×120 with the same fov."""
+    pixels = render(pool, FULL, AHEAD).pixels
+    assert pixels.shape == (480, 640, 3) and pixels.dtype == np.uint8
+    assert mask(pixels, 0)[240].sum() == pytest.approx(4 * FX * RED_SIZE / RED_FACE, abs=2)
+
+
+def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
+    """The green box moved 0.3 m to the left (+y) shifts left by fx·dy/d pixels."""
+    camera = at(MOVER_AT)
+    centre = (MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0)
+    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), ())}).pixels, 1))
+    moved = BodyState(at((centre[0], 0.3, 0.0)), ())
+    after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved}).pixels, 1))
+    assert before == pytest.approx(W / 2 - 0.5, abs=1)
+    assert after - before == pytest.approx(-FX * 0.3 / MOVER_FACE, abs=2)
+
+
+def test_joint_positions_move_links(pool: RenderPool) -> None:
+    """The arm swung by 0.1 rad about z puts its box fx·tan(0.1) pixels to the left."""
+    camera = at(ARM_AT)
+    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.0,))}).pixels, 1))
+    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.1,))}).pixels, 1))
+    assert straight == pytest.approx(W / 2 - 0.5, abs=1)
+    assert swung - straight == pytest.approx(-FX * math.tan(0.1), abs=2)
+
+
+def test_base_poses_are_centre_of_mass_frames(pool: RenderPool) -> None:
+    """A body whose centre of mass is 0.4 m beside its visual, placed by PyBullet's base pose, shows its visual
+    where the server has it (centred), not 0.4 m (20 px) off."""
+    pixels = render(pool, RGB, at(OFFSET_AT)).pixels
+    assert centroid_column(mask(pixels, 0)) == pytest.approx(W / 2 - 0.5, abs=1)
+
+
+def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool) -> None:
+    """Lit from behind the camera, an orange face shows its material colour; the default light (travelling
+    towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
+    lit = render(pool, RGB, at(ORANGE_AT)).pixels[H // 2, W // 2].astype(float)
+    np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
+    with RenderPool([b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1) as default_light:
+        shaded = render(default_light, RGB, at(ORANGE_AT)).pixels[H // 2, W // 2].astype(float)
+    np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
+
+
+def test_mono_is_luminance(pool: RenderPool) -> None:
+    """channels=1: H×W uint8, the BT.601 luminance of the RGB image."""
+    rgb = render(pool, RGB, AHEAD).pixels.astype(float)
+    mono = render(pool, MONO, AHEAD).pixels
+    assert mono.shape == (H, W) and mono.dtype == np.uint8
+    np.testing.assert_allclose(mono, rgb @ [0.299, 0.587, 0.114], atol=1)
+
+
+def test_noise_has_the_configured_spread_and_follows_the_seed(pool: RenderPool) -> None:
+    """σ 0.02 of full scale is ≈ 5.1 levels on a flat region; same seed, same image; another seed, another."""
+    wall = at(GREY_AT)
+    clean = render(pool, RGB, wall).pixels.astype(float)
+    assert clean.std() == 0 and clean[0, 0, 0] == pytest.approx(128, abs=2)  # mid-grey: no clipping
+    a, b, c = (render(pool, cam, wall).pixels for cam in (NOISY_A, NOISY_B, NOISY_C))
+    assert (a - clean).std() == pytest.approx(0.02 * 255, rel=0.2)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: RenderPool) -> None:
+    """Three cameras on two workers: each frame comes back with its own stamp; a camera stays busy until its
+    frame is collected, and a second request meanwhile raises."""
+    cameras = (RGB, MONO, NOISY_C)
+    for n, camera in enumerate(cameras):
+        pool.request(camera, 1000 + n, AHEAD, {})
+    assert all(pool.busy(camera) for camera in cameras)
+    assert not pool.busy(FULL)
+    with pytest.raises(RuntimeError, match="busy"):
+        pool.request(RGB, 2000, AHEAD, {})
+    time.sleep(0.5)  # rendered by now, but not collected: still busy (its pixels are not the caller's yet)
+    assert pool.busy(RGB)
+    stamps: dict[int, int] = {}
+    deadline = time.monotonic() + WAIT
+    while len(stamps) < len(cameras) and time.monotonic() < deadline:
+        stamps.update((f.camera, f.stamp_ns) for f in pool.collect())
+    assert stamps == {RGB: 1000, MONO: 1001, NOISY_C: 1002}
+    assert not any(pool.busy(camera) for camera in cameras)
+    assert pool.collect() == []
+
+
+def test_bad_requests_are_refused(pool: RenderPool) -> None:
+    """Unknown bodies and cameras fail at the request, in the caller."""
+    with pytest.raises(ValueError, match="nosuch"):
+        pool.request(RGB, 0, AHEAD, {"nosuch": BodyState(AHEAD, ())})
+    with pytest.raises(IndexError):
+        pool.request(len(CAMERAS), 0, AHEAD, {})
+    assert not pool.busy(RGB)
+
+
+def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
+    """A state the worker cannot apply (the arm without its joint position) fails that frame only."""
+    pool.request(RGB, 7, at(ARM_AT), {"arm": BodyState(at(ARM_AT), ())})
+    with pytest.raises(RuntimeError, match="arm"):
+        pool.collect(wait_for=RGB, timeout=WAIT)
+    assert not pool.busy(RGB)
+    assert mask(render(pool, RGB, AHEAD).pixels, 0)[H // 2, W // 2]
+
+
+QUIET_SCRIPT = """
+from simbot.sim.rendering import CameraSpec, RenderPool, SceneBody
+if __name__ == "__main__":
+    body = SceneBody("red", {urdf!r}, True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    with RenderPool([body], [CameraSpec("c", 32, 24, 1.5, 0.05, 50.0)], workers=1, renderer="egl") as pool:
+        pool.request(0, 1, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {{}})
+        pool.collect(wait_for=0, timeout=10)
+"""
+
+
+def test_workers_keep_pybullet_chatter_off_stdout_and_stderr(tmp_path: Path) -> None:
+    """PyBullet and the EGL plugin print from C; none of it reaches the server's stdout or stderr."""
+    script = tmp_path / "quiet.py"
+    script.write_text(QUIET_SCRIPT.format(urdf=box_urdf((0.1, 1.0, 1.0), RED)))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert (done.stdout, done.stderr) == ("", "")
+
+
+def test_egl_or_a_stated_fallback() -> None:
+    """EGL is used, or the reason it is not is stated and TinyRenderer used; the image is right either way."""
+    with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="egl") as egl:
+        if egl.renderer_used == "egl":
+            assert egl.fallback_reason is None
+        else:
+            assert egl.renderer_used == "tiny" and egl.fallback_reason
+        pixels = render(egl, RGB, AHEAD).pixels
+    red = (pixels[..., 0] > 120) & (pixels[..., 1] < 60) & (pixels[..., 2] < 60)  # EGL shades with its own light
+    assert red[H // 2, W // 2]
+    assert red[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+
+
+def test_close_during_a_render_is_prompt() -> None:
+    """close() while a large frame renders returns within a couple of seconds and ends the workers."""
+    big = CameraSpec("big", 2000, 2000, HFOV, 0.05, 50.0)
+    render_pool = RenderPool(scene()[:1], [big], workers=1)
+    (pid,) = render_pool.pids
+    render_pool.request(0, 1, AHEAD, {})
+    time.sleep(0.05)
+    start = time.monotonic()
+    render_pool.close()
+    assert time.monotonic() - start < 2.0
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)  # type: ignore[arg-type]
+    render_pool.close()  # idempotent
+    with pytest.raises(RuntimeError, match="closed"):
+        render_pool.request(0, 2, AHEAD, {})
+
+
+def test_a_killed_worker_raises_instead_of_hanging() -> None:
+    """A worker killed mid-request: collect(wait_for=) raises RuntimeError naming it; the camera is no longer
+    busy and a new request for it raises too."""
+    big = CameraSpec("big", 2000, 2000, HFOV, 0.05, 50.0)  # slow enough to be killed mid-render
+    with RenderPool(scene()[:1], [CAMERAS[RGB], big], workers=2) as render_pool:
+        render_pool.request(1, 1, AHEAD, {})
+        os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
+        with pytest.raises(RuntimeError, match=r"worker 1 .*died.*big"):
+            render_pool.collect(wait_for=1, timeout=WAIT)
+        assert not render_pool.busy(1)
+        with pytest.raises(RuntimeError, match="died"):
+            render_pool.request(1, 2, AHEAD, {})
+
+
+def test_a_scene_that_does_not_load_fails_the_start() -> None:
+    """A broken URDF fails the constructor with the worker's reason, not a timeout."""
+    broken = SceneBody("broken", "<robot name='x'><link", True, AHEAD)
+    with pytest.raises(RuntimeError, match="failed to start.*broken"):
+        RenderPool([broken], CAMERAS[:1], workers=1, start_timeout=WAIT)

@@ -1,0 +1,157 @@
+"""Cameras through the real server: rendered in worker processes, published as rgb8 with true intrinsics.
+
+The test world has one red box (1 m cube, near face at x 3.5) straight ahead of the front camera
+of a robot spawned at the origin: the front camera (x 1.0, about 0.49 m up) sees it 2.5 m away,
+centred, fx·1 m / 2.5 m = 74 px wide at 640 × 480 with the SDF's 120° field of view
+(fx = 320 / tan 60° = 184.8 px). Every other camera looks at least 80° away from it, outside its
+60° half field of view.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from server_helpers import SimServer, running_server, stamp_ns
+
+REPO = Path(__file__).resolve().parents[1]
+WORLD = str(REPO / "tests" / "fixtures" / "camera_boxes.sdf")
+AT_ORIGIN = ["--spawn", "0", "0", "0.1", "0"]
+IMAGE = "sensor_msgs/msg/Image"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+CAMERAS = ("camera_front", "camera_back", "camera_front_right", "camera_back_right", "camera_front_left", "camera_back_left")
+HFOV = 2.0944
+BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimServer]:
+    with running_server(WORLD, "lockstep", extra=AT_ORIGIN) as server:
+        yield server
+
+
+def _pixels(msg: Any) -> np.ndarray:
+    return np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.width, 3)
+
+
+def _red(image: np.ndarray) -> np.ndarray:
+    """Where the box is: red well above green and blue, whatever the shading."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return (r > 100) & (g < 60) & (b < 60)
+
+
+def _first_frames(sim: SimServer, topics: tuple[str, ...], typename: str = IMAGE) -> dict[str, Any]:
+    collectors = {topic: sim.subscribe(topic, typename) for topic in topics}
+    try:
+        sim.prime(*collectors.values(), chunk=34, timeout=60.0)  # the first subscription starts the render workers
+        return {topic: c.messages()[-1] for topic, c in collectors.items()}
+    finally:
+        sim.unsubscribe_all()
+
+
+def test_the_red_box_ahead_fills_the_front_image_and_no_other(sim: SimServer) -> None:
+    frames = _first_frames(sim, CAMERAS)
+    front = frames["camera_front"]
+    assert (front.height, front.width, front.encoding, front.step) == (480, 640, "rgb8", 640 * 3)
+    assert front.header.frame_id == "camera_front_optical_frame"
+    image = _pixels(front)
+    red = _red(image)
+    assert red[240, 320] and red[235:245, 315:325].all(), f"the centre of the front image is {image[240, 320]}, not the red box"
+    columns = np.flatnonzero(red[240])
+    fx = 320 / math.tan(HFOV / 2)
+    expected = fx * BOX_WIDTH / BOX_DISTANCE
+    assert abs(len(columns) - expected) <= 3, f"the box is {len(columns)} px wide, the pinhole model says {expected:.1f}"
+    assert abs((columns[0] + columns[-1]) / 2 - 319.5) <= 1.5, "the box is not centred"
+    for name in CAMERAS[1:]:
+        seen = int(_red(_pixels(frames[name])).sum())
+        assert seen == 0, f"{name} sees {seen} red pixels of a box outside its field of view"
+
+
+def test_camera_info_holds_the_intrinsics_of_the_fov(sim: SimServer) -> None:
+    info = _first_frames(sim, ("camera_front/camera_info",), CAMERA_INFO)["camera_front/camera_info"]
+    fx = 320 / math.tan(HFOV / 2)
+    assert (info.width, info.height) == (640, 480) and info.header.frame_id == "camera_front_optical_frame"
+    assert np.allclose(info.k, [fx, 0, 319.5, 0, fx, 239.5, 0, 0, 1], atol=1e-6)
+    assert np.allclose(info.p, [fx, 0, 319.5, 0, 0, fx, 239.5, 0, 0, 0, 1, 0], atol=1e-6)
+    assert np.allclose(info.r, np.eye(3).reshape(-1)) and not np.any(info.d)
+
+
+def test_images_are_stamped_with_the_sim_time_they_show(sim: SimServer) -> None:
+    """Driving forward 0.5 m/s, each frame's box width matches where ground truth put the robot at its stamp."""
+    sim.reset()
+    images = sim.subscribe("camera_front", IMAGE)
+    poses = sim.subscribe("model/flexley_tug/pose", "geometry_msgs/msg/PoseStamped")
+    sim.prime(images, poses, chunk=34, timeout=60.0)
+    sim.drive(0.5)
+    sim.step(2000)
+    sim.drive(0.0)
+    frames = images.wait_for(lambda items: stamp_ns(items[-1]) >= 2_000_000_000, timeout=30.0, what="frames up to 2 s")
+    truth = {stamp_ns(p): p.pose.position.x for p in poses.messages()}
+    checked = 0
+    for frame in frames:
+        x = truth.get(stamp_ns(frame))
+        if x is None or x < 0.3:
+            continue  # only stamps where the pose publisher (50 Hz) also has a sample, once clearly moving
+        width = len(np.flatnonzero(_red(_pixels(frame))[240]))
+        expected = (320 / math.tan(HFOV / 2)) * BOX_WIDTH / (3.5 - 1.0 - x)
+        assert abs(width - expected) <= 3, f"at {stamp_ns(frame) / 1e9:.3f} s (x {x:.3f}) the box is {width} px wide, expected {expected:.1f}"
+        checked += 1
+    sim.unsubscribe_all()
+    assert checked >= 5, "too few frames coincided with ground-truth poses"
+
+
+def test_nobody_subscribed_nothing_rendered(sim: SimServer) -> None:
+    """No image subscriber: frames are neither rendered nor counted; camera_info alone renders nothing."""
+    before = sim.state()["sensors"]["camera_back"]["messages"]
+    _first_frames(sim, ("camera_back/camera_info",), CAMERA_INFO)
+    sim.step(500)
+    assert sim.state()["sensors"]["camera_back"]["messages"] == before
+
+
+def test_rates_over_ten_seconds_in_lockstep() -> None:
+    """Every camera 30 Hz (± 1 message over 10 s of sim time): lockstep renders every frame at its time."""
+    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-size", "80x60"]) as sim:
+        collectors = {topic: sim.subscribe(topic, IMAGE) for topic in CAMERAS}
+        sim.prime(*collectors.values(), chunk=34, timeout=60.0)
+        start = sim.state()["sim_time"]
+        sim.step(10_000)
+        end_ns = round((start + 10.0) * 1e9)
+        for topic, collector in collectors.items():
+            frames = collector.wait_for(lambda items: stamp_ns(items[-1]) >= end_ns - 34_000_000, timeout=60.0, what=f"{topic} up to {end_ns}")
+            stamps = [stamp_ns(m) for m in frames if start * 1e9 < stamp_ns(m) <= end_ns]
+            assert abs(len(stamps) - 300) <= 1, f"{topic}: {len(stamps)} frames in 10 s"
+            assert (frames[0].width, frames[0].height) == (80, 60)
+        figures = sim.state()["sensors"]["camera_front"]
+        assert figures["rate_hz"] == pytest.approx(30.0, abs=0.5) and figures["skipped"] == 0, figures
+
+
+def test_camera_rate_option_and_egl_renderer_or_its_fallback() -> None:
+    """--camera-rate 10 gives 10 Hz; --renderer egl renders the same box, or falls back to TinyRenderer with a warning."""
+    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120", "--renderer", "egl"]) as sim:
+        images = sim.subscribe("camera_front", IMAGE)
+        sim.prime(images, chunk=100, timeout=60.0)
+        start = stamp_ns(images.messages()[-1])
+        sim.step(1000)
+        frames = images.wait_for(lambda items: stamp_ns(items[-1]) >= start + 1_000_000_000, timeout=30.0, what="1 s of frames")
+        assert len([m for m in frames if start < stamp_ns(m) <= start + 1_000_000_000]) == 10
+        red = _red(_pixels(frames[-1]))
+        assert red[60, 80], "the red box is not at the image centre"
+        renderer = sim.state()["sensors"]["camera_front"]["renderer"]
+        assert renderer in ("egl", "tiny")
+        if renderer == "tiny":
+            assert "--renderer egl is not available" in sim.stderr(), "fell back to TinyRenderer without a warning"
+
+
+def test_bad_camera_options_are_one_line_errors() -> None:
+    from subprocess import run
+
+    from server_helpers import server_command
+
+    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "ogre")):
+        result = run(server_command(option, value, "--world", "empty"), capture_output=True, text=True, timeout=30)
+        assert result.returncode == 2, (option, value, result.stderr)
+        assert option in result.stderr and "Traceback" not in result.stderr
