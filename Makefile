@@ -21,6 +21,7 @@ test: $(STAMP)
 ## Speed, as ratios against a baseline measured in the same run (figures in the README).
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
+	$(BIN)/python benchmarks/bench_sensors.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)

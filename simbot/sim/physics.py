@@ -87,6 +87,7 @@ class Physics:
     bodies: dict[str, Body] = field(default_factory=dict)
     constraints: set[int] = field(default_factory=set)
     _wheels: list[WheelFriction] = field(default_factory=list)
+    _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     _saved_state: int | None = None
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
@@ -222,9 +223,17 @@ class Physics:
     def frame_pose(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> Transform:
         """World pose of a frame fixed to `link`, given in the SDF link frame (where a sensor is)."""
         body = self.body(model)
-        sdf_link = body.model.link(link)
-        offset = pose_to_transform(link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link)
-        return compose(self._urdf_frame(body, self._link(body, link)), offset)
+        index = self._link(body, link)
+        return compose(self._urdf_frame(body, index), self._offset(body, link, pose_in_link))
+
+    def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
+        """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""
+        key = (body.name, link, pose_in_link)
+        offset = self._offsets.get(key)
+        if offset is None:
+            sdf_link = body.model.link(link)
+            offset = self._offsets[key] = pose_to_transform(link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link)
+        return offset
 
     def _urdf_frame(self, body: Body, index: int) -> Transform:
         """A link's URDF frame in the world, current even right after a teleport."""
@@ -234,19 +243,22 @@ class Physics:
         state = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)
         return _as_transform(state[4], state[5])
 
-    def frame_velocity(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """(linear velocity of the frame's origin, angular velocity), both in the world frame."""
+    def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]:
+        """(world pose, linear velocity of the frame's origin, angular velocity), velocities in the world frame."""
         body = self.body(model)
         index = self._link(body, link)
         if index == -1:
-            com = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)[0]
+            com, orn = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
             linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+            frame = compose(_as_transform(com, orn), body.com_to_root)
         else:
             state = pb.getLinkState(body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client)
             com, linear, angular = state[0], state[6], state[7]
-        omega = np.asarray(angular, dtype=float)
-        lever = np.asarray(self.frame_pose(model, link, pose_in_link)[0]) - np.asarray(com)
-        return np.asarray(linear, dtype=float) + np.cross(omega, lever), omega
+            frame = _as_transform(state[4], state[5])
+        pose = compose(frame, self._offset(body, link, pose_in_link))
+        (wx, wy, wz), (rx, ry, rz) = angular, (pose[0][0] - com[0], pose[0][1] - com[1], pose[0][2] - com[2])
+        velocity = (linear[0] + wy * rz - wz * ry, linear[1] + wz * rx - wx * rz, linear[2] + wx * ry - wy * rx)  # v + ω × r
+        return pose, velocity, (float(wx), float(wy), float(wz))
 
     def blind_rays_to(self, model: str) -> None:
         """Rays cast with `cast_rays` pass through `model` (a sensor never sees its own robot)."""

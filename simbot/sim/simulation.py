@@ -24,8 +24,9 @@ IDLE_SLEEP_S = 0.001
 """How often a paused or lockstep world looks for requests."""
 POLL_EVERY = 10
 """A freely running world looks for requests every this many steps (10 ms of sim time at 1 kHz)."""
-MAX_LAG_S = 0.1
-"""In real time, a loop that falls this far behind the wall clock starts afresh rather than rushing."""
+MAX_LAG_S = 0.5
+"""In real time, a loop behind the wall clock catches up (a step takes a fraction of its period);
+one that falls this far behind (a stall, a debugger) starts afresh rather than rushing."""
 RTF_WINDOW_S = 1.0
 
 

@@ -256,9 +256,12 @@ class Every:
 
 @dataclass
 class RateMeter:
-    """Messages per second of sim time over the last second: the rate a subscriber sees."""
+    """Messages per second of sim time over the last 3 s: the rate a subscriber sees.
 
-    window_ns: int = 1_000_000_000
+    Three seconds, because a camera's frames are published up to a few hundred milliseconds
+    after their stamps, and a one-second window would hold too few of a slow camera's frames."""
+
+    window_ns: int = 3_000_000_000
     stamps: deque[int] = field(default_factory=deque)
     count: int = 0
 

@@ -71,8 +71,8 @@ class Imu(Sampled):
     def post_update(self, now_ns: int) -> None:
         if not self.due(now_ns):
             return
-        _, quat = self._physics.frame_pose(*self._where)
-        linear, angular = self._physics.frame_velocity(*self._where)
+        (_, quat), linear_xyz, angular_xyz = self._physics.frame_motion(*self._where)
+        linear, angular = np.array(linear_xyz), np.array(angular_xyz)
         acceleration = np.zeros(3)
         if self._last is not None and now_ns > self._last[0]:
             acceleration = (linear - self._last[1]) / ((now_ns - self._last[0]) / 1e9)
