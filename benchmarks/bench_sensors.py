@@ -601,8 +601,9 @@ def _camera_rows(label: str, run: Run, costs: Costs, size: tuple[int, int], work
     ]
 
 
-def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, fast: Run, bare: BareLoop) -> list[str]:
+def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, every_core: Run, fast: Run, bare: BareLoop) -> list[str]:
     """One markdown table, ready for the README."""
+    cores = len(os.sched_getaffinity(0))
     per_cam = ", ".join(f"{small.per_second(c):.1f}" for c in CAMERAS)
     image_ms = costs.request_ms + costs.render_ms + costs.publish_ms
     fast_per_cpu, bare_per_cpu = fast.rtf / fast.server_cpu, bare.rtf / bare.cpu
@@ -617,6 +618,13 @@ def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, fast: Run
             per_cam,
             f"{CAMERA_TARGET_HZ:.0f} each",
             f"capacity / 6 = {costs.capacity_fps[(320, 240)] * workers / len(CAMERAS):.1f} each",
+        ),
+        _rtf_row(f"320×240, --render-workers {cores}", every_core, idle),
+        (
+            f"real time, 320×240, --render-workers {cores}: images/s per camera",
+            ", ".join(f"{every_core.per_second(c):.1f}" for c in CAMERAS),
+            f"{CAMERA_TARGET_HZ:.0f} each",
+            f"bare TinyRenderer 320×240 on one core / 6 = {costs.capacity_fps[(320, 240)] / len(CAMERAS):.1f} each",
         ),
         (
             "fast mode, lidars + IMU subscribed, driving: real-time factor",
@@ -671,20 +679,29 @@ def main() -> None:
     big = run_server("realtime", everything, args.seconds, ["--camera-size", "640x480"])
     log.info("server: real time, every sensor subscribed, 320x240")
     small = run_server("realtime", everything, args.seconds, ["--camera-size", "320x240"])
+    cores = len(os.sched_getaffinity(0))
+    log.info("server: real time, every sensor subscribed, 320x240, a render worker on every core")
+    every_core = run_server("realtime", everything, args.seconds, ["--camera-size", "320x240", "--render-workers", str(cores)])
     log.info("server: fast mode, lidars and IMU, driving")
     fast = run_server("fast", [*LIDARS, IMU], short, drive=True)
     log.info("bare PyBullet loop, wheels driven")
     bare = bare_physics(short)
 
     print()
-    print("\n".join(table(costs, workers, idle, big, small, fast, bare)))
+    print("\n".join(table(costs, workers, idle, big, small, every_core, fast, bare)))
     fallback = f", fell back: {costs.fallback}" if costs.fallback else ", no fallback"
     print(f"\nraw: {workers} render worker(s) on {len(os.sched_getaffinity(0))} cores; renderer {costs.renderer}{fallback}")
     print(f"  camera round trip (request to collected, in-process, worker alone): {costs.round_trip_ms:.1f} ms")
     for size in costs.capacity_fps:
         print(f"  bare TinyRenderer {size[0]}x{size[1]}: {costs.capacity_fps[size]:.1f}/s wall, {costs.cpu_fps[size]:.1f}/s CPU")
     print(f"  bare PyBullet loop, wheels driven: {bare.rtf:.2f}× real time with {bare.cpu:.2f} of a core")
-    runs = {"real time, nothing subscribed": idle, "real time, 640x480": big, "real time, 320x240": small, "fast, lidars + IMU": fast}
+    runs = {
+        "real time, nothing subscribed": idle,
+        "real time, 640x480": big,
+        "real time, 320x240": small,
+        f"real time, 320x240, {cores} render workers": every_core,
+        "fast, lidars + IMU": fast,
+    }
     for label, run in runs.items():
         describe(label, run)
 

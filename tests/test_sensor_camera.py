@@ -151,7 +151,7 @@ def test_bad_camera_options_are_one_line_errors() -> None:
 
     from server_helpers import server_command
 
-    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "ogre")):
+    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "ogre"), ("--render-workers", "0")):
         result = run(server_command(option, value, "--world", "empty"), capture_output=True, text=True, timeout=30)
         assert result.returncode == 2, (option, value, result.stderr)
         assert option in result.stderr and "Traceback" not in result.stderr

@@ -2,7 +2,7 @@
 
     simbot-server [--world NAME|PATH] [--robot PATH] [--spawn X Y Z YAW] [--namespace NS]
                   [--mode realtime|fast|lockstep] [--seed N] [--renderer tiny|egl]
-                  [--camera-size WxH] [--camera-rate HZ] [--listen E] [--connect E] [--zenoh-config F]
+                  [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
 config) is one line on stderr and exit code 2. SIGINT and SIGTERM end it cleanly.
@@ -54,9 +54,10 @@ class ServerConfig:
     renderer: str = "tiny"
     camera_size: tuple[int, int] | None = None
     camera_rate: float | None = None
+    render_workers: int | None = None
 
     def sensor_settings(self) -> SensorSettings:
-        return SensorSettings(self.mode is Mode.LOCKSTEP, self.renderer, self.camera_size, self.camera_rate)
+        return SensorSettings(self.mode is Mode.LOCKSTEP, self.renderer, self.camera_size, self.camera_rate, self.render_workers)
 
 
 def world_path(name_or_path: str) -> Path:
@@ -163,6 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="camera renderer: tiny (CPU, default) or egl (GPU where present)")
     parser.add_argument("--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240")
     parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
+    parser.add_argument("--render-workers", type=_count, metavar="N", help="camera render processes (default: every core but one)")
     parser.add_argument("--quiet", action="store_true", help="no status line")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
@@ -194,10 +196,17 @@ def _rate(text: str) -> float:
     return rate
 
 
+def _count(text: str) -> int:
+    """A whole number from 1 to 64."""
+    if not text.strip().isdigit() or not 1 <= int(text) <= 64:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 1 to 64, got {text!r}")
+    return int(text)
+
+
 def _config(args: argparse.Namespace) -> ServerConfig:
     robot = args.robot if args.robot is not None else asset("urdf/flexley_tug.sdf")
     return ServerConfig(
-        world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, args.renderer, args.camera_size, args.camera_rate
+        world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, args.renderer, args.camera_size, args.camera_rate, args.render_workers
     )
 
 

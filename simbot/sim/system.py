@@ -149,6 +149,8 @@ class SensorSettings:
     """(width, height) for every camera instead of the SDF's."""
     camera_rate: float | None = None
     """Hz for every camera instead of the SDF's update_rate."""
+    render_workers: int | None = None
+    """Render worker processes; None: every core but one."""
 
 
 @dataclass(frozen=True)

@@ -45,10 +45,10 @@ LOCKSTEP_TIMEOUT_S = 120.0
 RIG = "camera_rig"
 
 
-def worker_count(cameras: int) -> int:
-    """Render workers that fit: every core but one, which the physics keeps; at most one per camera."""
+def worker_count(cameras: int, asked: int | None = None) -> int:
+    """Render workers: as asked, else those that fit, every core but one (the physics keeps it); at most one per camera."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(cameras, cores - 1))
+    return max(1, min(cameras, asked or cores - 1))
 
 
 def _light(world: World) -> Light:
@@ -93,7 +93,7 @@ class CameraRig:
         takes seconds the loop must not wait."""
         specs = [camera.spec for camera in self.cameras]
         try:
-            pool = RenderPool(bodies, specs, worker_count(len(specs)), self.settings.renderer, self.light)
+            pool = RenderPool(bodies, specs, worker_count(len(specs), self.settings.render_workers), self.settings.renderer, self.light)
         except (OSError, RuntimeError, ValueError) as exc:
             self.failure = f"the camera render workers did not start: {exc}"
             log.error("%s; no images will be published", self.failure)
