@@ -49,18 +49,18 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_server import bare_loop, free_port  # noqa: E402  (the same baseline as bench_server.py)
+from bench_server import bare_loop, free_port
 
-from simbot.bus import BusOptions, Node, messages  # noqa: E402
-from simbot.description.resources import asset  # noqa: E402
-from simbot.sim.bullet import pb  # noqa: E402
-from simbot.sim.physics import RAY_BLIND_GROUP, Physics  # noqa: E402
-from simbot.sim.rendering import CameraSpec, Light  # noqa: E402
-from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path  # noqa: E402
-from simbot.sim.simulation import Mode  # noqa: E402
-from simbot.sim.systems.camera import Camera, worker_count  # noqa: E402
-from simbot.sim.systems.imu import Imu  # noqa: E402
-from simbot.sim.systems.lidar import Lidar, ray_directions  # noqa: E402
+from simbot.bus import BusOptions, Node, messages
+from simbot.description.resources import asset
+from simbot.sim.bullet import pb
+from simbot.sim.physics import RAY_BLIND_GROUP, Physics
+from simbot.sim.rendering import CameraSpec, Light
+from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
+from simbot.sim.simulation import Mode
+from simbot.sim.systems.camera import Camera, worker_count
+from simbot.sim.systems.imu import Imu
+from simbot.sim.systems.lidar import Lidar, ray_directions
 
 log = logging.getLogger("bench_sensors")
 

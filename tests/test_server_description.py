@@ -26,11 +26,11 @@ from server_helpers import (
 )
 
 from simbot.bus import Node
+from simbot.bus.frames import optical_frame
 from simbot.description import load_model
 from simbot.description.model import Model
 from simbot.description.poses import Pose, quaternion_to_matrix
 from simbot.description.urdf_writer import link_frame
-from simbot.bus.frames import optical_frame
 
 TOL = 1e-6
 ROOT = "base_footprint"

@@ -13,10 +13,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from simbot.description import model_to_urdf
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description import model_to_urdf
 from simbot.description.model import Joint, Model, World
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import link_frame, urdf_root

@@ -33,7 +33,15 @@ from simbot.bus.frames import optical_frame
 from simbot.description.model import World
 from simbot.sim.physics import Physics
 from simbot.sim.rendering import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody
-from simbot.sim.system import Sampled, SensorSettings, SystemConfigError, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import (
+    Sampled,
+    SensorSettings,
+    SystemConfigError,
+    SystemContext,
+    sensor_frame,
+    sensor_rate,
+    sensor_topic,
+)
 
 log = logging.getLogger(__name__)
 

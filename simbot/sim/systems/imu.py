@@ -28,10 +28,11 @@ class AxisNoise:
 
     def __init__(self, axes: Axes, rng: np.random.Generator) -> None:
         self._rng = rng
-        self.mean = np.array([n.mean if _gaussian(n) else 0.0 for n in axes])
-        self.stddev = np.array([n.stddev if _gaussian(n) else 0.0 for n in axes])
-        self._bias_mean = np.array([n.bias_mean if _gaussian(n) else 0.0 for n in axes])
-        self._bias_stddev = np.array([n.bias_stddev if _gaussian(n) else 0.0 for n in axes])
+        used = [n if n is not None and n.type.startswith("gaussian") else Noise() for n in axes]
+        self.mean = np.array([n.mean for n in used])
+        self.stddev = np.array([n.stddev for n in used])
+        self._bias_mean = np.array([n.bias_mean for n in used])
+        self._bias_stddev = np.array([n.bias_stddev for n in used])
         self.bias = np.zeros(3)
         self.draw_bias()
 
@@ -45,10 +46,6 @@ class AxisNoise:
 
     def covariance(self) -> npt.NDArray[np.float64]:
         return np.diag(self.stddev**2).reshape(-1)
-
-
-def _gaussian(noise: Noise | None) -> bool:
-    return noise is not None and noise.type.startswith("gaussian")
 
 
 class Imu(Sampled):
