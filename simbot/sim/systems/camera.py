@@ -117,6 +117,10 @@ class CameraRig:
             self._snapshot = (now_ns, states)
         return self._snapshot[1]
 
+    def forget(self) -> None:
+        """The world was reset: sim time starts again, so a snapshot's time no longer names it."""
+        self._snapshot = None
+
     def deliver(self) -> None:
         """Publishes the frames that are done; in lockstep, first waits for every outstanding one."""
         if self.pool is None:
@@ -212,6 +216,7 @@ class Camera(Sampled):
     def reset(self, now_ns: int) -> None:
         super().reset(now_ns)
         self.skipped = 0
+        self.rig.forget()
 
     def close(self) -> None:
         if self.index == 0:
