@@ -58,6 +58,7 @@ from simbot.sim.physics import RAY_BLIND_GROUP, Physics
 from simbot.sim.rendering import CameraSpec, Light
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
+from simbot.sim.system import SensorSettings
 from simbot.sim.systems.camera import Camera, worker_count
 from simbot.sim.systems.imu import Imu
 from simbot.sim.systems.lidar import Lidar, ray_directions
@@ -203,7 +204,7 @@ def in_process_server() -> Iterator[tuple[Server, Node]]:
     """A `Server` built as simbot-server builds it (lockstep, so that starting the render pool
     waits), on its own loopback port, and a client node on it."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    config = ServerConfig(world_path(WORLD), asset("urdf/flexley_tug.sdf"), mode=Mode.LOCKSTEP, camera_size=(640, 480))
+    config = ServerConfig(world_path(WORLD), asset("urdf/flexley_tug.sdf"), mode=Mode.LOCKSTEP, sensors=SensorSettings(camera_size=(640, 480)))
     with Node(BusOptions(listen=(endpoint,), namespace=namespace), "server") as node:
         server = Server(config, node)
         try:

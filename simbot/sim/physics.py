@@ -222,9 +222,7 @@ class Physics:
 
     def frame_pose(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> Transform:
         """World pose of a frame fixed to `link`, given in the SDF link frame (where a sensor is)."""
-        body = self.body(model)
-        index = self._link(body, link)
-        return compose(self._urdf_frame(body, index), self._offset(body, link, pose_in_link))
+        return self.frame_motion(model, link, pose_in_link)[0]
 
     def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
         """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""
@@ -235,16 +233,9 @@ class Physics:
             offset = self._offsets[key] = pose_to_transform(link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link)
         return offset
 
-    def _urdf_frame(self, body: Body, index: int) -> Transform:
-        """A link's URDF frame in the world, current even right after a teleport."""
-        if index == -1:
-            com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
-            return compose(com, body.com_to_root)
-        state = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)
-        return _as_transform(state[4], state[5])
-
     def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]:
-        """(world pose, linear velocity of the frame's origin, angular velocity), velocities in the world frame."""
+        """(world pose, linear velocity of the frame's origin, angular velocity), velocities in the
+        world frame; current even right after a teleport (forward kinematics are recomputed)."""
         body = self.body(model)
         index = self._link(body, link)
         if index == -1:

@@ -17,7 +17,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +30,7 @@ from simbot.description.resources import asset
 from simbot.sim.control import WorldControl
 from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup
+from simbot.sim.rendering import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext
 from simbot.sim.systems.clock_publisher import ClockPublisher
@@ -51,13 +52,11 @@ class ServerConfig:
     spawn: tuple[float, float, float, float] = DEFAULT_SPAWN
     mode: Mode = Mode.REALTIME
     seed: int = 0
-    renderer: str = "tiny"
-    camera_size: tuple[int, int] | None = None
-    camera_rate: float | None = None
-    render_workers: int | None = None
+    sensors: SensorSettings = field(default_factory=SensorSettings)
+    """The command line's sensor options; whether cameras run in lockstep follows `mode`."""
 
     def sensor_settings(self) -> SensorSettings:
-        return SensorSettings(self.mode is Mode.LOCKSTEP, self.renderer, self.camera_size, self.camera_rate, self.render_workers)
+        return replace(self.sensors, lockstep=self.mode is Mode.LOCKSTEP)
 
 
 def world_path(name_or_path: str) -> Path:
@@ -161,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--spawn", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), default=DEFAULT_SPAWN, help="robot pose in the world")
     parser.add_argument("--mode", choices=[m.value for m in Mode], default=Mode.REALTIME.value, help="realtime (default), fast, or lockstep")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
-    parser.add_argument("--renderer", choices=("tiny", "egl"), default="tiny", help="camera renderer: tiny (CPU, default) or egl (GPU where present)")
+    parser.add_argument("--renderer", choices=RENDERERS, default="tiny", help="camera renderer: tiny (CPU, default) or egl (GPU where present)")
     parser.add_argument("--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240")
     parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
     parser.add_argument("--render-workers", type=_count, metavar="N", help="camera render processes (default: every core but one)")
@@ -205,9 +204,8 @@ def _count(text: str) -> int:
 
 def _config(args: argparse.Namespace) -> ServerConfig:
     robot = args.robot if args.robot is not None else asset("urdf/flexley_tug.sdf")
-    return ServerConfig(
-        world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, args.renderer, args.camera_size, args.camera_rate, args.render_workers
-    )
+    sensors = SensorSettings(renderer=args.renderer, camera_size=args.camera_size, camera_rate=args.camera_rate, render_workers=args.render_workers)
+    return ServerConfig(world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, sensors)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -29,7 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from simbot.bus import DecodeError, Node, Publisher, decode
-from simbot.description.model import Link, Model, Plugin, Sensor, World
+from simbot.description.model import Link, Model, Noise, Plugin, Sensor, World
 from simbot.description.xml import parse_flag
 from simbot.sim.physics import Physics
 
@@ -193,6 +193,11 @@ def sensor_topic(sensor: Sensor) -> str:
 def sensor_frame(sensor: Sensor) -> str:
     """The frame its data are stamped in: `<frame_name>`, else the sensor's name (tf_static places it)."""
     return (sensor.frame_name or "").strip() or sensor.name
+
+
+def applied_noise(noise: Noise | None) -> Noise:
+    """The noise a sensor applies: SDF `gaussian` (or `gaussian_quantized`) as given; none, or a kind simbot does not model, as zero."""
+    return noise if noise is not None and noise.type.startswith("gaussian") else Noise()
 
 
 def sensor_rate(sensor: Sensor, default: float) -> float:

@@ -38,6 +38,7 @@ from simbot.sim.system import (
     SensorSettings,
     SystemConfigError,
     SystemContext,
+    applied_noise,
     sensor_frame,
     sensor_rate,
     sensor_topic,
@@ -160,9 +161,10 @@ class Camera(Sampled):
         if channels is None:
             raise SystemConfigError(f"sensor {sensor.name}: <format> {spec.format!r} is not rendered; use one of {', '.join(CHANNELS)}")
         width, height = ctx.settings.camera_size or (spec.width, spec.height)
-        noise = spec.noise.stddev if spec.noise is not None and spec.noise.type.startswith("gaussian") else 0.0
         try:
-            self.spec = CameraSpec(sensor.name, width, height, spec.horizontal_fov, spec.near, spec.far, channels, noise, int(ctx.rng.integers(2**31)))
+            self.spec = CameraSpec(
+                sensor.name, width, height, spec.horizontal_fov, spec.near, spec.far, channels, applied_noise(spec.noise).stddev, int(ctx.rng.integers(2**31))
+            )
         except ValueError as exc:
             raise SystemConfigError(f"sensor {sensor.name}: {exc}") from None
         super().__init__(sensor.name, ctx.settings.camera_rate or sensor_rate(sensor, DEFAULT_RATE_HZ))
@@ -196,7 +198,7 @@ class Camera(Sampled):
             rig.fail(str(exc))
 
     def publish(self, frame: Frame) -> None:
-        """A rendered frame out, with its camera_info, both stamped with the sim time it shows."""
+        """A rendered frame out, stamped with the sim time it shows (camera_info went out at that tick)."""
         self._image.put(messages.image(frame.stamp_ns, self._frame, frame.pixels))
         self.published(frame.stamp_ns)
 

@@ -18,7 +18,7 @@ from simbot.bus import messages
 from simbot.description.model import Imu as ImuSpec
 from simbot.description.model import Noise
 from simbot.description.poses import quaternion_to_matrix
-from simbot.sim.system import Sampled, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import Sampled, SystemContext, applied_noise, sensor_frame, sensor_rate, sensor_topic
 
 Axes = tuple[Noise | None, Noise | None, Noise | None]
 
@@ -28,7 +28,7 @@ class AxisNoise:
 
     def __init__(self, axes: Axes, rng: np.random.Generator) -> None:
         self._rng = rng
-        used = [n if n is not None and n.type.startswith("gaussian") else Noise() for n in axes]
+        used = [applied_noise(n) for n in axes]
         self.mean = np.array([n.mean for n in used])
         self.stddev = np.array([n.stddev for n in used])
         self._bias_mean = np.array([n.bias_mean for n in used])
@@ -36,10 +36,9 @@ class AxisNoise:
         self.bias = np.zeros(3)
         self.draw_bias()
 
-    def draw_bias(self) -> npt.NDArray[np.float64]:
+    def draw_bias(self) -> None:
         size = self._rng.normal(self._bias_mean, self._bias_stddev)
         self.bias = size * self._rng.choice((-1.0, 1.0), 3)
-        return self.bias
 
     def __call__(self, value: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         return value + self.mean + self.bias + self._rng.normal(0.0, 1.0, 3) * self.stddev

@@ -21,7 +21,15 @@ from simbot.bus import messages
 from simbot.description.model import Lidar as LidarSpec
 from simbot.description.model import Noise
 from simbot.description.poses import quaternion_to_matrix
-from simbot.sim.system import Sampled, SystemConfigError, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import (
+    Sampled,
+    SystemConfigError,
+    SystemContext,
+    applied_noise,
+    sensor_frame,
+    sensor_rate,
+    sensor_topic,
+)
 
 log = logging.getLogger(__name__)
 
@@ -96,8 +104,9 @@ class Lidar(Sampled):
         return np.where(hit, np.clip(noisy, spec.range_min, spec.range_max), np.inf)
 
 
-def _noise(noise: Noise | None, rng: np.random.Generator, shape: tuple[int, ...]) -> npt.NDArray[np.float64] | float:
-    """SDF gaussian noise (mean, stddev); none for other types or none given."""
-    if noise is None or not noise.type.startswith("gaussian") or (noise.stddev == 0 and noise.mean == 0):
+def _noise(sdf_noise: Noise | None, rng: np.random.Generator, shape: tuple[int, ...]) -> npt.NDArray[np.float64] | float:
+    """SDF gaussian noise (mean, stddev) per ray; nothing drawn where there is none."""
+    noise = applied_noise(sdf_noise)
+    if noise.stddev == 0 and noise.mean == 0:
         return 0.0
     return rng.normal(noise.mean, noise.stddev, shape)
