@@ -1,9 +1,14 @@
 """`simbot`: the command line. Each subcommand is a small function; user mistakes exit 2
-with one line on stderr, never a traceback."""
+with one line on stderr, never a traceback.
+
+The client programs (`clients/`) are subcommands too: `simbot teleop ARGS` runs
+`clients.teleop.main(ARGS)`, imported only when asked for, so `simbot describe` never loads them.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import sys
 from collections.abc import Callable, Sequence
@@ -13,6 +18,19 @@ from simbot.description import DescriptionError, load_description, load_model, m
 from simbot.description.summary import summarize
 
 EXIT_USAGE = 2
+
+CLIENTS: dict[str, str] = {
+    "teleop": "drive the robot from the keyboard, stopping short of obstacles",
+    "merger": "merge the two lidars into one 360° scan in base_link",
+    "stitcher": "stitch the six cameras into one panorama",
+    "dock": "attach and detach the trolley from the keyboard",
+    "topics": "list the live keys with their type, rate and bandwidth",
+    "echo": "print the decoded messages of a key",
+    "monitor": "a live table of every sensor",
+    "snapshot": "write the panorama and a top-down map of the merged scan as PNGs",
+    "launch": "start the server and chosen clients; Ctrl-C ends them all",
+}
+"""Client subcommands: each is the module `clients.<name>`, whose `main(argv)` takes the rest of the line."""
 
 
 def _sdf2urdf(args: argparse.Namespace) -> int:
@@ -46,11 +64,17 @@ def build_parser() -> argparse.ArgumentParser:
     describe = commands.add_parser("describe", help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file")
     describe.add_argument("file", help="SDF world or model, URDF, or xacro file")
     describe.set_defaults(run=_describe)
+    for name, summary in CLIENTS.items():
+        commands.add_parser(name, help=summary, add_help=False)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `simbot` console script."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in CLIENTS:
+        client: Callable[[Sequence[str]], int] = importlib.import_module(f"clients.{argv[0]}").main
+        return client(argv[1:])
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
     run: Callable[[argparse.Namespace], int] = args.run

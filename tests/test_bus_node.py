@@ -119,7 +119,7 @@ def test_latched_topic_answers_a_plain_zenoh_get() -> None:
 def test_inbox_drains_in_order_and_counts_overflow() -> None:
     """Raw payloads queue up to maxlen (the oldest go first when full); drain returns and clears them."""
     with node_pair() as pair:
-        inbox = pair.server.inbox("/cmd_vel", maxlen=3)
+        inbox = pair.server.inbox("/cmd_vel", TWIST, maxlen=3)
         publisher = pair.client.publisher("/cmd_vel", drop=False)
         wait_until(lambda: publisher.has_subscribers, what="the inbox subscription")
         for i in range(5):

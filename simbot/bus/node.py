@@ -31,6 +31,7 @@ import zenoh
 import zenoh.ext
 
 from simbot.bus.codec import DecodeError, decode, encode, message_type
+from simbot.bus.graph import SERVICE_TYPE, Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
 
@@ -93,11 +94,17 @@ class RateLimitedWarnings:
 
 
 class Publisher:
-    """Encodes messages and puts them on one key; latched publishers also serve the latest to late joiners."""
+    """Encodes messages and puts them on one key; latched publishers also serve the latest to late joiners.
+
+    The publisher announces itself on the graph (`simbot.bus.graph`) at its first `put`, when the
+    type it carries is known.
+    """
 
     def __init__(self, session: zenoh.Session, key: str, *, latched: bool, drop: bool) -> None:
         self.key = key
         self.latched = latched
+        self._session = session
+        self._announcement: Announcement | None = None
         congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
         self._encodings: dict[str, zenoh.Encoding] = {}
         self._latest: tuple[bytes, zenoh.Encoding] | None = None
@@ -126,7 +133,10 @@ class Publisher:
 
     def put(self, msg: Any) -> None:
         """Encode `msg` as CDR and put it."""
-        self._put(encode(msg), self._encoding(msg.__msgtype__))
+        data = encode(msg)
+        if self._announcement is None:
+            self._announcement = Announcement(self._session, "pub", msg.__msgtype__, self.key)
+        self._put(data, self._encoding(msg.__msgtype__))
 
     def put_raw(self, data: bytes) -> None:
         """Put bytes as they are (tests use it to send garbage)."""
@@ -157,6 +167,8 @@ class Publisher:
 
     def close(self) -> None:
         """Undeclare the publisher (and the latched queryable)."""
+        if self._announcement is not None:
+            self._announcement.close()
         _undeclare(self._queryable)
         _undeclare(self._publisher)
         self._queryable = None
@@ -194,6 +206,7 @@ class Subscription(Generic[M]):
             )
         else:
             self._subscriber = session.declare_subscriber(key, self._on_sample)
+        self._announcement = Announcement(session, "sub", typename, key)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         """Zenoh thread: decode, count, hand over; never raises into Zenoh."""
@@ -216,6 +229,7 @@ class Subscription(Generic[M]):
     def close(self) -> None:
         """Undeclare the subscriber; nothing reaches the callback afterwards."""
         self._closed = True
+        self._announcement.close()
         _undeclare(self._subscriber)
 
 
@@ -226,7 +240,7 @@ class Inbox:
     that matters) and `overflowed` counts it.
     """
 
-    def __init__(self, session: zenoh.Session, key: str, maxlen: int) -> None:
+    def __init__(self, session: zenoh.Session, key: str, typename: str, maxlen: int) -> None:
         if maxlen < 1:
             raise ValueError(f"inbox {key!r}: maxlen must be ≥ 1, not {maxlen}")
         self.key = key
@@ -234,6 +248,7 @@ class Inbox:
         self._queue: deque[bytes] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
         self._subscriber = session.declare_subscriber(key, self._on_sample)
+        self._announcement = Announcement(session, "sub", typename, key)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if sample.kind != zenoh.SampleKind.PUT:
@@ -253,6 +268,7 @@ class Inbox:
 
     def close(self) -> None:
         """Undeclare the subscriber."""
+        self._announcement.close()
         _undeclare(self._subscriber)
 
 
@@ -307,6 +323,7 @@ class Queryable:
     def __init__(self, session: zenoh.Session, key: str, capacity: int) -> None:
         self.key = key
         self._queryable = session.declare_queryable(key, zenoh.handlers.FifoChannel(capacity), complete=True)
+        self._announcement = Announcement(session, "srv", SERVICE_TYPE, key)
 
     def poll(self) -> list[Request]:
         """The requests that arrived since the last poll, without blocking."""
@@ -317,6 +334,7 @@ class Queryable:
 
     def close(self) -> None:
         """Undeclare the queryable."""
+        self._announcement.close()
         _undeclare(self._queryable)
 
 
@@ -365,9 +383,9 @@ class Node:
         )
         return self._keep(subscription)
 
-    def inbox(self, topic: str, maxlen: int = 64) -> Inbox:
-        """Raw payloads of `topic`, for a loop that decodes and counts them itself."""
-        return self._keep(Inbox(self.session, self.key(topic), maxlen))
+    def inbox(self, topic: str, typename: str, maxlen: int = 64) -> Inbox:
+        """Raw payloads of `topic` (announced as `typename`), for a loop that decodes and counts them itself."""
+        return self._keep(Inbox(self.session, self.key(topic), typename, maxlen))
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> Queryable:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""

@@ -97,7 +97,7 @@ class Input:
 
     def __init__(self, node: Node, drops: Drops, topic: str, typename: str, check: Check | None = None) -> None:
         self.key = node.key(topic)
-        self._inbox = node.inbox(topic)
+        self._inbox = node.inbox(topic, typename)
         self._drops = drops
         self._typename = typename
         self._check = check
