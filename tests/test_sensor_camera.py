@@ -129,6 +129,21 @@ def test_rates_over_ten_seconds_in_lockstep() -> None:
         assert figures["rate_hz"] == pytest.approx(30.0, abs=0.5) and figures["skipped"] == 0, figures
 
 
+def test_in_real_time_the_cameras_render_as_sets_sharing_a_stamp() -> None:
+    """One render worker cannot keep six cameras at 30 Hz, so ticks are skipped, but always all six
+    together: every stamp that reaches one camera reaches all six (what a stitcher pairs by)."""
+    with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--render-workers", "1"]) as sim:
+        collectors = {topic: sim.subscribe(topic, IMAGE) for topic in CAMERAS}
+        collectors["camera_front"].wait_count(6, timeout=60.0, what="camera_front images")
+        stamps = {topic: {stamp_ns(m) for m in c.messages()} for topic, c in collectors.items()}
+        settled = sorted(stamps["camera_front"])[1:-1]  # the first and last set may be in flight
+        for topic, seen in stamps.items():
+            missing = [s for s in settled if s not in seen]
+            assert not missing, f"{topic} lacks the frames stamped {missing} that camera_front has"
+        skipped = sim.state()["sensors"]["camera_back"]["skipped"]
+        assert skipped > 0, "one worker kept six cameras at 30 Hz: the test no longer shows sets being skipped together"
+
+
 def test_camera_rate_option_and_egl_renderer_or_its_fallback() -> None:
     """--camera-rate 10 gives 10 Hz; --renderer egl renders the same box, or falls back to TinyRenderer with a warning."""
     with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120", "--renderer", "egl"]) as sim:

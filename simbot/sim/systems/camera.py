@@ -6,8 +6,11 @@ ticks a camera that someone subscribes to takes the camera's world pose and the 
 moving body (one snapshot per tick, shared by the cameras due then) and hands them to the pool.
 The image comes back later and is published stamped with the snapshot's sim time.
 
-- Real time and fast mode: a camera whose previous frame is still rendering skips this tick
-  (counted in world state's `skipped`), so rendering never slows the physics.
+- Real time and fast mode: the cameras due at a tick render as a set, and only when every frame
+  of the previous set is out; otherwise they all skip this tick (counted in world state's
+  `skipped`), so rendering never slows the physics. A set shares one stamp, as Gazebo's cameras
+  do: a stitcher pairing the six images by stamp finds them together. (Letting each camera
+  render as soon as it alone is free would drift the six apart by a frame time each.)
 - Lockstep: every frame is rendered at its exact sim time, and the step that took it waits
   until the frames of all cameras due then are published (the cameras render in parallel when
   there are several workers), so after `multi_step` every frame up to that time is out.
@@ -78,6 +81,7 @@ class CameraRig:
     failure: str | None = None
     _starting: threading.Thread | None = None
     _snapshot: tuple[int, dict[str, BodyState]] | None = None
+    _tick: tuple[int, bool] | None = None
 
     def add(self, camera: Camera) -> int:
         self.cameras.append(camera)
@@ -118,9 +122,18 @@ class CameraRig:
             self._snapshot = (now_ns, states)
         return self._snapshot[1]
 
+    def accepting(self, now_ns: int) -> bool:
+        """Whether the frames due at `now_ns` may be requested: decided once per tick, true when no
+        frame of any camera is outstanding (lockstep never has one here)."""
+        if self._tick is None or self._tick[0] != now_ns:
+            idle = self.pool is not None and not any(self.pool.busy(camera.index) for camera in self.cameras)
+            self._tick = (now_ns, idle)
+        return self._tick[1]
+
     def forget(self) -> None:
-        """The world was reset: sim time starts again, so a snapshot's time no longer names it."""
+        """The world was reset: sim time starts again, so a snapshot's or a tick's time no longer names it."""
         self._snapshot = None
+        self._tick = None
 
     def deliver(self) -> None:
         """Publishes the frames that are done; in lockstep, first waits for every outstanding one."""
@@ -189,8 +202,8 @@ class Camera(Sampled):
 
     def _request(self, now_ns: int) -> None:
         rig = self.rig
-        if not rig.ready() or rig.pool is None or rig.pool.busy(self.index):
-            self.skipped += 1  # real time: the physics never waits for a frame (lockstep is never busy here)
+        if not rig.ready() or rig.pool is None or not rig.accepting(now_ns):
+            self.skipped += 1  # real time: the physics never waits for a frame
             return
         try:
             rig.pool.request(self.index, now_ns, self._physics.frame_pose(*self._where), rig.states(now_ns))
