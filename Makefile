@@ -22,6 +22,7 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
 	$(BIN)/python benchmarks/bench_sensors.py
+	$(BIN)/python benchmarks/bench_merger.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)

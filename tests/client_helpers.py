@@ -23,8 +23,9 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
-from server_helpers import REPO, SimServer
+from server_helpers import REPO
 
 EXIT_TIMEOUT_S = 5.0
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b[()][A-Z0-9]|\r")
@@ -34,7 +35,17 @@ def client_command(name: str, *args: str) -> list[str]:
     return [sys.executable, "-m", f"clients.{name}", *args]
 
 
-def bus_args(sim: SimServer) -> list[str]:
+class OnBus(Protocol):
+    """What a client needs of the bus it joins: a SimServer, or a test's own server-role node."""
+
+    @property
+    def endpoint(self) -> str: ...
+
+    @property
+    def namespace(self) -> str: ...
+
+
+def bus_args(sim: OnBus) -> list[str]:
     """The options that put a client on the test server's bus."""
     return ["--connect", sim.endpoint, "--namespace", sim.namespace]
 
@@ -73,7 +84,7 @@ class ClientProcess:
 
 
 @contextmanager
-def client_process(sim: SimServer, name: str, *args: str) -> Iterator[ClientProcess]:
+def client_process(sim: OnBus, name: str, *args: str) -> Iterator[ClientProcess]:
     """`clients.<name>` on the server's bus; stopped with SIGTERM and asserted to exit 0."""
     with tempfile.TemporaryDirectory(prefix=f"simbot-{name}-") as tmp:
         out_path, err_path = Path(tmp) / "stdout.txt", Path(tmp) / "stderr.txt"
