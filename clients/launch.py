@@ -1,0 +1,327 @@
+"""`simbot launch`: the server and the chosen clients in one command; Ctrl-C ends them all.
+
+    simbot launch [--world W] [--clients merger,stitcher,monitor] [--server-args "--mode fast ..."]
+                  [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
+
+Each child is a subprocess (`python -m simbot.sim.server`, `python -m clients.<name>`) whose
+stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). The
+server listens where launch's `--listen` says (default `tcp/127.0.0.1:7447`) and the clients
+connect there, all with the same `--namespace` and `--zenoh-config`. The clients start only once
+the server's world control answers, so none of them waits out its connect timeout on a server
+still loading its world.
+
+A client that exits is reported and the rest keep running; the server exiting ends the clients
+and launch with a non-zero code. SIGINT or SIGTERM to launch ends the clients first, then the
+server (SIGINT, then SIGTERM, then SIGKILL, each after a grace period), and exits 0. The children
+stay in launch's process group, so a terminal's Ctrl-C reaches them too, but launch signals them
+itself: a SIGTERM sent to launch alone still ends them.
+
+Only long-running clients can be launched: the keyboard clients need the terminal, and the
+one-shot tools (topics, echo, snapshot) are meant to be run beside a launch.
+
+Not built on `run_client`: launch has no bus session of its own until the server it starts is
+listening; it opens one only to wait for the world control.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import IO
+
+from clients.common import EXIT_USAGE, client_parser
+from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, ServiceError, zenoh_config
+from simbot.bus.graph import discover
+
+EXIT_FAILURE = 1
+LAUNCHABLE = ("merger", "stitcher", "monitor")
+DEFAULT_CLIENTS = "merger,stitcher"
+NOT_LAUNCHABLE: dict[str, str] = {
+    "teleop": "reads the keyboard: run `simbot teleop` in a terminal of its own",
+    "dock": "reads the keyboard: run `simbot dock` in a terminal of its own",
+    "topics": "is a one-shot tool: run `simbot topics` beside the launch",
+    "echo": "is a one-shot tool: run `simbot echo KEY` beside the launch",
+    "snapshot": "is a one-shot tool: run `simbot snapshot --out DIR` beside the launch",
+    "launch": "is this command",
+}
+OWN_OPTIONS = ("--world", "--listen", "--connect", "--zenoh-config", "--namespace")
+"""Server options that launch sets itself (the clients must agree with them), refused in --server-args."""
+
+STARTUP_TIMEOUT_S = 60.0
+POLL_S = 0.1
+CONNECT_TRY_S = 1.0
+GRACE_S: tuple[tuple[signal.Signals, float], ...] = ((signal.SIGINT, 3.0), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0))
+"""How a child is ended: each signal in turn, waiting its grace period for the exit."""
+
+_output_lock = threading.Lock()
+
+
+class LaunchError(Exception):
+    """A user's mistake in launch's options; str() is the one line printed."""
+
+
+def emit(name: str, text: str) -> None:
+    """One whole line `[name] text` on stdout, flushed (reader threads and the main loop share stdout)."""
+    with _output_lock:
+        try:
+            sys.stdout.write(f"[{name}] {text}\n")
+            sys.stdout.flush()
+        except (BrokenPipeError, ValueError):  # the reader of our output went away, or stdout is closed
+            pass
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What to start: the server's command, each client's, and the bus options that reach the server."""
+
+    server: list[str]
+    clients: dict[str, list[str]]
+    bus: BusOptions
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = client_parser("simbot launch", "start the simulator and chosen clients; Ctrl-C ends them all")
+    parser.add_argument("--world", default="warehouse", help="world file, or a built-in world (default: warehouse)")
+    parser.add_argument(
+        "--clients",
+        default=DEFAULT_CLIENTS,
+        metavar="NAMES",
+        help=f"comma-separated clients to start, from {', '.join(LAUNCHABLE)} (default: {DEFAULT_CLIENTS}; '' for none)",
+    )
+    parser.add_argument(
+        "--server-args",
+        default="",
+        metavar="ARGS",
+        help='more simbot-server options, one shell-quoted string: --server-args="--mode fast --camera-size 320x240"',
+    )
+    return parser
+
+
+def client_names(text: str) -> list[str]:
+    """The launchable clients named in `text`, in order, each once; LaunchError for any other name."""
+    names = list(dict.fromkeys(n.strip() for n in text.split(",") if n.strip()))
+    for name in names:
+        if name in NOT_LAUNCHABLE:
+            raise LaunchError(f"--clients: {name} {NOT_LAUNCHABLE[name]}")
+        if name not in LAUNCHABLE:
+            raise LaunchError(f"--clients: unknown client {name!r} (valid: {', '.join(LAUNCHABLE)})")
+    return names
+
+
+def server_args(text: str) -> list[str]:
+    """`--server-args` split as a shell would; the options launch owns are refused."""
+    try:
+        words = shlex.split(text)
+    except ValueError as exc:
+        raise LaunchError(f"--server-args {text!r}: {exc}") from None
+    for word in words:
+        option = word.split("=", 1)[0]
+        if option in OWN_OPTIONS:
+            raise LaunchError(f"--server-args: {option} is launch's own option; give it to launch itself")
+    return words
+
+
+def listen_endpoints(args: argparse.Namespace) -> tuple[str, ...]:
+    """Where the server will listen: `--listen`, else the config file's, else simbot's default."""
+    options = BusOptions(listen=tuple(args.listen), config_file=args.zenoh_config, namespace=args.namespace)
+    endpoints = json.loads(zenoh_config(options, "server").get_json("listen/endpoints"))
+    if not endpoints:
+        raise LaunchError("the server would listen on nothing: give --listen ENDPOINT")
+    return tuple(endpoints)
+
+
+def make_plan(args: argparse.Namespace) -> Plan:
+    """The commands to run; LaunchError or BusConfigError for a mistake in the options."""
+    names = client_names(args.clients)
+    extra = server_args(args.server_args)
+    endpoints = listen_endpoints(args)
+    shared = ["--namespace", args.namespace] if args.namespace else []
+    if args.zenoh_config is not None:
+        shared += ["--zenoh-config", str(args.zenoh_config)]
+    if args.verbose:
+        shared.append("-v")
+    server = [sys.executable, "-m", "simbot.sim.server", "--world", args.world, *shared]
+    server += [word for endpoint in args.listen for word in ("--listen", endpoint)]
+    server += [word for endpoint in args.connect for word in ("--connect", endpoint)]
+    connect = [word for endpoint in endpoints for word in ("--connect", endpoint)]
+    connect += ["--connect-timeout", str(args.connect_timeout)]
+    clients = {name: [sys.executable, "-m", f"clients.{name}", *connect, *shared] for name in names}
+    bus = BusOptions(connect=endpoints, namespace=args.namespace, connect_timeout=CONNECT_TRY_S)
+    return Plan([*server, *extra], clients, bus)
+
+
+class Child:
+    """A child process whose merged stdout/stderr a reader thread prints, prefixed with its name."""
+
+    def __init__(self, name: str, command: Sequence[str]) -> None:
+        self.name = name
+        self.reported = False
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.process = subprocess.Popen(
+            list(command), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env
+        )
+        emit("launch", f"started {name} (pid {self.process.pid})")
+        assert self.process.stdout is not None  # stdout=PIPE
+        self._reader = threading.Thread(target=self._pump, args=(self.process.stdout,), name=f"launch-{name}", daemon=True)
+        self._reader.start()
+
+    def _pump(self, pipe: IO[bytes]) -> None:
+        with pipe:
+            for raw in iter(pipe.readline, b""):
+                emit(self.name, raw.decode(errors="replace").rstrip("\r\n"))
+
+    def exited(self) -> int | None:
+        """The exit code once the process has ended (−N: killed by signal N), else None."""
+        return self.process.poll()
+
+    def report(self) -> None:
+        """Say once how the child ended, after the last of its output."""
+        if self.reported or self.exited() is None:
+            return
+        self.reported = True
+        self._reader.join(timeout=1.0)
+        code = self.process.returncode
+        how = f"signal {signal.Signals(-code).name}" if code < 0 else f"code {code}"
+        emit("launch", f"{self.name} exited with {how}")
+
+
+def end(children: Sequence[Child]) -> None:
+    """SIGINT, then SIGTERM, then SIGKILL to the children still running, each with its grace period."""
+    for sig, grace in GRACE_S:
+        running = [c for c in children if c.exited() is None]
+        if not running:
+            return
+        for child in running:
+            child.process.send_signal(sig)
+        deadline = time.monotonic() + grace
+        for child in running:
+            try:
+                child.process.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+
+
+def try_open(bus: BusOptions) -> Node | None:
+    """A client session on the server, or None while it is not listening yet (the attempt waits CONNECT_TRY_S)."""
+    try:
+        return Node(bus, "client")
+    except BusOpenError:
+        return None
+
+
+def world_name(node: Node) -> str | None:
+    """The name of the world whose `world/<name>/state` service the bus announces, if any yet."""
+    pattern = re.compile(re.escape(node.key("world")) + r"/([^/]+)/state")
+    for endpoint in discover(node.session, node.namespace, timeout=CONNECT_TRY_S):
+        found = pattern.fullmatch(endpoint.key)
+        if endpoint.kind == "srv" and found:
+            return found[1]
+    return None
+
+
+def answers(node: Node, world: str) -> bool:
+    """Whether the world's state service replies (the server is past loading and stepping)."""
+    try:
+        return bool(node.call(f"world/{world}/state", {}, timeout=CONNECT_TRY_S).get("ok"))
+    except (TimeoutError, ServiceError):
+        return False
+
+
+class Launch:
+    """The running children and the stop event the signal handlers set."""
+
+    def __init__(self, plan: Plan, stop: threading.Event) -> None:
+        self.plan = plan
+        self.stop = stop
+        self.server: Child | None = None
+        self.clients: list[Child] = []
+
+    def run(self) -> int:
+        """Start, supervise, end everything; the exit code."""
+        try:
+            self.server = Child("server", self.plan.server)
+            world = self.wait_ready(self.server)
+            if world is None:
+                return 0 if self.stop.is_set() else self.server_failed(self.server)
+            emit("launch", f"server ready: world {world}")
+            self.clients = [Child(name, command) for name, command in self.plan.clients.items()]
+            return self.supervise(self.server)
+        except LaunchError as exc:
+            emit("launch", f"error: {exc}")
+            return EXIT_FAILURE
+        finally:
+            self.shutdown()
+
+    def wait_ready(self, server: Child) -> str | None:
+        """The world's name once its state service answers; None if the server exited or stop came first."""
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        node: Node | None = None
+        try:
+            while not self.stop.is_set() and server.exited() is None:
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"the server's world control did not answer within {STARTUP_TIMEOUT_S:g} s")
+                node = node or try_open(self.plan.bus)
+                if node is not None:
+                    world = world_name(node)
+                    if world is not None and answers(node, world):
+                        return world
+                self.stop.wait(POLL_S)
+            return None
+        finally:
+            if node is not None:
+                node.close()
+
+    def supervise(self, server: Child) -> int:
+        """Until stop (→ 0) or the server's exit (→ non-zero); clients that exit are reported."""
+        while not self.stop.wait(POLL_S):
+            for client in self.clients:
+                client.report()
+            if server.exited() is not None:
+                return self.server_failed(server)
+        return 0
+
+    def server_failed(self, server: Child) -> int:
+        """Report the server's end; launch's exit code: the server's own, or 1 when that says success or a signal."""
+        server.report()
+        if self.clients:
+            emit("launch", "the server is gone: ending the clients")
+        code = server.process.returncode
+        return code if code > 0 else EXIT_FAILURE
+
+    def shutdown(self) -> None:
+        """The clients first (they may still want the bus to say goodbye), then the server."""
+        end(self.clients)
+        for client in self.clients:
+            client.report()
+        if self.server is not None:
+            end([self.server])
+            self.server.report()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of `simbot launch`."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        plan = make_plan(args)
+    except (LaunchError, BusConfigError) as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    return Launch(plan, stop).run()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
