@@ -11,9 +11,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 	touch $(STAMP)
 
-## The main job: the simulator in the warehouse, real time, one status line a second (Ctrl-C ends it).
+## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher and the monitor (Ctrl-C ends them all).
 run: $(STAMP)
-	$(BIN)/simbot-server --world warehouse
+	$(BIN)/simbot launch --world warehouse --clients merger,stitcher,monitor
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
@@ -23,6 +23,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
 	$(BIN)/python benchmarks/bench_sensors.py
 	$(BIN)/python benchmarks/bench_merger.py
+	$(BIN)/python benchmarks/bench_stitcher.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import signal
 import sys
 import threading
@@ -24,6 +25,7 @@ from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_a
 
 EXIT_USAGE = 2
 T = TypeVar("T")
+Number = TypeVar("Number", int, float)
 
 ClientBody = Callable[[argparse.Namespace, Node, threading.Event], int]
 """The client's work: (its options, its bus node, the stop event) → exit code."""
@@ -39,6 +41,22 @@ def client_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
     return parser
+
+
+def number(kind: Callable[[str], Number], *, at_least_zero: bool = False) -> Callable[[str], Number]:
+    """An argparse type: a finite number > 0 (≥ 0 with `at_least_zero`); argparse's one-line error otherwise."""
+    bound = "≥ 0" if at_least_zero else "> 0"
+
+    def parse(text: str) -> Number:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not math.isfinite(value) or value < 0 or (value == 0 and not at_least_zero):
+            raise argparse.ArgumentTypeError(f"expected a finite number {bound}, got {text!r}")
+        return value
+
+    return parse
 
 
 def run_client(parser: argparse.ArgumentParser, argv: Sequence[str] | None, body: ClientBody) -> int:

@@ -24,8 +24,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from clients.common import Mailbox, client_parser, run_client
-from clients.terminal import Terminal, float_option
+from clients.common import Mailbox, client_parser, number, run_client
+from clients.terminal import Terminal
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
 
@@ -172,7 +172,7 @@ def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = client_parser("simbot-dock", "Attach the trolley to the robot standing under it, or detach it, from the keyboard.")
-    positive = float_option()
+    positive = number(float)
     parser.add_argument("--robot", default="flexley_tug", metavar="MODEL", help="the robot's model name (default flexley_tug)")
     parser.add_argument("--trolley", default="trolley", metavar="MODEL", help="the trolley's model name (default trolley)")
     parser.add_argument("--distance", type=positive, default=0.55, metavar="M", help="attach only within this XY distance (default 0.55)")

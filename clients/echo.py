@@ -35,8 +35,8 @@ import numpy as np
 import numpy.typing as npt
 import zenoh
 
-from clients.common import ClientError, Mailbox, client_parser, run_client
-from clients.topics import Topic, live_topics, schema_type, seconds
+from clients.common import ClientError, Mailbox, client_parser, number, run_client
+from clients.topics import Topic, live_topics, schema_type
 from simbot.bus import DecodeError, Node, UnknownMessageType, decode
 
 logger = logging.getLogger(__name__)
@@ -266,7 +266,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--full", action="store_true", help=f"print arrays over {ARRAY_LIMIT} elements and strings over {STRING_LIMIT} characters whole")
     parser.add_argument(
         "--wait",
-        type=seconds,
+        type=number(float, at_least_zero=True),
         default=DEFAULT_WAIT_S,
         metavar="SECONDS",
         help=f"how long a key may be absent from the bus before it is an error (default {DEFAULT_WAIT_S:g})",

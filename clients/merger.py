@@ -39,12 +39,12 @@ import sys
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, client_parser, run_client
+from clients.common import Mailbox, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.sync import StampSync
@@ -68,7 +68,6 @@ POLL_S = 0.1
 
 Floats = npt.NDArray[np.float64]
 Matrix = npt.NDArray[np.float64]
-Number = TypeVar("Number", int, float)
 
 
 class BadScan(ValueError):
@@ -281,21 +280,6 @@ class MergerNode:
         )
 
 
-def _positive(kind: Callable[[str], Number], what: str) -> Callable[[str], Number]:
-    """An argparse type: a finite number greater than zero."""
-
-    def parse(text: str) -> Number:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-        if not (value > 0 and math.isfinite(value)):
-            raise argparse.ArgumentTypeError(f"must be greater than 0, got {text!r}")
-        return value
-
-    return parse
-
-
 def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     merger = MergerNode(node, Binning(args.bins), args.scan_period)
     logger.info("merging lidar_front and lidar_back into %s in %s (%d bins)", MERGED_TOPIC, TARGET_FRAME, args.bins)
@@ -309,11 +293,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """`simbot merger`: lidar_front + lidar_back → scan (and *_fixed) in base_link."""
     parser = client_parser("simbot merger", "Merge the front and back lidar scans into one 360° scan in base_link.")
     parser.add_argument(
-        "--bins", type=_positive(int, "a whole number"), default=DEFAULT_BINS, help=f"bins over the full circle (default {DEFAULT_BINS}, 0.25° each)"
+        "--bins", type=number(int), default=DEFAULT_BINS, help=f"bins over the full circle (default {DEFAULT_BINS}, 0.25° each)"
     )
     parser.add_argument(
         "--scan-period",
-        type=_positive(float, "a number of seconds"),
+        type=number(float),
         default=DEFAULT_PERIOD_S,
         metavar="SECONDS",
         help=f"the lidars' scan period (default {DEFAULT_PERIOD_S}); scans pair within half of it",

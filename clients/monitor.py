@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from clients.common import ClientError, Mailbox, client_parser, run_client
-from clients.topics import Traffic, format_rate, latched, live_topics, seconds, world_names
+from clients.common import Mailbox, client_parser, number, run_client
+from clients.topics import Traffic, format_rate, latched, live_topics, world_names
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
 
@@ -207,8 +207,6 @@ class Monitor:
 
 
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    if args.period <= 0:
-        raise ClientError(f"--period {args.period:g}: the refresh period must be more than 0 s")
     monitor = Monitor(node, args.world)
     monitor.follow_graph()
     tty = sys.stdout.isatty()
@@ -223,7 +221,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """`simbot monitor [--world NAME] [--period S]`."""
     parser = client_parser("simbot monitor", "A live table of every sensor: rates, latest values, sim time and real-time factor.")
     parser.add_argument("--world", metavar="NAME", help="the world whose state to show (default: the one on the bus)")
-    parser.add_argument("--period", type=seconds, default=REFRESH_S, metavar="SECONDS", help=f"refresh period (default {REFRESH_S:g})")
+    parser.add_argument("--period", type=number(float), default=REFRESH_S, metavar="SECONDS", help=f"refresh period (default {REFRESH_S:g})")
     return run_client(parser, argv, _run)
 
 

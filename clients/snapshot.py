@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import EXIT_USAGE, ClientError, Mailbox, client_parser, run_client
+from clients.common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
 from simbot.bus import Node
 from simbot.bus.messages import stamp_ns
 from simbot.bus.transforms import planar_pose
@@ -325,21 +325,11 @@ def snapshot(args: argparse.Namespace, node: Node, stop: threading.Event) -> int
     return 0 if written else EXIT_USAGE
 
 
-def _seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
-    return value
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = client_parser(PROG, "write the panorama and a top-down map of the merged scan as PNGs")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for panorama.png and map.png")
     parser.add_argument(
-        "--timeout", type=_seconds, default=DEFAULT_TIMEOUT_S, metavar="S", help=f"wait for the data (default {DEFAULT_TIMEOUT_S:g} s)"
+        "--timeout", type=number(float), default=DEFAULT_TIMEOUT_S, metavar="S", help=f"wait for the data (default {DEFAULT_TIMEOUT_S:g} s)"
     )
     parser.add_argument("--panorama", action="store_true", help="write the panorama (default: both images)")
     parser.add_argument("--map", action="store_true", help="write the map (default: both images)")

@@ -7,15 +7,12 @@ exception), the `Terminal` context manager restores the attributes it saved, in 
 
 The screen is a few fixed lines (the keys) and one status line redrawn in place. Messages, and
 every log record while the terminal is held (Zenoh threads log too), print above the status line
-under one lock, so neither garbles the other. `float_option` is the argparse type of both
-clients' numeric options.
+under one lock, so neither garbles the other.
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
-import math
 import os
 import re
 import select
@@ -24,7 +21,7 @@ import sys
 import termios
 import threading
 import tty
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 from clients.common import ClientError
@@ -145,19 +142,3 @@ class _ScreenHandler(logging.Handler):
             self._terminal.message(self.format(record))
         except Exception:  # noqa: BLE001  # logging.Handler's contract: report through handleError, never raise
             self.handleError(record)
-
-
-def float_option(minimum: float = 0.0, *, allow_minimum: bool = False) -> Callable[[str], float]:
-    """An argparse type: a finite number above `minimum` (or equal to it when allowed); a one-line error otherwise."""
-    bound = f"≥ {minimum:g}" if allow_minimum else f"> {minimum:g}"
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not math.isfinite(value) or value < minimum or (value == minimum and not allow_minimum):
-            raise argparse.ArgumentTypeError(f"expected a finite number {bound}, got {text!r}")
-        return value
-
-    return parse

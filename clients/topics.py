@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import zenoh
 
-from clients.common import ClientError, client_parser, run_client
+from clients.common import ClientError, client_parser, number, run_client
 from simbot.bus import Node
 from simbot.bus.graph import KINDS, Kind, discover
 
@@ -243,23 +243,12 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     return 0
 
 
-def seconds(text: str) -> float:
-    """An argparse type: a finite number of seconds ≥ 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not 0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a number of seconds ≥ 0")
-    return value
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot topics [--window S]`."""
     parser = client_parser("simbot topics", "List the live keys with their type, who uses them, rate and bandwidth.")
     parser.add_argument(
         "--window",
-        type=seconds,
+        type=number(float, at_least_zero=True),
         default=DEFAULT_WINDOW_S,
         metavar="SECONDS",
         help=f"how long to measure rates and bandwidth (default {DEFAULT_WINDOW_S:g}); 0 lists the graph only, "

@@ -2,7 +2,7 @@
 
 `client_process(sim, "merger", ...)` runs `python -m clients.merger` connected to the server's
 port and namespace, and on the way out sends SIGTERM and asserts a clean exit (code 0) within
-`EXIT_TIMEOUT_S`. `pty_client(...)` runs a keyboard client in a pseudo-terminal, as a person
+`EXIT_TIMEOUT_S`; it is handed over once the client has installed its stop handlers. `pty_client(...)` runs a keyboard client in a pseudo-terminal, as a person
 would: the test types keys into the master side and reads the screen from it; the slave side
 stays open in the test so that its terminal attributes can be compared before and after.
 """
@@ -28,6 +28,7 @@ from typing import Protocol
 from server_helpers import REPO
 
 EXIT_TIMEOUT_S = 5.0
+START_TIMEOUT_S = 30.0
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b[()][A-Z0-9]|\r")
 
 
@@ -52,6 +53,29 @@ def bus_args(sim: OnBus) -> list[str]:
 
 def _env() -> dict[str, str]:
     return dict(os.environ, PYTHONUNBUFFERED="1", TERM="xterm")
+
+
+def _catches_sigterm(pid: int) -> bool:
+    """Whether the process has a handler for SIGTERM (Linux: the SigCgt mask in /proc/PID/status)."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    caught = next((line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:")), "0")
+    return bool(int(caught, 16) & (1 << (signal.SIGTERM - 1)))
+
+
+def wait_started(process: subprocess.Popen[bytes], timeout: float = START_TIMEOUT_S) -> None:
+    """Until the client has installed its stop handlers (run_client does it first) or has exited.
+
+    A client still importing (OpenCV, Zenoh) when a test ends it would die by the signal's
+    default action, not stop cleanly; waiting here keeps "exit 0 on SIGTERM" a fair assertion.
+    """
+    deadline = time.monotonic() + timeout
+    while process.poll() is None and not _catches_sigterm(process.pid):
+        if time.monotonic() > deadline:
+            raise AssertionError(f"client pid {process.pid} installed no SIGTERM handler within {timeout} s")
+        time.sleep(0.02)
 
 
 @dataclass
@@ -94,6 +118,7 @@ def client_process(sim: OnBus, name: str, *args: str) -> Iterator[ClientProcess]
             )
         client = ClientProcess(process, out_path, err_path)
         try:
+            wait_started(process)
             yield client
             if client.alive():
                 code = client.stop()
@@ -111,6 +136,8 @@ class PtyClient:
     process: subprocess.Popen[bytes]
     master: int
     slave: int
+    initial: list[object]
+    """The terminal's attributes before the process started (what it must leave behind)."""
     _output: bytearray = field(default_factory=bytearray)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
@@ -170,13 +197,15 @@ class PtyClient:
 def pty_client(command: Sequence[str]) -> Iterator[PtyClient]:
     """`command` with a pseudo-terminal as its stdin, stdout and stderr (its controlling terminal)."""
     master, slave = pty.openpty()
+    initial = termios.tcgetattr(slave)
     process = subprocess.Popen(
         list(command), stdin=slave, stdout=slave, stderr=slave, cwd=REPO, env=_env(), start_new_session=True
     )
-    client = PtyClient(process, master, slave)
+    client = PtyClient(process, master, slave, initial)
     reader = threading.Thread(target=client._read, daemon=True)
     reader.start()
     try:
+        wait_started(process)
         yield client
     finally:
         if process.poll() is None:

@@ -102,7 +102,7 @@ def test_far_from_the_trolley_t_warns_and_sends_nothing(sim: SimServer) -> None:
     sim.call("set_pose", {"name": "flexley_tug", "position": {"x": -2.5, "y": 0.0, "z": 0.1}})
     collector = joint_states(sim)
     with dock(sim) as client:
-        before = client.attributes()
+        before = client.initial
         client.wait_for(r"trolley far \(3\.5\d m apart\)")
         refused(client, collector)
         client.type("q")

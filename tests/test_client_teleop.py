@@ -115,7 +115,7 @@ def teleop(sim: SimServer) -> Iterator[PtyClient]:
 def test_drive_stop_turn_and_quit_restoring_the_terminal(sim: SimServer) -> None:
     commands = sim.subscribe("cmd_vel", TWIST)
     with pty_client(client_command("teleop", *bus_args(sim))) as client:
-        before = client.attributes()
+        before = client.initial
         client.wait_for(READY, timeout=20.0)
         assert not client.attributes()[3] & termios.ICANON, "the client did not put the terminal in cbreak mode"
         screen = client.screen()
@@ -210,7 +210,7 @@ def test_wall_beside_the_path_does_not_stop_it(sim: SimServer) -> None:
 def test_a_signal_ends_it_with_a_stop_and_the_terminal_restored(sim: SimServer, sig: signal.Signals) -> None:
     commands = sim.subscribe("cmd_vel", TWIST)
     with pty_client(client_command("teleop", *bus_args(sim))) as client:
-        before = client.attributes()
+        before = client.initial
         client.wait_for(READY, timeout=20.0)
         client.type("w")
         commands.wait_for(lambda ms: ms[-1].linear.x == SPEED, what="forward on cmd_vel")
