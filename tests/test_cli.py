@@ -78,3 +78,13 @@ def test_missing_file_and_usage(tmp_path: Path) -> None:
     result = run_cli("describe", str(tmp_path / "nope.sdf"))
     assert result.returncode == 2 and "nope.sdf" in result.stderr and "no such file" in result.stderr
     assert run_cli("frobnicate").returncode == 2
+
+
+@pytest.mark.parametrize("command", ["teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch"])
+def test_simbot_runs_each_client_with_the_rest_of_the_line(command: str) -> None:
+    """`simbot CLIENT ARGS` is the client's own command line: its --help, and its one-line usage errors."""
+    helped = run_cli(command, "--help")
+    assert helped.returncode == 0 and "--namespace" in helped.stdout and "--connect" in helped.stdout, helped.stderr
+    wrong = run_cli(command, "--no-such-option")
+    last = wrong.stderr.strip().splitlines()[-1]
+    assert wrong.returncode == 2 and ": error: " in last and "Traceback" not in wrong.stderr, wrong.stderr

@@ -130,3 +130,16 @@ def test_describe_packaged_warehouse(installed: Installed) -> None:
     assert len(trolley_rows) == 1 and trolley_rows[0][-1] == "model://trolley", trolley_rows
     trolley_sdf = installed.site_packages / "simbot" / "assets" / "worlds" / "models" / "trolley" / "model.sdf"
     assert f"from {trolley_sdf}" in out
+
+
+CLIENT_SCRIPTS = ("simbot-teleop", "simbot-merger", "simbot-stitcher", "simbot-dock")
+
+
+def test_installed_clients_run_from_their_console_scripts_and_simbot(installed: Installed) -> None:
+    """The wheel carries `clients/`: each console script and each `simbot <client>` answers --help."""
+    for script in CLIENT_SCRIPTS:
+        done = installed.run(script, "--help")
+        assert done.returncode == 0 and "--connect" in done.stdout, f"{script}: {done.stderr}"
+    for command in ("teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch"):
+        done = installed.run("simbot", command, "--help")
+        assert done.returncode == 0 and "--namespace" in done.stdout, f"simbot {command}: {done.stderr}"
