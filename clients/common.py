@@ -6,12 +6,15 @@ the body returns or SIGINT / SIGTERM sets `stop`. A user's mistake (a bad option
 config, no server to connect to) is one line on stderr and exit code 2, never a traceback.
 
 Zenoh calls subscription callbacks on its own threads; clients hand messages to their main loop
-through a `Mailbox` and do their work there.
+through a `Mailbox` and do their work there. Two things several clients need are built on it:
+`StaticTransforms` (sensor poses from the latched `tf_static`, as a ROS node reads tf) and
+`StampedSets` (messages of several topics grouped by stamp, e.g. the lidars or the cameras).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import math
 import signal
@@ -19,9 +22,11 @@ import sys
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
-from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
+from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, Subscription, add_bus_arguments, messages
+from simbot.bus.sync import StampSync
+from simbot.bus.transforms import Matrix, TransformTree
 
 EXIT_USAGE = 2
 T = TypeVar("T")
@@ -96,3 +101,60 @@ class Mailbox(Generic[T]):
             if not self._items:
                 self._ready.wait(timeout)
             return self._items.popleft() if self._items else None
+
+
+class StaticTransforms:
+    """Poses of frames in one target frame, from the latched `tf_static`: queued by Zenoh, taken in by `refresh`."""
+
+    def __init__(self, node: Node, target: str) -> None:
+        self.target = target
+        self._tree = TransformTree()
+        self._inbox: Mailbox[Any] = Mailbox(size=16)
+        self._poses: dict[str, Matrix | None] = {}
+        node.subscribe("tf_static", "tf2_msgs/msg/TFMessage", self._inbox.put, latched=True)
+
+    def refresh(self) -> bool:
+        """Take in the tf_static messages that came (in the loop); True when any did, so cached poses are gone."""
+        changed = False
+        while (tf := self._inbox.get(0.0)) is not None:
+            self._tree.update(tf)
+            changed = True
+        if changed:
+            self._poses.clear()
+        return changed
+
+    def pose(self, frame: str) -> Matrix | None:
+        """The matrix mapping `frame` into the target (cached until tf_static changes); None while not connected.
+
+        ValueError when tf_static holds a cycle.
+        """
+        if frame not in self._poses:
+            self._poses[frame] = self._tree.lookup(self.target, frame)
+        return self._poses[frame]
+
+
+class StampedSets:
+    """Messages of several topics grouped by header stamp (StampSync) on Zenoh's threads, taken by the loop as sets."""
+
+    def __init__(self, node: Node, topics: Sequence[str], typename: str, slop_ns: int, max_wait_ns: int, queue: int) -> None:
+        self.sync: StampSync[Any] = StampSync(topics, slop_ns, max_wait_ns)
+        self._sets: Mailbox[dict[str, Any]] = Mailbox(size=queue)
+        self._inputs: list[Subscription[Any]] = [node.subscribe(topic, typename, functools.partial(self._receive, topic)) for topic in topics]
+
+    def _receive(self, topic: str, msg: Any) -> None:
+        for ready in self.sync.add(topic, messages.stamp_ns(msg.header), msg):
+            self._sets.put(ready)
+
+    def get(self, timeout: float) -> dict[str, Any] | None:
+        """The next set ({topic: message or None when it had no partner}), waiting up to `timeout` seconds."""
+        return self._sets.get(timeout)
+
+    @property
+    def undecodable(self) -> int:
+        """Payloads that were not of the type (dropped and counted by the subscriptions)."""
+        return sum(s.dropped for s in self._inputs)
+
+    @property
+    def overwritten(self) -> int:
+        """Sets that came faster than the loop took them, and were let go."""
+        return self._sets.overwritten

@@ -37,18 +37,17 @@ import logging
 import math
 import sys
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, client_parser, number, run_client
+from clients.common import StampedSets, StaticTransforms, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
-from simbot.bus.sync import StampSync
-from simbot.bus.transforms import TransformTree
+from simbot.bus.transforms import Matrix
 
 logger = logging.getLogger("simbot.merger")
 
@@ -57,7 +56,6 @@ FIXED_TOPICS = {"lidar_front": "lidar_front_fixed", "lidar_back": "lidar_back_fi
 """Each input scan's topic → the topic of that scan alone in base_link."""
 MERGED_TOPIC = "scan"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
-TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 DEFAULT_BINS = 1440
 DEFAULT_PERIOD_S = 0.2
 SLOP_PERIODS = 0.5
@@ -67,7 +65,6 @@ POLL_S = 0.1
 """How often the loop looks at the stop flag while no scan comes."""
 
 Floats = npt.NDArray[np.float64]
-Matrix = npt.NDArray[np.float64]
 
 
 class BadScan(ValueError):
@@ -204,50 +201,29 @@ class MergerNode:
         self.alone = 0
         self.rejected = 0
         self._warnings = RateLimitedWarnings()
-        self._tree = TransformTree()
-        self._poses: dict[str, Matrix | None] = {}
-        self._tf: Mailbox[Any] = Mailbox(size=16)
-        self._sets: Mailbox[dict[str, Any]] = Mailbox(size=8)
+        self._tf = StaticTransforms(node, TARGET_FRAME)
         period_ns = round(period_s * 1e9)
-        self._sync: StampSync[Any] = StampSync(
-            list(FIXED_TOPICS), round(SLOP_PERIODS * period_ns), round(MAX_WAIT_PERIODS * period_ns)
+        self._scans = StampedSets(
+            node, list(FIXED_TOPICS), LASER_SCAN, round(SLOP_PERIODS * period_ns), round(MAX_WAIT_PERIODS * period_ns), queue=8
         )
         self._publishers = {topic: node.publisher(topic) for topic in [*FIXED_TOPICS.values(), MERGED_TOPIC]}
-        node.subscribe("tf_static", TF_MESSAGE, self._tf.put, latched=True)
-        self._inputs = [node.subscribe(topic, LASER_SCAN, self._receiver(topic)) for topic in FIXED_TOPICS]
-
-    def _receiver(self, topic: str) -> Callable[[Any], None]:
-        """The Zenoh callback of one input: pair by stamp, queue what is ready."""
-
-        def receive(scan: Any) -> None:
-            for ready in self._sync.add(topic, messages.stamp_ns(scan.header), scan):
-                self._sets.put(ready)
-
-        return receive
 
     @property
     def undecodable(self) -> int:
         """Input payloads that were not LaserScans (dropped by the subscriptions)."""
-        return sum(s.dropped for s in self._inputs)
+        return self._scans.undecodable
 
     def spin_once(self, timeout: float) -> None:
         """Take new transforms, then merge and publish the next set of scans, if one comes within `timeout`."""
-        while (tf := self._tf.get(0.0)) is not None:
-            self._tree.update(tf)
-            self._poses.clear()  # the sensors may have moved: look them up (and rebuild their rays) again
-        ready = self._sets.get(timeout)
+        self._tf.refresh()  # the sensors may have moved: their poses (and rays) are looked up again
+        ready = self._scans.get(timeout)
         if ready is not None:
             self._publish(ready)
-
-    def _pose(self, frame: str) -> Matrix | None:
-        if frame not in self._poses:
-            self._poses[frame] = self._tree.lookup(TARGET_FRAME, frame)
-        return self._poses[frame]
 
     def _rebin(self, topic: str, scan: Any) -> Rebinned | None:
         """The scan alone in base_link; None, with a warning, when its frame is unknown or its fields are bad."""
         try:
-            pose = self._pose(scan.header.frame_id)  # ValueError when tf_static holds a cycle
+            pose = self._tf.pose(scan.header.frame_id)  # ValueError when tf_static holds a cycle
             if pose is None:
                 raise BadScan(f"no transform from {scan.header.frame_id!r} to {TARGET_FRAME!r} on tf_static (yet)")
             return self.merger.rebin(scan, pose)

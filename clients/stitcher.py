@@ -74,12 +74,11 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, client_parser, number, run_client
+from clients.common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.frames import optical_frame
 from simbot.bus.node import RateLimitedWarnings
-from simbot.bus.sync import StampSync
-from simbot.bus.transforms import TransformTree
+from simbot.bus.transforms import Matrix
 
 logger = logging.getLogger("simbot.stitcher")
 
@@ -95,7 +94,6 @@ CAMERAS = (
 IMAGE_TOPIC, INFO_TOPIC = "camera_360/image_raw", "camera_360/camera_info"
 IMAGE = "sensor_msgs/msg/Image"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 BASE_FRAME = "base_link"
 LAYOUTS = ("cylindrical", "strip")
 DEFAULT_RADIUS_M = 3.0
@@ -110,7 +108,6 @@ POLL_S = 0.1
 """How often the loop looks at the stop flag while no set comes."""
 
 Pixels = npt.NDArray[np.uint8]
-Matrix = npt.NDArray[np.float64]
 
 
 class BadInput(ValueError):
@@ -333,46 +330,30 @@ class StitcherNode:
         self.partial = 0
         self.skipped = 0
         self._warnings = RateLimitedWarnings()
-        self._tree = TransformTree()
-        self._poses: dict[str, Matrix | None] = {}
+        self._tf = StaticTransforms(node, BASE_FRAME)
         self._intrinsics: dict[str, Intrinsics] = {}
         self._stitcher: Stitcher | None = None
-        self._sets: Mailbox[dict[str, Any]] = Mailbox(size=2)
         self._infos: Mailbox[tuple[str, Any]] = Mailbox(size=8 * len(CAMERAS))
-        self._tf: Mailbox[Any] = Mailbox(size=16)
-        self._sync: StampSync[Any] = StampSync(CAMERAS, SLOP_NS, MAX_WAIT_NS)
         self._image_out = node.publisher(IMAGE_TOPIC)
         self._info_out = node.publisher(INFO_TOPIC)
-        node.subscribe("tf_static", TF_MESSAGE, self._tf.put, latched=True)
         for name in CAMERAS:  # before the images: a camera's first image then finds its camera_info here
             node.subscribe(f"{name}/camera_info", CAMERA_INFO, functools.partial(self._info_of, name))
-        self._inputs = [node.subscribe(name, IMAGE, self._receiver(name)) for name in CAMERAS]
+        self._images = StampedSets(node, CAMERAS, IMAGE, SLOP_NS, MAX_WAIT_NS, queue=2)
 
     def _info_of(self, name: str, info: Any) -> None:
         """Zenoh thread: a camera_info to the loop, tagged with its camera."""
         self._infos.put((name, info))
 
-    def _receiver(self, name: str) -> Any:
-        """The Zenoh callback of one camera: pair by stamp, queue the sets that are ready."""
-
-        def receive(image: Any) -> None:
-            for ready in self._sync.add(name, messages.stamp_ns(image.header), image):
-                self._sets.put(ready)
-
-        return receive
-
     @property
     def undecodable(self) -> int:
         """Input payloads that were not Images (dropped by the subscriptions)."""
-        return sum(s.dropped for s in self._inputs)
+        return self._images.undecodable
 
     def spin_once(self, timeout: float) -> None:
         """Stitch and publish the next set, if one comes within `timeout`, with the transforms and
         camera_infos that came before it."""
-        ready = self._sets.get(timeout)
-        while (tf := self._tf.get(0.0)) is not None:
-            self._tree.update(tf)
-            self._poses.clear()
+        ready = self._images.get(timeout)
+        self._tf.refresh()
         while (item := self._infos.get(0.0)) is not None:
             name, info = item
             try:
@@ -382,17 +363,12 @@ class StitcherNode:
         if ready is not None:
             self._publish(ready)
 
-    def _pose(self, frame: str) -> Matrix | None:
-        if frame not in self._poses:
-            self._poses[frame] = self._tree.lookup(BASE_FRAME, frame)
-        return self._poses[frame]
-
     def _cylinder_cameras(self) -> dict[str, CameraModel]:
         """The cameras whose intrinsics and pose are known (a camera tf_static does not place is left out)."""
         cameras = {}
         for name, intrinsics in self._intrinsics.items():
             try:
-                pose = self._pose(intrinsics.frame_id)  # ValueError when tf_static holds a cycle
+                pose = self._tf.pose(intrinsics.frame_id)  # ValueError when tf_static holds a cycle
             except ValueError as exc:
                 pose, reason = None, str(exc)
             else:
@@ -464,7 +440,7 @@ class StitcherNode:
         return (
             f"published {self.published} panoramas ({self.partial} with a camera missing); "
             f"skipped {self.skipped} images, dropped {self.undecodable} undecodable payloads; "
-            f"{self._sets.overwritten} sets came faster than they could be stitched and were dropped"
+            f"{self._images.overwritten} sets came faster than they could be stitched and were dropped"
         )
 
 

@@ -35,15 +35,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, client_parser, number, run_client
+from clients.common import Mailbox, StaticTransforms, client_parser, number, run_client
 from clients.terminal import Terminal
 from simbot.bus import Node, messages
-from simbot.bus.transforms import Matrix, TransformTree
+from simbot.bus.transforms import Matrix
 
 logger = logging.getLogger(__name__)
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
-TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 
 MOVES = {"w": (1, 0), "s": (-1, 0), "a": (0, 1), "d": (0, -1), "x": (0, 0), " ": (0, 0)}
 """Key → (sign of the linear speed, sign of the turn rate)."""
@@ -104,7 +103,7 @@ class PathWatch:
         self._latest: Timed | None = None
         node.subscribe(topic, LASER_SCAN, lambda msg: self._inbox.put((time.monotonic(), msg)))
 
-    def nearest(self, tree: TransformTree, settings: Settings, now: float) -> float | None:
+    def nearest(self, transforms: StaticTransforms, settings: Settings, now: float) -> float | None:
         """Metres from the lidar to the nearest return in the path (inf when clear); None with no recent scan or no sensor pose."""
         arrived = self._inbox.get(timeout=0.0)
         if arrived is not None:
@@ -112,7 +111,7 @@ class PathWatch:
         if self._latest is None or now - self._latest[0] > settings.scan_timeout:
             return None
         scan = self._latest[1]
-        sensor_in_base = tree.lookup(settings.base_frame, scan.header.frame_id)
+        sensor_in_base = transforms.pose(scan.header.frame_id)
         if sensor_in_base is None:
             return None
         ranges = path_ranges(scan, sensor_in_base, settings.half_width, self.ahead)
@@ -170,9 +169,7 @@ def _obstacle(view: float | None, sign: int) -> str:
 
 def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys in, a command out every period (and at once on a change), the status line."""
-    tree = TransformTree()
-    tf_inbox: Mailbox[Any] = Mailbox(size=16)
-    node.subscribe("tf_static", TF_MESSAGE, tf_inbox.put, latched=True)
+    transforms = StaticTransforms(node, settings.base_frame)
     front = PathWatch(node, "lidar_front", ahead=True)
     back = PathWatch(node, "lidar_back", ahead=False)
     cmd_vel = node.publisher("cmd_vel", drop=False)
@@ -192,9 +189,8 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
             if not changed and now < next_tick:
                 continue
             next_tick = now + settings.period
-            while (tf := tf_inbox.get(timeout=0.0)) is not None:
-                tree.update(tf)
-            ahead, behind = front.nearest(tree, settings, now), back.nearest(tree, settings, now)
+            transforms.refresh()
+            ahead, behind = front.nearest(transforms, settings, now), back.nearest(transforms, settings, now)
             linear, angular = teleop.command(ahead, behind)
             cmd_vel.put(messages.twist((linear, 0.0, 0.0), (0.0, 0.0, angular)))
             terminal.status(teleop.status(linear, angular, ahead, behind))
