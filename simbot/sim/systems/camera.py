@@ -6,11 +6,13 @@ ticks a camera that someone subscribes to takes the camera's world pose and the 
 moving body (one snapshot per tick, shared by the cameras due then) and hands them to the pool.
 The image comes back later and is published stamped with the snapshot's sim time.
 
-- Real time and fast mode: the cameras due at a tick render as a set, and only when every frame
-  of the previous set is out; otherwise they all skip this tick (counted in world state's
-  `skipped`), so rendering never slows the physics. A set shares one stamp, as Gazebo's cameras
-  do: a stitcher pairing the six images by stamp finds them together. (Letting each camera
-  render as soon as it alone is free would drift the six apart by a frame time each.)
+- Real time and fast mode: a camera whose tick comes while frames are still rendering waits
+  (one frame at most: a tick that finds it still waiting is skipped, and counted in world
+  state's `skipped`), so rendering never slows the physics. The waiting cameras render as one
+  set at the first step when every frame of the previous set is out: a set shares one stamp,
+  as Gazebo's cameras do, and a stitcher pairing the six images by stamp finds them together.
+  (Letting each camera render as soon as it alone is free would drift the six apart by a frame
+  time each; holding a set for the next tick would leave the workers idle for half a tick.)
 - Lockstep: every frame is rendered at its exact sim time, and the step that took it waits
   until the frames of all cameras due then are published (the cameras render in parallel when
   there are several workers), so after `multi_step` every frame up to that time is out.
@@ -123,8 +125,8 @@ class CameraRig:
         return self._snapshot[1]
 
     def accepting(self, now_ns: int) -> bool:
-        """Whether the frames due at `now_ns` may be requested: decided once per tick, true when no
-        frame of any camera is outstanding (lockstep never has one here)."""
+        """Whether frames may be requested at `now_ns`: decided once per step, true when no frame of
+        any camera is outstanding (lockstep never has one here)."""
         if self._tick is None or self._tick[0] != now_ns:
             idle = self.pool is not None and not any(self.pool.busy(camera.index) for camera in self.cameras)
             self._tick = (now_ns, idle)
@@ -190,21 +192,26 @@ class Camera(Sampled):
         self.rig: CameraRig = ctx.shared.setdefault(RIG, CameraRig(ctx.physics, ctx.settings, _light(ctx.world)))
         self.index = self.rig.add(self)
         self.skipped = 0
+        self._waiting = False
+        """A tick came while the rig was busy: render at the first step it accepts."""
 
     def post_update(self, now_ns: int) -> None:
         if self.due(now_ns):
             if self._info.has_subscribers:
                 self._info.put(self._camera_info(now_ns))
             if self._image.has_subscribers and self.rig.failure is None:
-                self._request(now_ns)
+                self.skipped += self._waiting  # real time: the physics never waits for a frame
+                self._waiting = True
+        if self._waiting:
+            self._request(now_ns)
         if self.index == len(self.rig.cameras) - 1:
             self.rig.deliver()
 
     def _request(self, now_ns: int) -> None:
         rig = self.rig
-        if not rig.ready() or rig.pool is None or not rig.accepting(now_ns):
-            self.skipped += 1  # real time: the physics never waits for a frame
+        if rig.failure is not None or not rig.ready() or rig.pool is None or not rig.accepting(now_ns):
             return
+        self._waiting = False
         try:
             rig.pool.request(self.index, now_ns, self._physics.frame_pose(*self._where), rig.states(now_ns))
         except RuntimeError as exc:
@@ -231,6 +238,7 @@ class Camera(Sampled):
     def reset(self, now_ns: int) -> None:
         super().reset(now_ns)
         self.skipped = 0
+        self._waiting = False
         self.rig.forget()
 
     def close(self) -> None:
