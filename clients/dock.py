@@ -139,7 +139,7 @@ def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: thread
     robot, trolley = PoseWatch(node, args.robot), PoseWatch(node, args.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)
-    docking = Docking(args, node.publisher("attach", drop=False), node.publisher("detach", drop=False), terminal)
+    docking = Docking(args, node.publisher("attach", messages.Empty, drop=False), node.publisher("detach", messages.Empty, drop=False), terminal)
     near: bool | None = None
     next_check = time.monotonic()
     while not stop.is_set():

@@ -206,7 +206,7 @@ class MergerNode:
         self._scans = StampedSets(
             node, list(FIXED_TOPICS), LASER_SCAN, round(SLOP_PERIODS * period_ns), round(MAX_WAIT_PERIODS * period_ns), queue=8
         )
-        self._publishers = {topic: node.publisher(topic) for topic in [*FIXED_TOPICS.values(), MERGED_TOPIC]}
+        self._publishers = {topic: node.publisher(topic, messages.LaserScan) for topic in [*FIXED_TOPICS.values(), MERGED_TOPIC]}
 
     @property
     def undecodable(self) -> int:

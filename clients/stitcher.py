@@ -334,8 +334,8 @@ class StitcherNode:
         self._intrinsics: dict[str, Intrinsics] = {}
         self._stitcher: Stitcher | None = None
         self._infos: Mailbox[tuple[str, Any]] = Mailbox(size=8 * len(CAMERAS))
-        self._image_out = node.publisher(IMAGE_TOPIC)
-        self._info_out = node.publisher(INFO_TOPIC)
+        self._image_out = node.publisher(IMAGE_TOPIC, messages.Image)
+        self._info_out = node.publisher(INFO_TOPIC, messages.CameraInfo)
         for name in CAMERAS:  # before the images: a camera's first image then finds its camera_info here
             node.subscribe(f"{name}/camera_info", CAMERA_INFO, functools.partial(self._info_of, name))
         self._images = StampedSets(node, CAMERAS, IMAGE, SLOP_NS, MAX_WAIT_NS, queue=2)

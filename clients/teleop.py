@@ -172,7 +172,7 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
     transforms = StaticTransforms(node, settings.base_frame)
     front = PathWatch(node, "lidar_front", ahead=True)
     back = PathWatch(node, "lidar_back", ahead=False)
-    cmd_vel = node.publisher("cmd_vel", drop=False)
+    cmd_vel = node.publisher("cmd_vel", messages.Twist, drop=False)
     teleop = Teleop(settings)
     try:
         next_tick = time.monotonic()

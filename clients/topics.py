@@ -5,11 +5,11 @@ says which keys are live and what they carry, including inputs nobody publishes 
 services (world control). Rates and bandwidth are measured by a raw Zenoh subscriber on
 `<namespace>/**` for `--window` seconds, whose callback only counts arrival times and bytes.
 
-Cameras render only while someone subscribes, and a publisher joins the graph at its first
-message, so an unwatched camera is not on the graph at all. Measuring subscribes to every key,
-cameras included: the listing is complete and the camera rates are real, at the price of the
-server rendering for the window (the render workers, once started, stay). `--window 0` measures
-nothing and renders nothing: the graph alone.
+Cameras render only while someone subscribes, but they are on the graph from the start (the
+server's publishers announce their type when declared). Measuring subscribes to every key,
+cameras included, so the camera rates are real, at the price of the server rendering for the
+window (the render workers, once started, stay). `--window 0` measures nothing and renders
+nothing: the graph alone.
 
 A latched key (`robot_description`, `tf_static`, `detachable_joint/state`) publishes on change
 only; the graph does not say it is latched, but a plain Zenoh `get` on it is answered (latched

@@ -96,15 +96,15 @@ class RateLimitedWarnings:
 class Publisher:
     """Encodes messages and puts them on one key; latched publishers also serve the latest to late joiners.
 
-    The publisher announces itself on the graph (`simbot.bus.graph`) at its first `put`, when the
-    type it carries is known.
+    The publisher announces itself on the graph (`simbot.bus.graph`) at once when it is given the
+    type it carries, else at its first `put`: a camera nobody watches is on the graph all the same.
     """
 
-    def __init__(self, session: zenoh.Session, key: str, *, latched: bool, drop: bool) -> None:
+    def __init__(self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None) -> None:
         self.key = key
         self.latched = latched
         self._session = session
-        self._announcement: Announcement | None = None
+        self._announcement = Announcement(session, "pub", typename, key) if typename else None
         congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
         self._encodings: dict[str, zenoh.Encoding] = {}
         self._latest: tuple[bytes, zenoh.Encoding] | None = None
@@ -370,9 +370,11 @@ class Node:
         self._entities.append(entity)
         return entity
 
-    def publisher(self, topic: str, *, latched: bool = False, drop: bool = True) -> Publisher:
-        """A publisher on `topic`; `latched` serves the latest message to late joiners, `drop=False` blocks."""
-        return self._keep(Publisher(self.session, self.key(topic), latched=latched, drop=drop))
+    def publisher(self, topic: str, msgtype: type[Any] | None = None, *, latched: bool = False, drop: bool = True) -> Publisher:
+        """A publisher on `topic` of `msgtype` (a `messages` class, for the graph); `latched` serves the
+        latest message to late joiners, `drop=False` blocks."""
+        typename = msgtype.__msgtype__ if msgtype is not None else None
+        return self._keep(Publisher(self.session, self.key(topic), latched=latched, drop=drop, typename=typename))
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False

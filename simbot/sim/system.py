@@ -130,8 +130,9 @@ class SimBus:
     node: Node
     drops: Drops = field(default_factory=Drops)
 
-    def publisher(self, topic: str, *, latched: bool = False) -> Publisher:
-        return self.node.publisher(topic, latched=latched)
+    def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
+        """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""
+        return self.node.publisher(topic, msgtype, latched=latched)
 
     def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
         return Input(self.node, self.drops, topic, typename, check)

@@ -187,8 +187,8 @@ class Camera(Sampled):
         self._where = (model, link.name, sensor.pose)
         self._frame = optical_frame(sensor_frame(sensor))
         topic = sensor_topic(sensor)
-        self._image: Publisher = ctx.bus.publisher(topic)
-        self._info: Publisher = ctx.bus.publisher(f"{topic}/camera_info")
+        self._image: Publisher = ctx.bus.publisher(topic, messages.Image)
+        self._info: Publisher = ctx.bus.publisher(f"{topic}/camera_info", messages.CameraInfo)
         self.rig: CameraRig = ctx.shared.setdefault(RIG, CameraRig(ctx.physics, ctx.settings, _light(ctx.world)))
         self.index = self.rig.add(self)
         self.skipped = 0

@@ -13,7 +13,7 @@ class ClockPublisher:
     """Built into the server; not from an SDF plugin."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        self._pub = ctx.bus.publisher("clock")
+        self._pub = ctx.bus.publisher("clock", messages.Clock)
         self._every = Every.hz(CLOCK_RATE)
 
     def post_update(self, now_ns: int) -> None:

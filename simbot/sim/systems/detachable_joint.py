@@ -40,7 +40,7 @@ class DetachableJoint:
         self._physics = ctx.physics
         self._attach = ctx.bus.input(param(plugin, "attach_topic", default="attach") or "attach", EMPTY)
         self._detach = ctx.bus.input(param(plugin, "detach_topic", default="detach") or "detach", EMPTY)
-        self._state = ctx.bus.publisher(param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state", latched=True)
+        self._state = ctx.bus.publisher(param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state", messages.String, latched=True)
         self._joint: int | None = None
         self._publish()
 

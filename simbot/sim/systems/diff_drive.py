@@ -164,8 +164,8 @@ class DiffDrive:
         self._physics = ctx.physics
         self._efforts = {j: self._effort(j) for j in self.params.left + self.params.right}
         self._commands = ctx.bus.input(self.params.topic, "geometry_msgs/msg/Twist", check_twist)
-        self._odom_pub = ctx.bus.publisher(self.params.odom_topic)
-        self._tf_pub = ctx.bus.publisher(self.params.tf_topic) if self.params.publish_tf else None
+        self._odom_pub = ctx.bus.publisher(self.params.odom_topic, messages.Odometry)
+        self._tf_pub = ctx.bus.publisher(self.params.tf_topic, messages.TFMessage) if self.params.publish_tf else None
         self._every = Every.hz(self.params.odom_rate)
         self._target = self._current = (0.0, 0.0)
         self._applied: tuple[float, float] | None = None  # None: the first step holds the wheels still

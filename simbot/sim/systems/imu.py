@@ -62,7 +62,7 @@ class Imu(Sampled):
         self._covariances = (np.zeros(9), self._gyro.covariance(), self._accel.covariance())
         self._frame = sensor_frame(sensor)
         self._last: tuple[int, npt.NDArray[np.float64]] | None = None
-        self._pub = ctx.bus.publisher(sensor_topic(sensor))
+        self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.Imu)
 
     def post_update(self, now_ns: int) -> None:
         if not self.due(now_ns):

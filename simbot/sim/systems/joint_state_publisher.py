@@ -28,7 +28,7 @@ class JointStatePublisher:
                 raise SystemConfigError(f"{ctx.plugin.name}: model {model.name!r} has no movable joint {name!r}")
         self._joints = list(names)
         self._physics = ctx.physics
-        self._pub = ctx.bus.publisher(param(ctx.plugin, "topic", default="joint_states") or "joint_states")
+        self._pub = ctx.bus.publisher(param(ctx.plugin, "topic", default="joint_states") or "joint_states", messages.JointState)
         self._every = Every.hz(number_param(ctx.plugin, "update_rate", default=30.0, positive=True) or 30.0)
 
     def post_update(self, now_ns: int) -> None:

@@ -74,7 +74,7 @@ class Lidar(Sampled):
         self._frame = sensor_frame(sensor)
         self._angles = (h.min_angle, h.max_angle, increment)
         self._times = (0.0, 1.0 / rate)
-        self._pub = ctx.bus.publisher(sensor_topic(sensor))
+        self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.LaserScan)
 
     def post_update(self, now_ns: int) -> None:
         if not self.due(now_ns):

@@ -15,7 +15,7 @@ class PosePublisher:
     def __init__(self, ctx: SystemContext) -> None:
         self._physics = ctx.physics
         dynamic = [name for name, body in ctx.physics.bodies.items() if not body.model.static]
-        self._pubs = {name: ctx.bus.publisher(f"model/{name}/pose") for name in dynamic}
+        self._pubs = {name: ctx.bus.publisher(f"model/{name}/pose", messages.PoseStamped) for name in dynamic}
         self._every = Every.hz(POSE_RATE)
 
     def post_update(self, now_ns: int) -> None:

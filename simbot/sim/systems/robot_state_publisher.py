@@ -52,6 +52,6 @@ class RobotStatePublisher:
     def __init__(self, ctx: SystemContext) -> None:
         model, name = ctx.require_model("RobotStatePublisher")
         urdf = ctx.physics.body(name).urdf
-        ctx.bus.publisher("robot_description", latched=True).put(messages.string(urdf))
+        ctx.bus.publisher("robot_description", messages.String, latched=True).put(messages.string(urdf))
         transforms = [messages.transform_stamped(0, parent, child, *pose_to_transform(pose)) for parent, child, pose in static_transforms(model, urdf)]
-        ctx.bus.publisher("tf_static", latched=True).put(messages.tf_message(transforms))
+        ctx.bus.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
