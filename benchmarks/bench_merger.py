@@ -23,13 +23,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import statistics
-import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from timing import per_call_ms
 
 from clients.merger import Binning, ScanMerger, to_message
 from simbot.bus import decode, encode, messages
@@ -78,17 +76,6 @@ def bare_merge(pairs: list[tuple[Any, Floats]], bins: int) -> Floats:
         index = np.rint((np.arctan2(y, x) + math.pi) / increment).astype(np.intp) % bins
         np.minimum.at(out, index, np.hypot(x, y))
     return out
-
-
-def per_call_ms(work: Callable[[], object], repeats: int) -> float:
-    """Median milliseconds of one call."""
-    work()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times) * 1e3
 
 
 def main() -> None:

@@ -40,7 +40,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,6 +50,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_server import bare_loop, free_port
+from timing import per_call_ms
 
 from simbot.bus import BusOptions, Node, messages
 from simbot.description.resources import asset
@@ -139,16 +140,6 @@ def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: f
         bare_render(client, views[frames % len(views)], light)
         frames += 1
     return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu)
-
-
-def per_call_ms(work: Callable[[], object], repeats: int) -> float:
-    """Median milliseconds of one call (median: one preemption on a shared machine is not a cost)."""
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times) * 1e3
 
 
 class Counter:
