@@ -64,14 +64,19 @@ def number(kind: Callable[[str], Number], *, at_least_zero: bool = False) -> Cal
     return parse
 
 
-def run_client(parser: argparse.ArgumentParser, argv: Sequence[str] | None, body: ClientBody) -> int:
-    """Parse, open the bus, run `body` until it returns or a signal asks to stop; the exit code."""
+def run_client(
+    parser: argparse.ArgumentParser, argv: Sequence[str] | None, body: ClientBody, check: Callable[[], object] | None = None
+) -> int:
+    """Parse, run `check` (a precondition that raises ClientError), open the bus, run `body` until it
+    returns or a signal asks to stop; the exit code."""
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     try:
+        if check is not None:
+            check()
         with Node(BusOptions.from_args(args), "client") as node:
             return body(args, node, stop)
     except (BusConfigError, BusOpenError, ClientError) as exc:

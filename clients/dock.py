@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from clients.common import Mailbox, client_parser, number, run_client
-from clients.terminal import Terminal
+from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
 
@@ -183,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot-dock`."""
-    return run_client(build_parser(), argv, _body)
+    return run_client(build_parser(), argv, _body, check=terminal_input)
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from clients.common import Mailbox, StaticTransforms, client_parser, number, run_client
-from clients.terminal import Terminal
+from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
 
@@ -220,7 +220,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot-teleop`."""
-    return run_client(build_parser(), argv, _body)
+    return run_client(build_parser(), argv, _body, check=terminal_input)
 
 
 if __name__ == "__main__":

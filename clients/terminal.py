@@ -50,12 +50,7 @@ class Terminal:
         self._displaced: list[logging.Handler] = []
 
     def __enter__(self) -> Self:
-        try:
-            self._fd = self._in.fileno()
-        except (AttributeError, ValueError, OSError):
-            self._fd = -1
-        if self._fd < 0 or not os.isatty(self._fd):
-            raise ClientError("standard input is not a terminal: run it in an interactive terminal (no pipes or redirection)")
+        self._fd = terminal_input(self._in)
         self._saved = termios.tcgetattr(self._fd)
         try:
             tty.setcbreak(self._fd, termios.TCSANOW)
@@ -128,6 +123,21 @@ class Terminal:
     def _write(self, text: str) -> None:
         self._out.write(text)
         self._out.flush()
+
+
+def terminal_input(stream: TextIO | None = None) -> int:
+    """The file descriptor of standard input (or `stream`) when it is a terminal; ClientError otherwise.
+
+    A keyboard client checks this before it connects (`run_client(..., check=...)`), so that a pipe
+    as input is the one error the user sees.
+    """
+    try:
+        fd = (stream or sys.stdin).fileno()
+    except (AttributeError, ValueError, OSError):
+        fd = -1
+    if fd < 0 or not os.isatty(fd):
+        raise ClientError("standard input is not a terminal: run it in an interactive terminal (no pipes or redirection)")
+    return fd
 
 
 class _ScreenHandler(logging.Handler):

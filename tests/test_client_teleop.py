@@ -22,6 +22,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import pytest
+from bus_helpers import endpoint, free_port
 from client_helpers import PtyClient, bus_args, client_command, pty_client
 from server_helpers import REPO, TWIST, SimServer, module_server, reset_before_each, wait_until
 
@@ -231,3 +232,17 @@ def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...],
     )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr
+
+
+def test_without_a_terminal_it_says_so_before_looking_for_a_server() -> None:
+    """No terminal and no server: the one line is about the terminal (checked before the bus opens)."""
+    done = subprocess.run(
+        client_command("teleop", "--connect", endpoint(free_port()), "--connect-timeout", "5"),
+        check=False,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "not a terminal" in done.stderr, done.stderr
