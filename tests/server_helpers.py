@@ -7,9 +7,10 @@ control calls the tests use (state, step, reset, poses); `Collector` gathers mes
 callback threads into a list under a lock and waits for conditions with a timeout.
 
 Lockstep is the mode for exact sim durations: a command is put on the bus, then `step(n)` runs
-n physics steps. Zenoh delivers a client's samples and queries over one link in order, so the
-server's inbox holds the command before the step request is polled; `send` also waits a few
-milliseconds to leave no doubt. The command is consumed in the first of those steps.
+n physics steps. `send` returns only once the server's state counts the command as received
+(queued for the next step), so the command is consumed in the first of those steps however
+loaded the machine is. (Zenoh may deliver a sample and a later query out of order: they can
+travel at different priorities.)
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError, 
 REPO = Path(__file__).resolve().parents[1]
 STARTUP_TIMEOUT_S = 30.0
 EXIT_TIMEOUT_S = 2.0
-SEND_SETTLE_S = 0.02
+SEND_TIMEOUT_S = 10.0
 
 TWIST = "geometry_msgs/msg/Twist"
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -211,9 +212,12 @@ class SimServer:
             subscription.close()
 
     def send(self, topic: str, msg: Any) -> None:
-        """Puts `msg` on `topic` and leaves it a moment to arrive."""
+        """Puts `msg` on one of the server's input topics and waits until the server has received it."""
+        key = self.key(topic)
+        received = self.state()["received"]
+        assert key in received, f"{topic!r} is not an input of the server ({', '.join(received)})"
         self.publisher(topic).put(msg)
-        time.sleep(SEND_SETTLE_S)
+        wait_until(lambda: self.state()["received"][key] > received[key], SEND_TIMEOUT_S, f"the server to receive {topic}", poll=0.002)
 
     def send_raw(self, topic: str, data: bytes) -> None:
         self.publisher(topic).put_raw(data)

@@ -245,6 +245,8 @@ class Inbox:
             raise ValueError(f"inbox {key!r}: maxlen must be ≥ 1, not {maxlen}")
         self.key = key
         self.overflowed = 0
+        self.received = 0
+        """Payloads that arrived, counted as they arrive (before anyone drains them)."""
         self._queue: deque[bytes] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
         self._subscriber = session.declare_subscriber(key, self._on_sample)
@@ -255,6 +257,7 @@ class Inbox:
             return
         data = sample.payload.to_bytes()
         with self._lock:
+            self.received += 1
             if len(self._queue) == self._queue.maxlen:
                 self.overflowed += 1
             self._queue.append(data)

@@ -9,7 +9,9 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
 - `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
   factor, every model's pose, each sensor's figures (its achieved rate in messages per sim
-  second, frames skipped), and the dropped-input counters with their last reasons.
+  second, frames skipped), the payloads each input key has received (counted on arrival, so a
+  client can tell that its command is in before it asks for steps), and the dropped-input
+  counters with their last reasons.
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 Requests are polled by the simulation loop between steps, never acted on in a bus callback.
@@ -23,7 +25,7 @@ from typing import Any
 
 from simbot.bus import BadRequest, Node, Request
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import Drops, Reporting
+from simbot.sim.system import Reporting, SimBus
 
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
@@ -37,9 +39,10 @@ Handler = Callable[[Request, dict[str, Any]], None]
 class WorldControl:
     """The three queryables of one world."""
 
-    def __init__(self, node: Node, world: str, sim: Simulation, drops: Drops) -> None:
+    def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus) -> None:
         self.sim = sim
-        self.drops = drops
+        self.bus = bus
+        self.drops = bus.drops
         self._handlers: dict[str, tuple[Any, Handler]] = {
             name: (node.queryable(f"world/{world}/{name}"), handler)
             for name, handler in (("control", self._control), ("set_pose", self._set_pose), ("state", self._state))
@@ -102,6 +105,7 @@ class WorldControl:
             "real_time_factor": self.sim.rtf.value(),
             "models": models,
             "sensors": {s.name: s.report() for s in self.sim.systems if isinstance(s, Reporting)},
+            "received": {i.key: i.received for i in self.bus.inputs},
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),
         }

@@ -97,7 +97,7 @@ class Server:
         self._shared: dict[str, object] = {}
         systems = self._systems(robot)
         self.sim = Simulation(self.physics, systems, config.mode)
-        self.control = WorldControl(node, self.world.name, self.sim, self.bus.drops)
+        self.control = WorldControl(node, self.world.name, self.sim, self.bus)
 
     def _context(
         self, model: Model | None = None, name: str | None = None, plugin: Plugin | None = None, sensor: tuple[Link, Sensor] | None = None

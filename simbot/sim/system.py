@@ -103,6 +103,11 @@ class Input:
         self._check = check
         self._overflowed = 0
 
+    @property
+    def received(self) -> int:
+        """Payloads that reached the server on this key, valid or not, drained or not."""
+        return self._inbox.received
+
     def drain(self) -> list[Any]:
         """The valid messages that arrived since the last call, oldest first."""
         if self._inbox.overflowed != self._overflowed:
@@ -129,13 +134,15 @@ class SimBus:
 
     node: Node
     drops: Drops = field(default_factory=Drops)
+    inputs: list[Input] = field(default_factory=list)
 
     def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
         """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""
         return self.node.publisher(topic, msgtype, latched=latched)
 
     def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
-        return Input(self.node, self.drops, topic, typename, check)
+        self.inputs.append(Input(self.node, self.drops, topic, typename, check))
+        return self.inputs[-1]
 
 
 @dataclass(frozen=True)
