@@ -26,7 +26,7 @@ from bus_helpers import endpoint, free_port
 from client_helpers import PtyClient, bus_args, client_command, pty_client
 from server_helpers import REPO, TWIST, SimServer, module_server, reset_before_each, wait_until
 
-from simbot.bus.transforms import yaw_of_quaternion
+from simbot.rotations import yaw_of
 
 WORLD = REPO / "tests" / "fixtures" / "teleop_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
@@ -46,7 +46,7 @@ Sample = tuple[float, float, float, float]
 def sample(sim: SimServer) -> Sample:
     state = sim.state()
     (x, y, _), quat = sim.pose(state=state)
-    return state["sim_time"], x, y, yaw_of_quaternion(quat)
+    return state["sim_time"], x, y, yaw_of(quat)
 
 
 def moved(a: Sample, b: Sample) -> float:

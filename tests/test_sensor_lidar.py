@@ -25,7 +25,8 @@ from conftest import REPO, ROBOT_SDF
 from server_helpers import POSE_STAMPED, Collector, SimServer, pose_of, reset_before_each, running_server, stamp_ns
 
 from simbot.description import load_model, load_world
-from simbot.description.poses import Pose, quaternion_to_matrix
+from simbot.description.poses import Pose
+from simbot.rotations import quaternion_to_matrix
 from simbot.sim.physics import Physics
 
 WORLD = REPO / "tests" / "fixtures" / "lidar_boxes.sdf"

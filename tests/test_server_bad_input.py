@@ -34,7 +34,7 @@ from server_helpers import (
 )
 
 from simbot.bus import encode, messages
-from simbot.description.poses import yaw_of
+from simbot.rotations import yaw_of
 
 SEED = 20240611
 SETTLE_STEPS = 300

@@ -29,8 +29,9 @@ from simbot.bus import Node
 from simbot.bus.frames import optical_frame
 from simbot.description import load_model
 from simbot.description.model import Model
-from simbot.description.poses import Pose, quaternion_to_matrix
+from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame
+from simbot.rotations import quaternion_to_matrix
 
 TOL = 1e-6
 ROOT = "base_footprint"

@@ -11,8 +11,9 @@ from conftest import ROBOT_SDF, TROLLEY_SDF
 
 from simbot.description import load_model, load_world
 from simbot.description.model import Box, Collision, Link, Model
-from simbot.description.poses import Pose, yaw_of
+from simbot.description.poses import Pose
 from simbot.description.resources import asset
+from simbot.rotations import yaw_of
 from simbot.sim.physics import Physics
 
 G = 9.8

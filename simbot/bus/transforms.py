@@ -7,50 +7,31 @@ recording, or on a real robot's topics. Plain numpy, 4×4 homogeneous matrices.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from simbot.rotations import quaternion_to_matrix, yaw_of
+
 Matrix = npt.NDArray[np.float64]
-
-
-def rotation_matrix(quat_xyzw: Sequence[float]) -> Matrix:
-    """The 3×3 rotation of a unit quaternion given in ROS order (x, y, z, w); normalised first."""
-    x, y, z, w = (float(v) for v in quat_xyzw)
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if not norm > 0:
-        raise ValueError(f"quaternion ({x}, {y}, {z}, {w}) has no rotation (zero norm)")
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def transform_matrix(xyz: Sequence[float], quat_xyzw: Sequence[float]) -> Matrix:
     """The 4×4 matrix that maps points of a frame posed at (xyz, quat) into its parent."""
+    if not np.linalg.norm(quat_xyzw) > 0:
+        raise ValueError(f"quaternion {tuple(quat_xyzw)} has no rotation (zero norm)")
     matrix = np.eye(4)
-    matrix[:3, :3] = rotation_matrix(quat_xyzw)
+    matrix[:3, :3] = quaternion_to_matrix(quat_xyzw)
     matrix[:3, 3] = [float(v) for v in xyz]
     return matrix
-
-
-def yaw_of_quaternion(quat_xyzw: Sequence[float]) -> float:
-    """The heading (rotation about z, REP-103) of an orientation, in (−π, π]."""
-    x, y, z, w = (float(v) for v in quat_xyzw)
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
 def planar_pose(pose: Any) -> tuple[float, float, float]:
     """(x, y, yaw) of a geometry_msgs Pose."""
     o = pose.orientation
-    return float(pose.position.x), float(pose.position.y), yaw_of_quaternion((o.x, o.y, o.z, o.w))
+    return float(pose.position.x), float(pose.position.y), yaw_of((o.x, o.y, o.z, o.w))
 
 
 class TransformTree:

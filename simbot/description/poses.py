@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,24 +37,6 @@ def matrix_to_rpy(rot: np.ndarray) -> Vec3:
     yaw = math.atan2(float(rot[1, 0]), float(rot[0, 0]))
     return (roll, pitch, yaw)
 
-
-def quaternion_to_matrix(xyzw: tuple[float, float, float, float]) -> np.ndarray:
-    """Rotation matrix of a (normalised here) quaternion given as x, y, z, w."""
-    x, y, z, w = np.asarray(xyzw, dtype=float) / np.linalg.norm(xyzw)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-
-def yaw_of(xyzw: Sequence[float]) -> float:
-    """Heading (rotation about z) of an xyzw quaternion, radians."""
-    x, y, z, w = xyzw
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 @dataclass(frozen=True)
 class Pose:

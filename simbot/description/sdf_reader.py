@@ -47,9 +47,10 @@ from simbot.description.model import (
     Visual,
     World,
 )
-from simbot.description.poses import IDENTITY, Pose, quaternion_to_matrix, rpy_to_matrix
+from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file
+from simbot.rotations import quaternion_to_matrix
 
 logger = logging.getLogger(__name__)
 

@@ -25,8 +25,9 @@ import numpy as np
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, load_description, load_world
 from simbot.description.model import Link, Model, Plugin, Sensor, World
-from simbot.description.poses import Pose, yaw_of
+from simbot.description.poses import Pose
 from simbot.description.resources import asset
+from simbot.rotations import yaw_of
 from simbot.sim.control import WorldControl
 from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup

@@ -17,7 +17,7 @@ import numpy.typing as npt
 from simbot.bus import messages
 from simbot.description.model import Imu as ImuSpec
 from simbot.description.model import Noise
-from simbot.description.poses import quaternion_to_matrix
+from simbot.rotations import quaternion_to_matrix
 from simbot.sim.system import Sampled, SystemContext, applied_noise, sensor_frame, sensor_rate, sensor_topic
 
 Axes = tuple[Noise | None, Noise | None, Noise | None]

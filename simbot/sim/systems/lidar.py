@@ -20,7 +20,7 @@ import numpy.typing as npt
 from simbot.bus import messages
 from simbot.description.model import Lidar as LidarSpec
 from simbot.description.model import Noise
-from simbot.description.poses import quaternion_to_matrix
+from simbot.rotations import quaternion_to_matrix
 from simbot.sim.system import (
     Sampled,
     SystemConfigError,
