@@ -20,6 +20,7 @@ import math
 import signal
 import sys
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any, Generic, TypeVar
@@ -106,6 +107,32 @@ class Mailbox(Generic[T]):
             if not self._items:
                 self._ready.wait(timeout)
             return self._items.popleft() if self._items else None
+
+
+class Recent:
+    """The latest message of one topic while it is fresh: queued by Zenoh, read by the loop.
+
+    A keyboard client acting on stale data (a lidar that fell silent, a pose from a second ago)
+    would act on a world that has moved on, so a message older than `max_age_s` counts as none.
+    """
+
+    def __init__(self, node: Node, topic: str, typename: str, max_age_s: float) -> None:
+        self.max_age_s = max_age_s
+        self._inbox: Mailbox[tuple[float, Any]] = Mailbox()
+        self._latest: tuple[float, Any] | None = None
+        node.subscribe(topic, typename, self._arrived)
+
+    def _arrived(self, msg: Any) -> None:
+        self._inbox.put((time.monotonic(), msg))
+
+    def get(self, now: float) -> Any | None:
+        """The latest message, or None when none came within `max_age_s` before `now` (time.monotonic())."""
+        arrived = self._inbox.get(timeout=0.0)
+        if arrived is not None:
+            self._latest = arrived
+        if self._latest is None or now - self._latest[0] > self.max_age_s:
+            return None
+        return self._latest[1]
 
 
 class StaticTransforms:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from clients.common import Mailbox, client_parser, number, run_client
+from clients.common import Mailbox, Recent, client_parser, number, run_client
 from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
@@ -55,18 +55,12 @@ class PoseWatch:
 
     def __init__(self, node: Node, model: str) -> None:
         self.model = model
-        self._inbox: Mailbox[tuple[float, Any]] = Mailbox()
-        self._latest: tuple[float, Planar] | None = None
-        node.subscribe(f"model/{model}/pose", POSE_STAMPED, lambda msg: self._inbox.put((time.monotonic(), msg)))
+        self._poses = Recent(node, f"model/{model}/pose", POSE_STAMPED, POSE_TIMEOUT_S)
 
     def pose(self, now: float) -> Planar | None:
         """(x, y, yaw), or None when no pose came within the last POSE_TIMEOUT_S."""
-        arrived = self._inbox.get(timeout=0.0)
-        if arrived is not None:
-            self._latest = (arrived[0], planar_pose(arrived[1].pose))
-        if self._latest is None or now - self._latest[0] > POSE_TIMEOUT_S:
-            return None
-        return self._latest[1]
+        msg = self._poses.get(now)
+        return planar_pose(msg.pose) if msg is not None else None
 
 
 def nearness(robot: Planar | None, trolley: Planar | None, distance: float, yaw_tolerance: float | None) -> Nearness:

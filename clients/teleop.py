@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, StaticTransforms, client_parser, number, run_client
+from clients.common import Recent, StaticTransforms, client_parser, number, run_client
 from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
@@ -52,9 +52,6 @@ KEYS_HELP = (
     "                x or space stop   q quit",
 )
 DIRECTIONS = {1: "forward", -1: "backward"}
-
-Timed = tuple[float, Any]
-"""(monotonic arrival time, message)."""
 
 
 @dataclass(frozen=True)
@@ -97,20 +94,15 @@ def path_ranges(scan: Any, sensor_in_base: Matrix, half_width: float, ahead: boo
 class PathWatch:
     """One lidar watching one direction of travel: the nearest return in the path, or None when unknown."""
 
-    def __init__(self, node: Node, topic: str, ahead: bool) -> None:
+    def __init__(self, node: Node, topic: str, ahead: bool, settings: Settings) -> None:
         self.ahead = ahead
-        self._inbox: Mailbox[Timed] = Mailbox()
-        self._latest: Timed | None = None
-        node.subscribe(topic, LASER_SCAN, lambda msg: self._inbox.put((time.monotonic(), msg)))
+        self._scans = Recent(node, topic, LASER_SCAN, settings.scan_timeout)
 
     def nearest(self, transforms: StaticTransforms, settings: Settings, now: float) -> float | None:
         """Metres from the lidar to the nearest return in the path (inf when clear); None with no recent scan or no sensor pose."""
-        arrived = self._inbox.get(timeout=0.0)
-        if arrived is not None:
-            self._latest = arrived
-        if self._latest is None or now - self._latest[0] > settings.scan_timeout:
+        scan = self._scans.get(now)
+        if scan is None:
             return None
-        scan = self._latest[1]
         sensor_in_base = transforms.pose(scan.header.frame_id)
         if sensor_in_base is None:
             return None
@@ -170,8 +162,8 @@ def _obstacle(view: float | None, sign: int) -> str:
 def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys in, a command out every period (and at once on a change), the status line."""
     transforms = StaticTransforms(node, settings.base_frame)
-    front = PathWatch(node, "lidar_front", ahead=True)
-    back = PathWatch(node, "lidar_back", ahead=False)
+    front = PathWatch(node, "lidar_front", True, settings)
+    back = PathWatch(node, "lidar_back", False, settings)
     cmd_vel = node.publisher("cmd_vel", messages.Twist, drop=False)
     teleop = Teleop(settings)
     try:
