@@ -38,7 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from clients.common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
-from simbot.bus import Node
+from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
 from simbot.bus.transforms import planar_pose
 
@@ -95,7 +95,6 @@ X_AXIS_M, Y_AXIS_M = 1.5, 1.0
 """Axis arrows from the robot's centre, long enough to reach out of its footprint."""
 
 BGR_OF = {"rgb8": cv2.COLOR_RGB2BGR, "rgba8": cv2.COLOR_RGBA2BGR, "bgra8": cv2.COLOR_BGRA2BGR}
-CHANNELS = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}
 
 
 @dataclass(frozen=True)
@@ -237,14 +236,13 @@ def render_map(scan: Any, robot: Box, trolley: Box | None, view: MapView = MapVi
 
 def panorama_pixels(msg: Any) -> npt.NDArray[np.uint8]:
     """The image as BGR (or grey) pixels for cv2; ValueError for an encoding it cannot show."""
-    channels = CHANNELS.get(msg.encoding)
-    if channels is None:
-        raise ValueError(f"{PANORAMA}: encoding {msg.encoding!r} is not one of {', '.join(CHANNELS)}")
-    rows = np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.step)
-    pixels = rows[:, : msg.width * channels].reshape(msg.height, msg.width, channels)
+    try:
+        pixels = messages.image_pixels(msg)
+    except ValueError as exc:
+        raise ValueError(f"{PANORAMA}: {exc}") from None
     if msg.encoding in BGR_OF:
         return np.asarray(cv2.cvtColor(pixels, BGR_OF[msg.encoding]), dtype=np.uint8)
-    return pixels[:, :, 0] if channels == 1 else np.ascontiguousarray(pixels)
+    return np.ascontiguousarray(pixels)
 
 
 def _deliver(box: Mailbox[tuple[str, Any]], key: str, msg: Any) -> None:

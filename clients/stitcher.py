@@ -103,7 +103,8 @@ WIDTH_PER_CAMERA = 3
 """Cylinder width in camera widths: 2π·3w px around ≈ the cameras' own px per radian at their centres."""
 MAX_TABLES = 4
 """Remap tables kept per set of cameras present (a flaky camera must not rebuild them every set)."""
-CHANNELS = {"rgb8": 3, "mono8": 1}
+ENCODINGS = ("rgb8", "mono8")
+"""What the panorama is made of (rgb8 out): colour as it comes, grey spread to three channels."""
 POLL_S = 0.1
 """How often the loop looks at the stop flag while no set comes."""
 
@@ -188,19 +189,18 @@ class Stitcher(Protocol):
 def image_pixels(msg: Any, size: tuple[int, int] | None = None) -> Pixels:
     """An rgb8 or mono8 sensor_msgs/Image as H×W×3 rgb; BadInput when it is neither, when its data
     are short of height × step, or when it is not `size` (its camera_info's width, height)."""
-    channels = CHANNELS.get(msg.encoding)
-    if channels is None:
-        raise BadInput(f"encoding {msg.encoding!r} is not one of {', '.join(CHANNELS)}")
-    width, height, step = int(msg.width), int(msg.height), int(msg.step)
+    if msg.encoding not in ENCODINGS:
+        raise BadInput(f"encoding {msg.encoding!r} is not one of {', '.join(ENCODINGS)}")
+    width, height = int(msg.width), int(msg.height)
     if size is not None and (width, height) != size:
         raise BadInput(f"image {width}×{height} but camera_info says {size[0]}×{size[1]}")
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if step < width * channels or data.size < step * height:
-        raise BadInput(f"{data.size} bytes with step {step} cannot hold {height} rows of {width} {msg.encoding} pixels")
-    rows = data[: step * height].reshape(height, step)[:, : width * channels]
-    if channels == 1:
-        return np.asarray(cv2.cvtColor(np.ascontiguousarray(rows), cv2.COLOR_GRAY2RGB), dtype=np.uint8)
-    return rows.reshape(height, width, 3)
+    try:
+        pixels = messages.image_pixels(msg)
+    except ValueError as exc:
+        raise BadInput(str(exc)) from None
+    if pixels.ndim == 2:
+        return np.asarray(cv2.cvtColor(np.ascontiguousarray(pixels), cv2.COLOR_GRAY2RGB), dtype=np.uint8)
+    return pixels
 
 
 class Tiles:

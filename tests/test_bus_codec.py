@@ -234,3 +234,24 @@ def test_unknown_type_names_and_non_messages() -> None:
         encode({"linear": 0.5})
     with pytest.raises(EncodeError, match="std_msgs/msg/String"):
         encode(messages.String(data=42))  # type: ignore[arg-type]
+
+
+def test_image_pixels_undoes_image_and_drops_row_padding() -> None:
+    """`image_pixels` is the inverse of `image`, for rgb8 and mono8, and skips the padding a step may hold."""
+    rng = np.random.default_rng(7)
+    colour = rng.integers(0, 256, size=(5, 4, 3), dtype=np.uint8)
+    grey = rng.integers(0, 256, size=(5, 4), dtype=np.uint8)
+    for pixels in (colour, grey):
+        back = messages.image_pixels(decode(encode(messages.image(0, "cam", pixels)), "sensor_msgs/msg/Image"))
+        assert np.array_equal(back, pixels)
+    padded = messages.image(0, "cam", np.zeros((5, 6, 3), dtype=np.uint8))  # rows of 18 bytes
+    padded.data[:] = np.hstack([colour.reshape(5, 12), np.full((5, 6), 255, dtype=np.uint8)]).reshape(-1)
+    padded.width = 4
+    assert np.array_equal(messages.image_pixels(padded), colour)
+    short = messages.image(0, "cam", colour)
+    short.data = short.data[:-1]
+    with pytest.raises(ValueError, match="59 bytes with step 12 cannot hold 5 rows of 4 rgb8 pixels"):
+        messages.image_pixels(short)
+    short.encoding = "32FC1"
+    with pytest.raises(ValueError, match="encoding '32FC1' is not one of"):
+        messages.image_pixels(short)

@@ -62,6 +62,7 @@ __all__ = [
     "empty",
     "header",
     "image",
+    "image_pixels",
     "imu",
     "joint_state",
     "laser_scan",
@@ -300,6 +301,27 @@ def image(ns: int, frame: str, pixels: npt.NDArray[np.uint8]) -> Image:
         step=width * channels,
         data=np.ascontiguousarray(pixels).reshape(-1).copy(),
     )
+
+
+CHANNELS_OF = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}
+"""The uint8 sensor_msgs/image_encodings a client can read, by their channels."""
+
+
+def image_pixels(msg: Image) -> npt.NDArray[np.uint8]:
+    """The pixels of a sensor_msgs/Image: H×W×C uint8 (H×W for mono8), its row padding (step) dropped.
+
+    The inverse of `image`. ValueError, one line, for an encoding not in CHANNELS_OF or data
+    too short for height × step.
+    """
+    channels = CHANNELS_OF.get(msg.encoding)
+    if channels is None:
+        raise ValueError(f"encoding {msg.encoding!r} is not one of {', '.join(CHANNELS_OF)}")
+    width, height, step = int(msg.width), int(msg.height), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if step < width * channels or data.size < step * height:
+        raise ValueError(f"{data.size} bytes with step {step} cannot hold {height} rows of {width} {msg.encoding} pixels")
+    rows = data[: step * height].reshape(height, step)[:, : width * channels]
+    return rows if channels == 1 else rows.reshape(height, width, channels)
 
 
 def camera_info(ns: int, frame: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> CameraInfo:
