@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed-stamp
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove]'
 	touch $(STAMP)
 
 ## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher and the monitor (Ctrl-C ends them all).

@@ -44,7 +44,7 @@ from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, ServiceEr
 from simbot.bus.graph import discover
 
 EXIT_FAILURE = 1
-LAUNCHABLE = ("merger", "stitcher", "monitor")
+LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
 DEFAULT_CLIENTS = "merger,stitcher"
 NOT_LAUNCHABLE: dict[str, str] = {
     "teleop": "reads the keyboard: run `simbot teleop` in a terminal of its own",
@@ -52,6 +52,8 @@ NOT_LAUNCHABLE: dict[str, str] = {
     "topics": "is a one-shot tool: run `simbot topics` beside the launch",
     "echo": "is a one-shot tool: run `simbot echo KEY` beside the launch",
     "snapshot": "is a one-shot tool: run `simbot snapshot --out DIR` beside the launch",
+    "state": "is a one-shot tool: run `simbot state` beside the launch",
+    "play": "publishes a recording in place of a server: run `simbot play BAG` on a bus without one",
     "launch": "is this command",
 }
 OWN_OPTIONS = ("--world", "--listen", "--connect", "--zenoh-config", "--namespace")
