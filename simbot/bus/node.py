@@ -103,6 +103,7 @@ class Publisher:
     def __init__(self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None) -> None:
         self.key = key
         self.latched = latched
+        self.typename = typename
         self._session = session
         self._announcement = Announcement(session, "pub", typename, key) if typename else None
         congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
@@ -139,8 +140,9 @@ class Publisher:
         self._put(data, self._encoding(msg.__msgtype__))
 
     def put_raw(self, data: bytes) -> None:
-        """Put bytes as they are (tests use it to send garbage)."""
-        self._put(bytes(data), CDR_ENCODING)
+        """Put bytes as they are, as CDR of the publisher's type if it was given one: a recording played
+        back goes out unchanged, and tests send garbage this way."""
+        self._put(bytes(data), self._encoding(self.typename) if self.typename else CDR_ENCODING)
 
     def _put(self, data: bytes, encoding: zenoh.Encoding) -> None:
         if self.latched:
@@ -373,10 +375,12 @@ class Node:
         self._entities.append(entity)
         return entity
 
-    def publisher(self, topic: str, msgtype: type[Any] | None = None, *, latched: bool = False, drop: bool = True) -> Publisher:
-        """A publisher on `topic` of `msgtype` (a `messages` class, for the graph); `latched` serves the
-        latest message to late joiners, `drop=False` blocks."""
-        typename = msgtype.__msgtype__ if msgtype is not None else None
+    def publisher(
+        self, topic: str, msgtype: type[Any] | str | None = None, *, latched: bool = False, drop: bool = True
+    ) -> Publisher:
+        """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name, for the graph);
+        `latched` serves the latest message to late joiners, `drop=False` blocks."""
+        typename = msgtype if isinstance(msgtype, str) or msgtype is None else msgtype.__msgtype__
         return self._keep(Publisher(self.session, self.key(topic), latched=latched, drop=drop, typename=typename))
 
     def subscribe(

@@ -1,0 +1,195 @@
+"""`simbot record` and `simbot play` against a real server in real time, read back with rosbags.
+
+One server for the module (the empty world, cameras unwatched). The recorder runs as a real
+process for 5 s while the test watches the same keys on the bus; the bag is then opened with
+rosbags' reader, as `ros2 bag` and Foxglove would read it.
+
+Rates. A loaded machine may hold the server below real time, and every key's count scales with
+it alike; so each count is compared with the sim time the bag spans, from its own `/clock`
+(100 Hz): count ≈ rate × span. A key sampled at rate r over a window holds r × span ± 1
+messages; for the slowest key (a lidar at 5 Hz, 25 in 5 s) that is 4 %, inside the 5 % asked.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zenoh
+from bus_helpers import unique_namespace
+from client_helpers import client_command, client_process
+from rosbags.interfaces import QosDurability
+from rosbags.rosbag2 import Reader
+from server_helpers import REPO, SimServer, running_server, stamp_ns, wait_until
+
+from simbot.bus import decode
+
+RECORD_S = 5.0
+RATES_HZ = {"clock": 100.0, "imu_scan": 200.0, "odom": 50.0, "joint_states": 30.0, "lidar_front": 5.0, "lidar_back": 5.0}
+LATCHED = ("tf_static", "robot_description")
+TYPES = {
+    "clock": "rosgraph_msgs/msg/Clock",
+    "imu_scan": "sensor_msgs/msg/Imu",
+    "odom": "nav_msgs/msg/Odometry",
+    "joint_states": "sensor_msgs/msg/JointState",
+    "lidar_front": "sensor_msgs/msg/LaserScan",
+    "lidar_back": "sensor_msgs/msg/LaserScan",
+    "tf_static": "tf2_msgs/msg/TFMessage",
+    "robot_description": "std_msgs/msg/String",
+}
+IMU_PERIOD_NS = 5_000_000
+COUNT_TOLERANCE = 0.05
+RUN_TIMEOUT_S = 60.0
+GARBAGE = b"\x00\x01\x00\x00not a LaserScan"
+
+
+class Payloads:
+    """Raw payloads of keys, in arrival order, from a plain Zenoh subscriber of the test."""
+
+    def __init__(self, session: zenoh.Session, key_expr: str) -> None:
+        self._lock = threading.Lock()
+        self.items: list[tuple[str, bytes]] = []
+        self._subscriber = session.declare_subscriber(key_expr, self._on_sample)
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        with self._lock:
+            self.items.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+    def snapshot(self) -> list[tuple[str, bytes]]:
+        with self._lock:
+            return list(self.items)
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+
+
+def bag_messages(path: Path) -> list[tuple[str, str, int, bytes]]:
+    """(topic, type, timestamp, data) of every message, in the reader's order."""
+    with Reader(path) as reader:
+        return [(c.topic, c.msgtype, t, data) for c, t, data in reader.messages()]
+
+
+def run(*args: str, timeout: float = RUN_TIMEOUT_S) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(client_command(*args), check=False, capture_output=True, text=True, cwd=REPO, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimServer]:
+    with running_server("empty", mode="realtime", extra=("--camera-size", "160x120")) as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, list[tuple[str, bytes]], str]]:
+    """A 5 s recording of the chosen keys, the lidar_front payloads the test saw meanwhile, and the recorder's stderr.
+
+    A malformed payload is put on lidar_front halfway: the recorder must drop it and keep the rest.
+    """
+    bag = tmp_path_factory.mktemp("record") / "bag"
+    seen = Payloads(sim.node.session, sim.key("lidar_front"))
+    with client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder:
+        wait_until(lambda: "recording 8 topics" in recorder.stderr() or not recorder.alive(), 20.0, "the recorder to tap every key")
+        time.sleep(RECORD_S / 2)
+        sim.send_raw("lidar_front", GARBAGE)
+        code = recorder.process.wait(timeout=RUN_TIMEOUT_S)
+        assert code == 0, recorder.stderr()[-2000:]
+        stderr = recorder.stderr()
+    seen.close()
+    yield bag, seen.snapshot(), stderr
+
+
+def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+    """rosbags opens the MCAP bag; each key has its ROS 2 type, latched keys are transient-local, counts match rates within 5 %."""
+    bag, _, stderr = recorded
+    assert (bag / "metadata.yaml").is_file() and (bag / "bag.mcap").is_file()
+    with Reader(bag) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        durability = {c.topic: c.ext.offered_qos_profiles[0].durability for c in reader.connections}  # type: ignore[union-attr]
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert reader.message_count == sum(counts.values())
+    assert types == {f"/{key}": typename for key, typename in TYPES.items()}
+    assert {topic for topic, d in durability.items() if d == QosDurability.TRANSIENT_LOCAL} == {f"/{key}" for key in LATCHED}
+    assert all(counts[f"/{key}"] == 1 for key in LATCHED), counts
+
+    messages = bag_messages(bag)
+    clock = [decode(data, TYPES["clock"]).clock for topic, _, _, data in messages if topic == "/clock"]
+    span_s = (clock[-1].sec - clock[0].sec) + (clock[-1].nanosec - clock[0].nanosec) / 1e9 + 1 / RATES_HZ["clock"]
+    assert span_s > RECORD_S / 2, f"the bag spans only {span_s:.2f} s of sim time"
+    for key, rate in RATES_HZ.items():
+        expected = rate * span_s
+        assert abs(counts[f"/{key}"] - expected) <= COUNT_TOLERANCE * expected, f"{key}: {counts[f'/{key}']} messages, {expected:.1f} expected"
+    imu = [decode(data, TYPES["imu_scan"]).header.stamp for topic, _, _, data in messages if topic == "/imu_scan"]
+    steps = np.diff([s.sec * 10**9 + s.nanosec for s in imu])
+    assert np.all(steps == IMU_PERIOD_NS), f"IMU stamps skip: {sorted(set(steps.tolist()))}"
+    assert re.search(rf"wrote {re.escape(str(bag))}: 8 topics, {len(messages)} messages, .*dropped 1 malformed", stderr), stderr[-800:]
+
+
+def test_a_laserscan_read_back_is_the_one_published(recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+    """Every recorded lidar_front payload is byte for byte one the bus carried, and decodes to the same scan; the garbage is not in the bag."""
+    bag, seen, _ = recorded
+    published = {stamp_ns(decode(data, TYPES["lidar_front"])): data for _, data in seen if data != GARBAGE}
+    scans = [data for topic, _, _, data in bag_messages(bag) if topic == "/lidar_front"]
+    assert len(scans) >= RATES_HZ["lidar_front"] * RECORD_S * 0.8
+    assert GARBAGE not in scans and any(data == GARBAGE for _, data in seen)
+    for data in scans:
+        scan = decode(data, TYPES["lidar_front"])
+        assert published.get(stamp_ns(scan)) == data, f"the scan stamped {stamp_ns(scan)} ns differs from the bus's"
+    bus_scan, bag_scan = decode(published[stamp_ns(scan)], TYPES["lidar_front"]), scan
+    assert bag_scan.ranges.shape == (720,) and np.array_equal(bus_scan.ranges, bag_scan.ranges)
+    assert (bag_scan.angle_min, bag_scan.angle_increment, bag_scan.header.frame_id) == (bus_scan.angle_min, bus_scan.angle_increment, bus_scan.header.frame_id)
+
+
+def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: SimServer, tmp_path: Path) -> None:
+    """Ctrl-C: exit 0, the bag opens, and it holds as many messages as the recorder said it received."""
+    bag = tmp_path / "interrupted"
+    with client_process(sim, "record", "-o", str(bag), "imu_scan", "odom") as recorder:
+        wait_until(lambda: "recording 2 topics" in recorder.stderr(), 20.0, "the recorder to tap both keys")
+        time.sleep(1.5)
+        assert recorder.stop(signal.SIGINT) == 0
+        stderr = recorder.stderr()
+    found = re.search(r"wrote \S+: 2 topics, (\d+) messages", stderr)
+    assert found, stderr[-800:]
+    messages = bag_messages(bag)
+    assert len(messages) == int(found[1]) > 200  # 1.5 s of a 200 Hz IMU, at least
+    assert {topic for topic, *_ in messages} == {"/imu_scan", "/odom"}
+    assert all(decode(data, typename) is not None for _, typename, _, data in messages)
+
+
+def test_play_publishes_the_same_messages_in_the_same_order(sim: SimServer, recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+    """`simbot play` into a fresh namespace: a subscriber gets every message of the bag, byte for byte, in the bag's order."""
+    bag, _, _ = recorded
+    namespace = unique_namespace()
+    received = Payloads(sim.node.session, f"{namespace}/**")
+    try:
+        done = run("play", "--connect", sim.endpoint, "--namespace", namespace, str(bag), "--rate", "4")
+        assert done.returncode == 0, done.stderr
+        expected = [(f"{namespace}{topic}", data) for topic, _, _, data in bag_messages(bag)]
+        wait_until(lambda: len(received.snapshot()) >= len(expected), 10.0, "the played messages")
+    finally:
+        received.close()
+    assert received.snapshot() == expected
+    assert f"played {len(expected)} of {len(expected)} messages" in done.stderr
+
+
+def test_bad_output_and_bad_bags_are_one_line_and_exit_2(sim: SimServer, tmp_path: Path) -> None:
+    """An existing bag is not overwritten; a missing or non-bag directory is no bag; all without a traceback."""
+    (tmp_path / "taken").mkdir()
+    (tmp_path / "not_a_bag").mkdir()
+    cases = [
+        (("record", "--connect", sim.endpoint, "-o", str(tmp_path / "taken")), "exists already"),
+        (("play", "--connect", sim.endpoint, str(tmp_path / "missing")), "cannot open the bag"),
+        (("play", "--connect", sim.endpoint, str(tmp_path / "not_a_bag")), "cannot open the bag"),
+        (("play", "--connect", sim.endpoint, str(tmp_path), "--rate", "0"), "--rate"),
+    ]
+    for args, reason in cases:
+        done = run(*args)
+        assert done.returncode == 2, (args, done.stderr)
+        last = done.stderr.strip().splitlines()[-1]  # argparse's own errors come after its usage line
+        assert reason in last and last.startswith("simbot ") and "Traceback" not in done.stderr, (args, done.stderr)
