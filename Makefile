@@ -24,6 +24,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_sensors.py
 	$(BIN)/python benchmarks/bench_merger.py
 	$(BIN)/python benchmarks/bench_stitcher.py
+	$(BIN)/python benchmarks/bench_record.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)
