@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test bench urdf meshes clean
+.PHONY: run test bench urdf meshes layout clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ urdf: $(STAMP)
 ## Regenerate the meshes from primitives.
 meshes: $(STAMP)
 	$(BIN)/python meshes/make_meshes.py
+
+## Regenerate the Foxglove layout for `simbot foxglove` (a test checks it is up to date).
+layout: $(STAMP)
+	$(BIN)/python layouts/make_layout.py
 
 clean:
 	rm -rf $(VENV) build dist .pytest_cache

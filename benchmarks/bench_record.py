@@ -1,7 +1,7 @@
 """Benchmark of `simbot record`: what one message costs the recorder, against a bare file write in the same run.
 
 Per message the recorder does two things on its own: the tap checks the payload (one CDR decode,
-`Tap._fault`), and the loop writes it into the MCAP bag (`Bag.write`, rosbags' writer). Both are
+`tap.check`), and the loop writes it into the MCAP bag (`Bag.write`, rosbags' writer). Both are
 timed for the three sizes the bus carries (an IMU sample, a 720-ray scan, a 640×480 image) and
 set against the least a recorder must do: `write()` of the same bytes to a file on the same disk.
 The last line is what recording the whole bus would take of one core: each key's rate times its
@@ -21,8 +21,9 @@ from pathlib import Path
 import numpy as np
 from timing import per_call_ms
 
+from clients import tap
 from clients.record import Bag
-from clients.tap import RawSample, Tap
+from clients.tap import RawSample
 from clients.topics import Topic
 from simbot.bus import encode, messages
 
@@ -57,7 +58,7 @@ def main() -> None:
                 bag.add(topic, transient_local=False)
                 bare = per_call_ms(functools.partial(raw.write, sample.data), repeats)
                 write = per_call_ms(functools.partial(bag.write, sample), repeats)
-                check = per_call_ms(functools.partial(Tap._fault, topic, sample.data, ""), repeats)
+                check = per_call_ms(functools.partial(tap.check, topic, sample.data, ""), repeats)
                 load_ms += RATES_HZ[name] * (write + check)
                 print(
                     f"{name:<14}{len(sample.data):>9}{bare:>10.4f} ms{write:>9.4f} ms{write / bare:>7.1f}×"

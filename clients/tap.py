@@ -17,25 +17,32 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import zenoh
 
 from clients.topics import Topic, live_topics, schema_type
-from simbot.bus import DecodeError, Node, UnknownMessageType, decode
+from simbot.bus import DecodeError, Node, UnknownMessageType, decode, messages
 from simbot.bus.node import RateLimitedWarnings
 
 logger = logging.getLogger(__name__)
 
 
+class MalformedSample(ValueError):
+    """A payload that cannot go on as a message of its topic's type; str() says why."""
+
+
 @dataclass(frozen=True)
 class RawSample:
     """One checked payload: its topic name (without the namespace), its ROS 2 type, its CDR bytes,
-    and when it arrived (wall clock, ns since the epoch, as rosbag2 stamps what it records)."""
+    when it arrived (wall clock, ns since the epoch, as rosbag2 stamps what it records), and its
+    header stamp (sim time, ns; None for a message without a header), read while checking it."""
 
     topic: str
     typename: str
     data: bytes
     received_ns: int
+    stamp_ns: int | None = None
 
 
 def published(node: Node) -> dict[str, Topic]:
@@ -69,42 +76,39 @@ class Tap:
         if subscriber is not None:
             subscriber.undeclare()
 
-    @property
-    def topics(self) -> list[str]:
-        """The names of the tapped topics."""
-        return sorted(self._subscribers)
-
     def _on_sample(self, topic: Topic, sample: zenoh.Sample) -> None:
         """Zenoh thread: check the sample against its topic's type, then deliver it or count it."""
         if sample.kind != zenoh.SampleKind.PUT:
             return
         data = sample.payload.to_bytes()
-        reason = self._fault(topic, data, str(sample.encoding))
-        if reason is not None:
+        try:
+            msg = check(topic, data, str(sample.encoding))
+        except MalformedSample as exc:
             with self._lock:
                 self.dropped[topic.name] = self.dropped.get(topic.name, 0) + 1
-            self._warnings.warn(topic.key, f"dropped a sample: {reason}")
+            self._warnings.warn(topic.key, f"dropped a sample: {exc}")
             return
+        header = getattr(msg, "header", None)
+        stamp = None if header is None else messages.stamp_ns(header)
         try:
-            self._deliver(RawSample(topic.name, topic.typename, data, time.time_ns()))
+            self._deliver(RawSample(topic.name, topic.typename, data, time.time_ns(), stamp))
         except Exception:
             logger.exception("%s: delivering a sample failed", topic.key)
-
-    @staticmethod
-    def _fault(topic: Topic, data: bytes, encoding: str) -> str | None:
-        """Why a payload cannot go on as a message of the topic's type, or None when it can."""
-        named = schema_type(encoding)
-        if named is not None and named != topic.typename:
-            return f"its encoding names {named}, the topic carries {topic.typename}"
-        try:
-            decode(data, topic.typename)
-        except DecodeError as exc:
-            return f"not a valid {exc}"
-        except UnknownMessageType as exc:
-            return str(exc)
-        return None
 
     def close(self) -> None:
         """Stop tapping every topic."""
         for name in list(self._subscribers):
             self.unlisten(name)
+
+
+def check(topic: Topic, data: bytes, encoding: str) -> Any:
+    """The message a payload holds, decoded once to prove it is one of the topic's type; MalformedSample otherwise."""
+    named = schema_type(encoding)
+    if named is not None and named != topic.typename:
+        raise MalformedSample(f"its encoding names {named}, the topic carries {topic.typename}")
+    try:
+        return decode(data, topic.typename)
+    except DecodeError as exc:
+        raise MalformedSample(f"not a valid {exc}") from None
+    except UnknownMessageType as exc:
+        raise MalformedSample(str(exc)) from None
