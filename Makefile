@@ -11,9 +11,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove]'
 	touch $(STAMP)
 
-## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher and the monitor (Ctrl-C ends them all).
+## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher, the monitor and the Foxglove bridge on ws://127.0.0.1:8765 (Ctrl-C ends them all).
 run: $(STAMP)
-	$(BIN)/simbot launch --world warehouse --clients merger,stitcher,monitor
+	$(BIN)/simbot launch --world warehouse --clients merger,stitcher,monitor,foxglove
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
