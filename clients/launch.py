@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shlex
 import signal
 import subprocess
@@ -40,8 +39,8 @@ from dataclasses import dataclass
 from typing import IO
 
 from clients.common import EXIT_USAGE, client_parser
+from clients.topics import live_topics, world_names
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, ServiceError, zenoh_config
-from simbot.bus.graph import discover
 
 EXIT_FAILURE = 1
 LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
@@ -223,12 +222,7 @@ def try_open(bus: BusOptions) -> Node | None:
 
 def world_name(node: Node) -> str | None:
     """The name of the world whose `world/<name>/state` service the bus announces, if any yet."""
-    pattern = re.compile(re.escape(node.key("world")) + r"/([^/]+)/state")
-    for endpoint in discover(node.session, node.namespace, timeout=CONNECT_TRY_S):
-        found = pattern.fullmatch(endpoint.key)
-        if endpoint.kind == "srv" and found:
-            return found[1]
-    return None
+    return next(iter(world_names(live_topics(node).values())), None)
 
 
 def answers(node: Node, world: str) -> bool:

@@ -132,6 +132,7 @@ def test_describe_packaged_warehouse(installed: Installed) -> None:
     assert f"from {trolley_sdf}" in out
 
 
+CLIENTS = ("teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch", "state", "record", "play", "foxglove")
 CLIENT_SCRIPTS = ("simbot-teleop", "simbot-merger", "simbot-stitcher", "simbot-dock")
 
 
@@ -140,6 +141,6 @@ def test_installed_clients_run_from_their_console_scripts_and_simbot(installed: 
     for script in CLIENT_SCRIPTS:
         done = installed.run(script, "--help")
         assert done.returncode == 0 and "--connect" in done.stdout, f"{script}: {done.stderr}"
-    for command in ("teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch"):
+    for command in CLIENTS:
         done = installed.run("simbot", command, "--help")
         assert done.returncode == 0 and "--namespace" in done.stdout, f"simbot {command}: {done.stderr}"

