@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import foxglove.layouts as fl
 
@@ -43,39 +44,37 @@ def panorama_panel() -> fl.ImagePanel:
     return fl.ImagePanel(title="Panorama", config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic=PANORAMA)))
 
 
+def following_panel(
+    title: str, camera: fl.ThreeDeeCameraState, scene: fl.BaseRendererSceneSettings, **settings: Any
+) -> fl.ThreeDeePanel:
+    """A 3D panel whose fixed frame is odom and whose view follows base_link's position and heading."""
+    config = fl.ThreeDeeConfig(
+        fixed_frame=FIXED_FRAME, follow_tf=TARGET_FRAME, follow_mode="follow-pose", camera_state=camera, scene=scene, **settings
+    )
+    return fl.ThreeDeePanel(title=title, config=config)
+
+
 def scan_panel() -> fl.ThreeDeePanel:
     """The merged scan from above, accumulated in odom, the view following base_link's heading."""
-    return fl.ThreeDeePanel(
-        title="Merged scan",
-        config=fl.ThreeDeeConfig(
-            fixed_frame=FIXED_FRAME,
-            follow_tf=TARGET_FRAME,
-            follow_mode="follow-pose",
-            camera_state=fl.ThreeDeeCameraState(perspective=False, distance=SCAN_VIEW_M, phi=0.0, theta_offset=0.0),
-            scene=fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
-            layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
-            topics={
-                SCAN: fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"),
-                ROBOT_DESCRIPTION: robot_model(opacity=0.8),
-            },
-        ),
+    return following_panel(
+        "Merged scan",
+        fl.ThreeDeeCameraState(perspective=False, distance=SCAN_VIEW_M, phi=0.0, theta_offset=0.0),
+        fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
+        layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
+        topics={
+            SCAN: fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"),
+            ROBOT_DESCRIPTION: robot_model(opacity=0.8),
+        },
     )
 
 
 def frames_panel() -> fl.ThreeDeePanel:
     """Every tf frame of the robot, labelled, around base_link."""
-    return fl.ThreeDeePanel(
-        title="Frames",
-        config=fl.ThreeDeeConfig(
-            fixed_frame=FIXED_FRAME,
-            follow_tf=TARGET_FRAME,
-            follow_mode="follow-pose",
-            camera_state=fl.ThreeDeeCameraState(perspective=True, distance=4.0, phi=55.0, theta_offset=45.0),
-            scene=fl.BaseRendererSceneSettings(
-                transforms=fl.BaseRendererTransforms(visible=True, show_label=True, label_size=0.08, axis_size=0.15)
-            ),
-            topics={ROBOT_DESCRIPTION: robot_model(opacity=0.3)},
-        ),
+    return following_panel(
+        "Frames",
+        fl.ThreeDeeCameraState(perspective=True, distance=4.0, phi=55.0, theta_offset=45.0),
+        fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=True, show_label=True, label_size=0.08, axis_size=0.15)),
+        topics={ROBOT_DESCRIPTION: robot_model(opacity=0.3)},
     )
 
 
