@@ -42,7 +42,8 @@ from simbot.bus.codec import TYPESTORE
 logger = logging.getLogger(__name__)
 
 BAG_VERSION: Literal[8, 9] = 8
-"""rosbag2 metadata version 8 (Iron and later); rosbags writes 8 or 9."""
+"""rosbags writes metadata version 8 or 9. Version 9 (Jazzy's) writes each topic's QoS as a YAML list,
+which Humble's parser refuses; version 8 keeps the string form that Humble and later read."""
 GRAPH_PERIOD_S = 1.0
 PROGRESS_PERIOD_S = 0.5
 PLAIN_PROGRESS_PERIOD_S = 5.0
