@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 import pytest
+import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace
 
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError, Subscription, messages
@@ -146,6 +147,27 @@ class Collector(Generic[T]):
         """The message stamped exactly `ns` (waits for it)."""
         found = self.wait_for(lambda items: any(stamp_ns(m) == ns for m in items), timeout, f"{what} stamped {ns / 1e9:.3f} s")
         return next(m for m in found if stamp_ns(m) == ns)
+
+
+def payload(sample: zenoh.Sample) -> bytes:
+    """What `raw_samples` keeps of a sample: its payload."""
+    return sample.payload.to_bytes()
+
+
+def keyed_payload(sample: zenoh.Sample) -> tuple[str, bytes]:
+    """What `raw_samples` keeps of a sample: its key and its payload."""
+    return str(sample.key_expr), sample.payload.to_bytes()
+
+
+@contextmanager
+def raw_samples(session: zenoh.Session, key_expr: str, keep: Callable[[zenoh.Sample], T]) -> Iterator[Collector[T]]:
+    """What a plain Zenoh subscriber of the test receives on `key_expr`, in arrival order (`keep` picks what of each)."""
+    collector: Collector[T] = Collector()
+    subscriber = session.declare_subscriber(key_expr, lambda sample: collector(keep(sample)))
+    try:
+        yield collector
+    finally:
+        subscriber.undeclare()
 
 
 def wait_until(condition: Callable[[], object], timeout: float = 5.0, what: str = "condition", poll: float = 0.01) -> None:

@@ -16,7 +16,6 @@ forwarded. One server in real time (160×120 cameras) and one bridge serve the m
 
 from __future__ import annotations
 
-import functools
 import itertools
 import json
 import signal
@@ -27,18 +26,17 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
-import zenoh
 from bus_helpers import free_port
 from client_helpers import ClientProcess, bus_args, client_command, client_process
 from conftest import REPO
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from server_helpers import Collector, SimServer, running_server, stamp_ns, wait_until
+from server_helpers import Collector, SimServer, payload, raw_samples, running_server, stamp_ns, wait_until
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
@@ -170,20 +168,8 @@ def decode_with(channel: dict[str, Any], payload: bytes) -> Any:
 @contextmanager
 def on_bus(sim: SimServer, *topics: str) -> Iterator[dict[str, Collector[bytes]]]:
     """The raw payloads of `topics` as a plain Zenoh subscriber in the test receives them."""
-    collectors: dict[str, Collector[bytes]] = {topic: Collector() for topic in topics}
-    subscribers = [
-        sim.node.session.declare_subscriber(sim.key(topic), functools.partial(_keep_payload, collector))
-        for topic, collector in collectors.items()
-    ]
-    try:
-        yield collectors
-    finally:
-        for subscriber in subscribers:
-            subscriber.undeclare()
-
-
-def _keep_payload(collector: Collector[bytes], sample: zenoh.Sample) -> None:
-    collector(sample.payload.to_bytes())
+    with ExitStack() as stack:
+        yield {topic: stack.enter_context(raw_samples(sim.node.session, sim.key(topic), payload)) for topic in topics}
 
 
 def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:

@@ -15,19 +15,17 @@ from __future__ import annotations
 import re
 import signal
 import subprocess
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-import zenoh
 from bus_helpers import unique_namespace
 from client_helpers import client_command, client_process
 from rosbags.interfaces import QosDurability
 from rosbags.rosbag2 import Reader
-from server_helpers import REPO, SimServer, running_server, stamp_ns, wait_until
+from server_helpers import REPO, SimServer, keyed_payload, payload, raw_samples, running_server, stamp_ns, wait_until
 
 from simbot.bus import decode
 
@@ -50,26 +48,6 @@ RUN_TIMEOUT_S = 60.0
 GARBAGE = b"\x00\x01\x00\x00not a LaserScan"
 
 
-class Payloads:
-    """Raw payloads of keys, in arrival order, from a plain Zenoh subscriber of the test."""
-
-    def __init__(self, session: zenoh.Session, key_expr: str) -> None:
-        self._lock = threading.Lock()
-        self.items: list[tuple[str, bytes]] = []
-        self._subscriber = session.declare_subscriber(key_expr, self._on_sample)
-
-    def _on_sample(self, sample: zenoh.Sample) -> None:
-        with self._lock:
-            self.items.append((str(sample.key_expr), sample.payload.to_bytes()))
-
-    def snapshot(self) -> list[tuple[str, bytes]]:
-        with self._lock:
-            return list(self.items)
-
-    def close(self) -> None:
-        self._subscriber.undeclare()
-
-
 def bag_messages(path: Path) -> list[tuple[str, str, int, bytes]]:
     """(topic, type, timestamp, data) of every message, in the reader's order."""
     with Reader(path) as reader:
@@ -87,25 +65,26 @@ def sim() -> Iterator[SimServer]:
 
 
 @pytest.fixture(scope="module")
-def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, list[tuple[str, bytes]], str]]:
+def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, list[bytes], str]]:
     """A 5 s recording of the chosen keys, the lidar_front payloads the test saw meanwhile, and the recorder's stderr.
 
     A malformed payload is put on lidar_front halfway: the recorder must drop it and keep the rest.
     """
     bag = tmp_path_factory.mktemp("record") / "bag"
-    seen = Payloads(sim.node.session, sim.key("lidar_front"))
-    with client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder:
+    with (
+        raw_samples(sim.node.session, sim.key("lidar_front"), payload) as seen,
+        client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder,
+    ):
         wait_until(lambda: "recording 8 topics" in recorder.stderr() or not recorder.alive(), 20.0, "the recorder to tap every key")
         time.sleep(RECORD_S / 2)
         sim.send_raw("lidar_front", GARBAGE)
         code = recorder.process.wait(timeout=RUN_TIMEOUT_S)
         assert code == 0, recorder.stderr()[-2000:]
         stderr = recorder.stderr()
-    seen.close()
-    yield bag, seen.snapshot(), stderr
+    yield bag, seen.messages(), stderr
 
 
-def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tuple[Path, list[bytes], str]) -> None:
     """rosbags opens the MCAP bag; each key has its ROS 2 type, latched keys are transient-local, counts match rates within 5 %."""
     bag, _, stderr = recorded
     assert (bag / "metadata.yaml").is_file() and (bag / "bag.mcap").is_file()
@@ -131,13 +110,13 @@ def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tupl
     assert re.search(rf"wrote {re.escape(str(bag))}: 8 topics, {len(messages)} messages, .*dropped 1 malformed", stderr), stderr[-800:]
 
 
-def test_a_laserscan_read_back_is_the_one_published(recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+def test_a_laserscan_read_back_is_the_one_published(recorded: tuple[Path, list[bytes], str]) -> None:
     """Every recorded lidar_front payload is byte for byte one the bus carried, and decodes to the same scan; the garbage is not in the bag."""
     bag, seen, _ = recorded
-    published = {stamp_ns(decode(data, TYPES["lidar_front"])): data for _, data in seen if data != GARBAGE}
+    published = {stamp_ns(decode(data, TYPES["lidar_front"])): data for data in seen if data != GARBAGE}
     scans = [data for topic, _, _, data in bag_messages(bag) if topic == "/lidar_front"]
     assert len(scans) >= RATES_HZ["lidar_front"] * RECORD_S * 0.8
-    assert GARBAGE not in scans and any(data == GARBAGE for _, data in seen)
+    assert GARBAGE not in scans and GARBAGE in seen
     for data in scans:
         scan = decode(data, TYPES["lidar_front"])
         assert published.get(stamp_ns(scan)) == data, f"the scan stamped {stamp_ns(scan)} ns differs from the bus's"
@@ -162,19 +141,16 @@ def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: Sim
     assert all(decode(data, typename) is not None for _, typename, _, data in messages)
 
 
-def test_play_publishes_the_same_messages_in_the_same_order(sim: SimServer, recorded: tuple[Path, list[tuple[str, bytes]], str]) -> None:
+def test_play_publishes_the_same_messages_in_the_same_order(sim: SimServer, recorded: tuple[Path, list[bytes], str]) -> None:
     """`simbot play` into a fresh namespace: a subscriber gets every message of the bag, byte for byte, in the bag's order."""
     bag, _, _ = recorded
     namespace = unique_namespace()
-    received = Payloads(sim.node.session, f"{namespace}/**")
-    try:
+    with raw_samples(sim.node.session, f"{namespace}/**", keyed_payload) as received:
         done = run("play", "--connect", sim.endpoint, "--namespace", namespace, str(bag), "--rate", "4")
         assert done.returncode == 0, done.stderr
         expected = [(f"{namespace}{topic}", data) for topic, _, _, data in bag_messages(bag)]
-        wait_until(lambda: len(received.snapshot()) >= len(expected), 10.0, "the played messages")
-    finally:
-        received.close()
-    assert received.snapshot() == expected
+        received.wait_count(len(expected), 10.0, "the played messages")
+    assert received.messages() == expected
     assert f"played {len(expected)} of {len(expected)} messages" in done.stderr
 
 
