@@ -39,8 +39,9 @@ from dataclasses import dataclass
 from typing import IO
 
 from clients.common import EXIT_USAGE, client_parser
+from clients.state import NoWorld, ask
 from clients.topics import live_topics, world_names
-from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, ServiceError, zenoh_config
+from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
 
 EXIT_FAILURE = 1
 LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
@@ -228,9 +229,10 @@ def world_name(node: Node) -> str | None:
 def answers(node: Node, world: str) -> bool:
     """Whether the world's state service replies (the server is past loading and stepping)."""
     try:
-        return bool(node.call(f"world/{world}/state", {}, timeout=CONNECT_TRY_S).get("ok"))
-    except (TimeoutError, ServiceError):
+        ask(node, world, CONNECT_TRY_S)
+    except NoWorld:
         return False
+    return True
 
 
 class Launch:
