@@ -37,6 +37,14 @@ def _late_joiner_sees(sim: SimServer, expected: str) -> None:
         assert got[0].data == expected, f"a late joiner got {got[0].data!r}, the joint is {expected!r}"
 
 
+def _drive_then_stop(sim: SimServer, vx: float, steps: int, settle_steps: int) -> None:
+    """Drive at `vx` for `steps` physics steps, then stop and let the robot come to rest for `settle_steps`."""
+    sim.drive(vx)
+    sim.step(steps)
+    sim.drive(0.0)
+    sim.step(settle_steps)
+
+
 def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     state = sim.subscribe("detachable_joint/state", STRING, latched=True)
     state.wait_count(1, what="the latched detachable_joint/state")
@@ -45,10 +53,7 @@ def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     (trolley0, _), (robot0, robot_quat0) = sim.pose("trolley"), sim.pose()
 
     # drive under: 3.5 m at 0.5 m/s
-    sim.drive(0.5)
-    sim.step(7000)
-    sim.drive(0.0)
-    sim.step(1000)
+    _drive_then_stop(sim, 0.5, 7000, settle_steps=1000)
     (trolley1, _), (robot1, robot_quat1) = sim.pose("trolley"), sim.pose()
     assert robot1[0] == pytest.approx(trolley1[0], abs=0.15), f"robot centre x {robot1[0]:.3f} is not under the trolley's {trolley1[0]:.3f}"
     assert abs(robot1[1] - robot0[1]) < 0.05 and abs(wrap(yaw_of(robot_quat1) - yaw_of(robot_quat0))) < 0.05, "the robot veered"
@@ -60,10 +65,7 @@ def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     _late_joiner_sees(sim, "attached")
 
     # pull: 2 m at 0.5 m/s
-    sim.drive(0.5)
-    sim.step(4000)
-    sim.drive(0.0)
-    sim.step(1000)
+    _drive_then_stop(sim, 0.5, 4000, settle_steps=1000)
     (trolley2, _), (robot2, _) = sim.pose("trolley"), sim.pose()
     pulled = planar_distance(trolley1, trolley2)
     robot_moved = planar_distance(robot1, robot2)
@@ -77,10 +79,7 @@ def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     _late_joiner_sees(sim, "detached")
 
     # drive away forwards 1 m: the robot slides out from under the deck
-    sim.drive(0.5)
-    sim.step(2000)
-    sim.drive(0.0)
-    sim.step(500)
+    _drive_then_stop(sim, 0.5, 2000, settle_steps=500)
     (trolley3, _), (robot3, _) = sim.pose("trolley"), sim.pose()
     left = planar_distance(robot2, robot3)
     stayed = planar_distance(trolley2, trolley3)
