@@ -87,10 +87,6 @@ def sim() -> Iterator[SimServer]:
         yield server
 
 
-def _pixels(msg: Any) -> np.ndarray:
-    return np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.width, 3)
-
-
 def _pole(image: np.ndarray) -> np.ndarray:
     """Where the pole is: red and blue well above green, however it is shaded."""
     r, g, b = (image[..., i].astype(int) for i in range(3))
@@ -167,10 +163,10 @@ def test_strip_is_the_six_images_side_by_side(sim: SimServer) -> None:
     panorama, info = images[-1], _info_of(images[-1], infos)
     assert (panorama.width, panorama.height, panorama.encoding) == (6 * WIDTH, HEIGHT, "rgb8")
     _check_info(panorama, info, "camera_front_optical_frame", (FX, FX, CX, CY))
-    pixels = _pixels(panorama)
+    pixels = messages.image_pixels(panorama)
     tiles = {name: pixels[:, i * WIDTH : (i + 1) * WIDTH] for i, name in enumerate(CAMERAS)}
     for name, tile in tiles.items():
-        assert np.array_equal(tile, _pixels(raw[name].messages()[-1])), f"the {name} tile is not its image"
+        assert np.array_equal(tile, messages.image_pixels(raw[name].messages()[-1])), f"the {name} tile is not its image"
     for name in ("camera_front", "camera_front_left"):
         expected = _pinhole_column(name, *POLE)
         found = _pole_column(tiles[name])
@@ -216,7 +212,7 @@ def test_cylinder_lines_the_pole_up_from_both_cameras(sim: SimServer) -> None:
     assert gap <= 0.02 * width, f"the two cameras put the pole {gap:.2f} px apart"
 
     # the stitcher process's panorama: the pole once per row, at its azimuth, at its true heights
-    pixels = _pixels(panorama)
+    pixels = messages.image_pixels(panorama)
     pole = _pole(pixels)
     rows = np.flatnonzero(pole.any(axis=1))
     for row in rows:
@@ -254,7 +250,7 @@ def test_a_camera_missing_or_garbage_leaves_its_sector_black(tmp_path: Path) -> 
     f, cx = width / (2 * math.pi), (width - 1) / 2
     present = [name for name in CAMERAS if name != "camera_back"]
     expected = np.array([not any(_sees(name, (cx - u) / f) for name in present) for u in range(width)])
-    black = (_pixels(panorama)[HEIGHT // 2 - 1] == 0).all(axis=1)
+    black = (messages.image_pixels(panorama)[HEIGHT // 2 - 1] == 0).all(axis=1)
     edges = np.flatnonzero(np.diff(expected.astype(int))) + [[0], [1]]  # the columns either side of each sector edge
     differ = np.flatnonzero(black != expected)
     columns = f"black columns {np.flatnonzero(black).tolist()}, expected {np.flatnonzero(expected).tolist()}"

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 from server_helpers import SimServer, running_server, stamp_ns
 
+from simbot.bus import messages
+
 REPO = Path(__file__).resolve().parents[1]
 WORLD = str(REPO / "tests" / "fixtures" / "camera_boxes.sdf")
 AT_ORIGIN = ["--spawn", "0", "0", "0.1", "0"]
@@ -32,10 +34,6 @@ BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
 def sim() -> Iterator[SimServer]:
     with running_server(WORLD, "lockstep", extra=AT_ORIGIN) as server:
         yield server
-
-
-def _pixels(msg: Any) -> np.ndarray:
-    return np.asarray(msg.data, dtype=np.uint8).reshape(msg.height, msg.width, 3)
 
 
 def _red(image: np.ndarray) -> np.ndarray:
@@ -58,7 +56,7 @@ def test_the_red_box_ahead_fills_the_front_image_and_no_other(sim: SimServer) ->
     front = frames["camera_front"]
     assert (front.height, front.width, front.encoding, front.step) == (480, 640, "rgb8", 640 * 3)
     assert front.header.frame_id == "camera_front_optical_frame"
-    image = _pixels(front)
+    image = messages.image_pixels(front)
     red = _red(image)
     assert red[240, 320] and red[235:245, 315:325].all(), f"the centre of the front image is {image[240, 320]}, not the red box"
     columns = np.flatnonzero(red[240])
@@ -67,7 +65,7 @@ def test_the_red_box_ahead_fills_the_front_image_and_no_other(sim: SimServer) ->
     assert abs(len(columns) - expected) <= 3, f"the box is {len(columns)} px wide, the pinhole model says {expected:.1f}"
     assert abs((columns[0] + columns[-1]) / 2 - 319.5) <= 1.5, "the box is not centred"
     for name in CAMERAS[1:]:
-        seen = int(_red(_pixels(frames[name])).sum())
+        seen = int(_red(messages.image_pixels(frames[name])).sum())
         assert seen == 0, f"{name} sees {seen} red pixels of a box outside its field of view"
 
 
@@ -96,7 +94,7 @@ def test_images_are_stamped_with_the_sim_time_they_show(sim: SimServer) -> None:
         x = truth.get(stamp_ns(frame))
         if x is None or x < 0.3:
             continue  # only stamps where the pose publisher (50 Hz) also has a sample, once clearly moving
-        width = len(np.flatnonzero(_red(_pixels(frame))[240]))
+        width = len(np.flatnonzero(_red(messages.image_pixels(frame))[240]))
         expected = (320 / math.tan(HFOV / 2)) * BOX_WIDTH / (3.5 - 1.0 - x)
         assert abs(width - expected) <= 3, f"at {stamp_ns(frame) / 1e9:.3f} s (x {x:.3f}) the box is {width} px wide, expected {expected:.1f}"
         checked += 1
@@ -153,7 +151,7 @@ def test_camera_rate_option_and_egl_renderer_or_its_fallback() -> None:
         sim.step(1000)
         frames = images.wait_for(lambda items: stamp_ns(items[-1]) >= start + 1_000_000_000, timeout=30.0, what="1 s of frames")
         assert len([m for m in frames if start < stamp_ns(m) <= start + 1_000_000_000]) == 10
-        red = _red(_pixels(frames[-1]))
+        red = _red(messages.image_pixels(frames[-1]))
         assert red[60, 80], "the red box is not at the image centre"
         renderer = sim.state()["sensors"]["camera_front"]["renderer"]
         assert renderer in ("egl", "tiny")
