@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, NamedTuple, cast
 from clients.common import ClientError, Mailbox, client_parser, run_client
 from clients.tap import RawSample, Tap, published
 from clients.topics import Topic
-from simbot.bus import Node, UnknownMessageType, decode, message_type, messages
+from simbot.bus import Node, UnknownMessageType, message_type
 from simbot.bus.codec import TYPESTORE
 
 if TYPE_CHECKING:
@@ -58,7 +58,6 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 NEEDS_EXTRA = "needs the foxglove extra: pip install 'simbot[foxglove]'"
 CLOCK_TOPIC = "clock"
-CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 GRAPH_PERIOD_S = 1.0
 WAIT_S = 0.05
 INBOX_SIZE = 512
@@ -214,7 +213,9 @@ class Bridge:
 
     def _tick(self, sample: RawSample) -> None:
         """Sim time from a clock sample, broadcast to the viewers."""
-        now = messages.stamp_ns(decode(sample.data, CLOCK_TYPE).clock)
+        now = sample.stamp_ns
+        if now is None:
+            return  # not met: the tap reads every Clock's time
         if self._sim_ns is not None and now < self._sim_ns:
             logger.info("sim time went back from %.3f s to %.3f s: new session", self._sim_ns / 1e9, now / 1e9)
             self._server.clear_session()

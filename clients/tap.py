@@ -36,7 +36,7 @@ class MalformedSample(ValueError):
 class RawSample:
     """One checked payload: its topic name (without the namespace), its ROS 2 type, its CDR bytes,
     when it arrived (wall clock, ns since the epoch, as rosbag2 stamps what it records), and its
-    header stamp (sim time, ns; None for a message without a header), read while checking it."""
+    sim time (ns: the header stamp, or a Clock's time; None for a message with neither), read while checking it."""
 
     topic: str
     typename: str
@@ -88,10 +88,8 @@ class Tap:
                 self.dropped[topic.name] = self.dropped.get(topic.name, 0) + 1
             self._warnings.warn(topic.key, f"dropped a sample: {exc}")
             return
-        header = getattr(msg, "header", None)
-        stamp = None if header is None else messages.stamp_ns(header)
         try:
-            self._deliver(RawSample(topic.name, topic.typename, data, time.time_ns(), stamp))
+            self._deliver(RawSample(topic.name, topic.typename, data, time.time_ns(), sim_time_ns(msg)))
         except Exception:
             logger.exception("%s: delivering a sample failed", topic.key)
 
@@ -112,3 +110,12 @@ def check(topic: Topic, data: bytes, encoding: str) -> Any:
         raise MalformedSample(f"not a valid {exc}") from None
     except UnknownMessageType as exc:
         raise MalformedSample(str(exc)) from None
+
+
+def sim_time_ns(msg: Any) -> int | None:
+    """The sim time a message carries: its header stamp, or a rosgraph_msgs/Clock's time; None for neither."""
+    stamped = getattr(msg, "header", None) or getattr(msg, "clock", None)
+    try:
+        return None if stamped is None else messages.stamp_ns(stamped)
+    except TypeError:  # a field named so that is not a Header or a Time
+        return None
