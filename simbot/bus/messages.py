@@ -36,6 +36,8 @@ CameraInfo = _ros.sensor_msgs__msg__CameraInfo
 Image = _ros.sensor_msgs__msg__Image
 Imu = _ros.sensor_msgs__msg__Imu
 LaserScan = _ros.sensor_msgs__msg__LaserScan
+PointCloud2 = _ros.sensor_msgs__msg__PointCloud2
+PointField = _ros.sensor_msgs__msg__PointField
 RegionOfInterest = _ros.sensor_msgs__msg__RegionOfInterest
 String = _ros.std_msgs__msg__String
 TFMessage = _ros.tf2_msgs__msg__TFMessage
@@ -50,6 +52,8 @@ __all__ = [
     "JointState",
     "LaserScan",
     "Odometry",
+    "PointCloud2",
+    "PointField",
     "PoseStamped",
     "String",
     "TFMessage",
@@ -59,6 +63,8 @@ __all__ = [
     "Vector3",
     "camera_info",
     "clock",
+    "depth_image",
+    "depth_pixels",
     "empty",
     "header",
     "image",
@@ -67,6 +73,8 @@ __all__ = [
     "joint_state",
     "laser_scan",
     "odometry",
+    "point_cloud",
+    "point_cloud_array",
     "pose_stamped",
     "quaternion",
     "stamp_ns",
@@ -301,6 +309,66 @@ def image(ns: int, frame: str, pixels: npt.NDArray[np.uint8]) -> Image:
         step=width * channels,
         data=np.ascontiguousarray(pixels).reshape(-1).copy(),
     )
+
+
+def depth_image(ns: int, frame: str, depth: npt.NDArray[np.float32]) -> Image:
+    """sensor_msgs/Image `32FC1` (REP 118: metres along the optical axis, ±inf out of range) from an H×W float32 array."""
+    if depth.dtype != np.float32 or depth.ndim != 2:
+        raise ValueError(f"depth image: expected H×W float32, got {depth.dtype} {depth.shape}")
+    height, width = depth.shape
+    return Image(
+        header=header(ns, frame),
+        height=height,
+        width=width,
+        encoding="32FC1",
+        is_bigendian=0,
+        step=width * 4,
+        data=np.ascontiguousarray(depth).reshape(-1).view(np.uint8).copy(),
+    )
+
+
+def depth_pixels(msg: Image) -> npt.NDArray[np.float32]:
+    """The H×W float32 metres of a `32FC1` Image (the inverse of `depth_image`)."""
+    if msg.encoding != "32FC1":
+        raise ValueError(f"encoding {msg.encoding!r} is not 32FC1")
+    width, height, step = int(msg.width), int(msg.height), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if step < width * 4 or data.size < step * height:
+        raise ValueError(f"{data.size} bytes with step {step} cannot hold {height} rows of {width} 32FC1 pixels")
+    rows = data[: step * height].reshape(height, step)[:, : width * 4]
+    return np.ascontiguousarray(rows).view(np.float32).reshape(height, width)
+
+
+POINT_FIELDS = ("x", "y", "z", "rgb")
+"""An organised cloud's fields, float32 each; rgb packs 0x00RRGGBB into the float's bits (PCL's convention)."""
+
+
+def point_cloud(ns: int, frame: str, points: npt.NDArray[np.float32]) -> PointCloud2:
+    """sensor_msgs/PointCloud2, organised (H×W), from H×W×4 float32 x y z rgb; NaN marks no point."""
+    if points.dtype != np.float32 or points.ndim != 3 or points.shape[2] != len(POINT_FIELDS):
+        raise ValueError(f"point cloud: expected H×W×4 float32, got {points.dtype} {points.shape}")
+    height, width = points.shape[:2]
+    fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, name in enumerate(POINT_FIELDS)]
+    return PointCloud2(
+        header=header(ns, frame),
+        height=height,
+        width=width,
+        fields=fields,
+        is_bigendian=False,
+        point_step=16,
+        row_step=16 * width,
+        data=np.ascontiguousarray(points).reshape(-1).view(np.uint8).copy(),
+        is_dense=False,
+    )
+
+
+def point_cloud_array(msg: PointCloud2) -> npt.NDArray[np.float32]:
+    """H×W×4 float32 x y z rgb of a cloud `point_cloud` made (the inverse of `point_cloud`)."""
+    names = tuple(f.name for f in msg.fields)
+    if names != POINT_FIELDS or int(msg.point_step) != 16:
+        raise ValueError(f"fields {names} with point step {msg.point_step}: expected {POINT_FIELDS} float32 at 16 bytes")
+    data = np.asarray(msg.data, dtype=np.uint8)
+    return np.ascontiguousarray(data).view(np.float32).reshape(int(msg.height), int(msg.width), 4)
 
 
 CHANNELS_OF = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}

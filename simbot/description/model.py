@@ -97,49 +97,13 @@ class Visual:
 
 
 @dataclass(frozen=True)
-class Noise:
-    type: str = "none"
-    mean: float = 0.0
-    stddev: float = 0.0
-    bias_mean: float = 0.0
-    bias_stddev: float = 0.0
+class Param:
+    """One child element of a `<plugin>`, kept whole because plugins define their own syntax."""
 
-
-@dataclass(frozen=True)
-class ScanAxis:
-    samples: int = 1
-    resolution: float = 1.0
-    min_angle: float = 0.0
-    max_angle: float = 0.0
-
-
-@dataclass(frozen=True)
-class Lidar:
-    horizontal: ScanAxis
-    vertical: ScanAxis
-    range_min: float
-    range_max: float
-    range_resolution: float
-    noise: Noise | None = None
-
-
-@dataclass(frozen=True)
-class Camera:
-    horizontal_fov: float
-    width: int
-    height: int
-    format: str
-    near: float
-    far: float
-    noise: Noise | None = None
-
-
-@dataclass(frozen=True)
-class Imu:
-    """Noise per axis (x, y, z); None where the SDF gives none."""
-
-    angular_velocity_noise: tuple[Noise | None, Noise | None, Noise | None] = (None, None, None)
-    linear_acceleration_noise: tuple[Noise | None, Noise | None, Noise | None] = (None, None, None)
+    tag: str
+    text: str = ""
+    attrs: tuple[tuple[str, str], ...] = ()
+    children: tuple[Param, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -151,19 +115,8 @@ class Sensor:
     always_on: bool = False
     topic: str | None = None
     frame_name: str | None = None
-    lidar: Lidar | None = None
-    camera: Camera | None = None
-    imu: Imu | None = None
-
-
-@dataclass(frozen=True)
-class Param:
-    """One child element of a `<plugin>`, kept whole because plugins define their own syntax."""
-
-    tag: str
-    text: str = ""
-    attrs: tuple[tuple[str, str], ...] = ()
-    children: tuple[Param, ...] = ()
+    params: tuple[Param, ...] = ()
+    """The `<sensor>`'s children kept whole: each sensor module reads its own (simbot/sim/sensor_params.py)."""
 
 
 @dataclass(frozen=True)

@@ -21,26 +21,21 @@ from simbot.description.missing_meshes import present_collisions, visuals_with_f
 from simbot.description.model import (
     Axis,
     Box,
-    Camera,
     Collision,
     Cylinder,
     Friction,
     Geometry,
-    Imu,
     Inertial,
     Joint,
-    Lidar,
     Light,
     Link,
     Material,
     Mesh,
     Model,
-    Noise,
     Param,
     Physics,
     Plane,
     Plugin,
-    ScanAxis,
     Scene,
     Sensor,
     Sphere,
@@ -367,87 +362,17 @@ def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_
 
 
 def _read_sensor(reader: Reader, frames: _Frames, link: str, element: Element) -> Sensor:
-    kind = reader.attr(element, "type")
+    """The fields every sensor has; the rest kept whole for the sensor's own module to read."""
     frame_name = next((reader.text(element, tag) for tag in FRAME_ID_TAGS if element.find(tag) is not None), None)
-    ray = element.find("lidar") if element.find("lidar") is not None else element.find("ray")
-    camera = element.find("camera")
-    imu = element.find("imu")
     return Sensor(
         name=reader.attr(element, "name"),
-        type=kind,
+        type=reader.attr(element, "type"),
         pose=frames.in_link(link, element),
         update_rate=reader.number(element, "update_rate", 0.0),
         always_on=reader.flag(element, "always_on", False),
         topic=reader.text(element, "topic"),
         frame_name=frame_name,
-        lidar=None if ray is None else _read_lidar(reader, ray),
-        camera=None if camera is None else _read_camera(reader, camera),
-        imu=None if imu is None else _read_imu(reader, imu),
-    )
-
-
-def _read_noise(reader: Reader, parent: Element | None) -> Noise | None:
-    noise = None if parent is None else parent.find("noise")
-    if noise is None:
-        return None
-    return Noise(
-        type=noise.get("type") or reader.text(noise, "type", "gaussian") or "gaussian",
-        mean=reader.number(noise, "mean", 0.0),
-        stddev=reader.number(noise, "stddev", 0.0),
-        bias_mean=reader.number(noise, "bias_mean", 0.0),
-        bias_stddev=reader.number(noise, "bias_stddev", 0.0),
-    )
-
-
-def _read_scan_axis(reader: Reader, element: Element | None) -> ScanAxis:
-    if element is None:
-        return ScanAxis()
-    return ScanAxis(
-        samples=reader.integer(element, "samples", 1),
-        resolution=reader.number(element, "resolution", 1.0),
-        min_angle=reader.number(element, "min_angle", 0.0),
-        max_angle=reader.number(element, "max_angle", 0.0),
-    )
-
-
-def _read_lidar(reader: Reader, element: Element) -> Lidar:
-    scan = reader.child(element, "scan")
-    ranges = reader.child(element, "range")
-    return Lidar(
-        horizontal=_read_scan_axis(reader, reader.child(scan, "horizontal")),
-        vertical=_read_scan_axis(reader, scan.find("vertical")),
-        range_min=reader.required_number(ranges, "min"),
-        range_max=reader.required_number(ranges, "max"),
-        range_resolution=reader.number(ranges, "resolution", 0.0),
-        noise=_read_noise(reader, element),
-    )
-
-
-def _read_camera(reader: Reader, element: Element) -> Camera:
-    image = element.find("image")
-    clip = element.find("clip")
-    return Camera(
-        horizontal_fov=reader.number(element, "horizontal_fov", 1.047),
-        width=320 if image is None else reader.integer(image, "width", 320),
-        height=240 if image is None else reader.integer(image, "height", 240),
-        format=(None if image is None else reader.text(image, "format")) or "R8G8B8",
-        near=0.1 if clip is None else reader.number(clip, "near", 0.1),
-        far=100.0 if clip is None else reader.number(clip, "far", 100.0),
-        noise=_read_noise(reader, element),
-    )
-
-
-def _axes_noise(reader: Reader, element: Element | None) -> tuple[Noise | None, Noise | None, Noise | None]:
-    if element is None:
-        return (None, None, None)
-    x, y, z = (_read_noise(reader, element.find(axis)) for axis in "xyz")
-    return (x, y, z)
-
-
-def _read_imu(reader: Reader, element: Element) -> Imu:
-    return Imu(
-        angular_velocity_noise=_axes_noise(reader, element.find("angular_velocity")),
-        linear_acceleration_noise=_axes_noise(reader, element.find("linear_acceleration")),
+        params=tuple(_read_param(child) for child in element),
     )
 
 

@@ -1,7 +1,7 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
     simbot-server [--world NAME|PATH] [--robot PATH] [--spawn X Y Z YAW] [--namespace NS]
-                  [--mode realtime|fast|lockstep] [--seed N] [--renderer tiny|egl]
+                  [--mode realtime|fast|lockstep] [--seed N] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
@@ -31,11 +31,12 @@ from simbot.rotations import yaw_of
 from simbot.sim.control import WorldControl
 from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup
-from simbot.sim.rendering import RENDERERS
+from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext
 from simbot.sim.systems.clock_publisher import ClockPublisher
 from simbot.sim.systems.pose_publisher import PosePublisher
+from simbot.sim.systems.rendering import Rendering, world_light
 from simbot.sim.systems.robot_state_publisher import RobotStatePublisher
 
 log = logging.getLogger("simbot.server")
@@ -95,7 +96,7 @@ class Server:
         self.bus = SimBus(node)
         self._seeds = np.random.SeedSequence(config.seed)
         self._settings = config.sensor_settings()
-        self._shared: dict[str, object] = {}
+        self.rendering = Rendering(self.physics, self._settings, world_light(self.world))
         systems = self._systems(robot)
         self.sim = Simulation(self.physics, systems, config.mode)
         self.control = WorldControl(node, self.world.name, self.sim, self.bus)
@@ -105,7 +106,7 @@ class Server:
     ) -> SystemContext:
         rng = np.random.default_rng(self._seeds.spawn(1)[0])
         link, sdf_sensor = sensor if sensor else (None, None)
-        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings, self._shared)
+        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings, self.rendering)
 
     def _systems(self, robot: Model) -> list[object]:
         """World plugins, then each model's plugins and sensors, then the server's own publishers."""
@@ -118,6 +119,8 @@ class Server:
             if factory is not None:
                 systems.append(factory(self._context(model, name, plugin)))
         systems += self._sensors()
+        if self.rendering.cameras:
+            systems.append(self.rendering)
         robot_ctx = self._context(robot, ROBOT_NAME)
         systems += [ClockPublisher(robot_ctx), PosePublisher(robot_ctx), RobotStatePublisher(robot_ctx)]
         return systems
@@ -161,7 +164,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--spawn", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), default=DEFAULT_SPAWN, help="robot pose in the world")
     parser.add_argument("--mode", choices=[m.value for m in Mode], default=Mode.REALTIME.value, help="realtime (default), fast, or lockstep")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
-    parser.add_argument("--renderer", choices=RENDERERS, default="tiny", help="camera renderer: tiny (CPU, default) or egl (GPU where present)")
+    parser.add_argument(
+        "--renderer", choices=RENDERERS, default="auto",
+        help="camera renderer: gl (OpenGL on EGL: the GPU, else Mesa on the CPU), tiny (PyBullet's TinyRenderer), auto (default: gl where an EGL context opens, else tiny)",
+    )
     parser.add_argument("--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240")
     parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
     parser.add_argument("--render-workers", type=_count, metavar="N", help="camera render processes (default: every core but one)")

@@ -24,14 +24,17 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from simbot.bus import DecodeError, Node, Publisher, decode
-from simbot.description.model import Link, Model, Noise, Plugin, Sensor, World
+from simbot.description.model import Link, Model, Plugin, Sensor, World
 from simbot.description.xml import parse_flag
 from simbot.sim.physics import Physics
+
+if TYPE_CHECKING:
+    from simbot.sim.systems.rendering import Rendering
 
 log = logging.getLogger(__name__)
 
@@ -151,8 +154,8 @@ class SensorSettings:
 
     lockstep: bool = False
     """Lockstep renders every camera frame at its sim time; otherwise a busy camera skips frames."""
-    renderer: str = "tiny"
-    """`tiny` (PyBullet's TinyRenderer, CPU) or `egl` (PyBullet's EGL plugin, GPU where present)."""
+    renderer: str = "auto"
+    """`gl` (OpenGL 3.3 on EGL: the GPU, else Mesa on the CPU), `tiny` (PyBullet's TinyRenderer), or `auto` (gl where an EGL context opens)."""
     camera_size: tuple[int, int] | None = None
     """(width, height) for every camera instead of the SDF's."""
     camera_rate: float | None = None
@@ -176,9 +179,8 @@ class SystemContext:
     link: Link | None = None
     sensor: Sensor | None = None
     settings: SensorSettings = field(default_factory=SensorSettings)
-    shared: dict[str, Any] = field(default_factory=dict)
-    """What the systems of one world share, by name: all cameras render through one pool of
-    workers, as Gazebo's Sensors system gives all sensors one render engine."""
+    rendering: Rendering | None = None
+    """The world's one rendering system, which camera-type sensors register with."""
 
     def require_model(self, system: str) -> tuple[Model, str]:
         """The model a model-level system belongs to."""
@@ -192,6 +194,12 @@ class SystemContext:
             raise SystemConfigError("a sensor system needs the <sensor> element of a model's link")
         return self.model_name, self.link, self.sensor
 
+    def require_rendering(self) -> Rendering:
+        """The rendering system a camera registers with."""
+        if self.rendering is None:
+            raise SystemConfigError("a camera sensor needs the world's rendering system")
+        return self.rendering
+
 
 def sensor_topic(sensor: Sensor) -> str:
     """The sensor's `<topic>` as a ROS topic without the leading slash, or its name."""
@@ -201,11 +209,6 @@ def sensor_topic(sensor: Sensor) -> str:
 def sensor_frame(sensor: Sensor) -> str:
     """The frame its data are stamped in: `<frame_name>`, else the sensor's name (tf_static places it)."""
     return (sensor.frame_name or "").strip() or sensor.name
-
-
-def applied_noise(noise: Noise | None) -> Noise:
-    """The noise a sensor applies: SDF `gaussian` (or `gaussian_quantized`) as given; none, or a kind simbot does not model, as zero."""
-    return noise if noise is not None and noise.type.startswith("gaussian") else Noise()
 
 
 def sensor_rate(sensor: Sensor, default: float) -> float:

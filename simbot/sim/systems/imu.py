@@ -7,20 +7,51 @@ sample after start or reset has no interval and takes a = 0 (the world starts at
 Orientation is the frame's in the world (ENU), as Gazebo's IMU reports it by default.
 Noise per axis, as gz-sensors applies it: mean + a bias drawn once per run (N(bias_mean,
 bias_stddev), random sign) + white N(0, stddev); covariances carry the variances.
+
+SDF parameters (under `<imu>`; `ImuParams`):
+
+| element | default | meaning |
+| --- | --- | --- |
+| `<angular_velocity><x|y|z><noise>` | none | gaussian noise of each gyro axis (`mean`, `stddev`, `bias_mean`, `bias_stddev`) |
+| `<linear_acceleration><x|y|z><noise>` | none | the same for each accelerometer axis |
+| `<update_rate>` (of the `<sensor>`) | the physics rate | samples per second |
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.bus import messages
-from simbot.description.model import Imu as ImuSpec
-from simbot.description.model import Noise
+from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
-from simbot.sim.system import Sampled, SystemContext, applied_noise, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.sensor_params import Noise, SdfElement
+from simbot.sim.system import Sampled, SystemContext, sensor_frame, sensor_rate, sensor_topic
 
-Axes = tuple[Noise | None, Noise | None, Noise | None]
+Axes = tuple[Noise, Noise, Noise]
+"""What each axis applies (no noise: Noise())."""
+
+
+def _axes(element: SdfElement | None) -> Axes:
+    if element is None:
+        return (Noise(), Noise(), Noise())
+    x, y, z = ((element.child_or_empty(axis).noise() or Noise()).applied for axis in "xyz")
+    return (x, y, z)
+
+
+@dataclass(frozen=True)
+class ImuParams:
+    """An IMU's SDF parameters (the table in the module docstring)."""
+
+    angular_velocity_noise: Axes = (Noise(), Noise(), Noise())
+    linear_acceleration_noise: Axes = (Noise(), Noise(), Noise())
+
+    @staticmethod
+    def from_sdf(sensor: Sensor) -> ImuParams:
+        imu = SdfElement.of(sensor).child_or_empty("imu")
+        return ImuParams(_axes(imu.child("angular_velocity")), _axes(imu.child("linear_acceleration")))
 
 
 class AxisNoise:
@@ -28,7 +59,7 @@ class AxisNoise:
 
     def __init__(self, axes: Axes, rng: np.random.Generator) -> None:
         self._rng = rng
-        used = [applied_noise(n) for n in axes]
+        used = axes
         self.mean = np.array([n.mean for n in used])
         self.stddev = np.array([n.stddev for n in used])
         self._bias_mean = np.array([n.bias_mean for n in used])
@@ -52,7 +83,7 @@ class Imu(Sampled):
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
-        spec = sensor.imu or ImuSpec()
+        spec = self.params = ImuParams.from_sdf(sensor)
         super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
         self._physics = ctx.physics
         self._where = (model, link.name, sensor.pose)

@@ -7,34 +7,81 @@ A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF
 noise, quantised to the range resolution and kept within [range_min, range_max].
 `time_increment` is 0 because the rays really are simultaneous: a consumer that de-skews by it
 would otherwise move points that did not move.
+
+SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
+
+| element | default | meaning |
+| --- | --- | --- |
+| `<scan><horizontal><samples>` | 1 | rays per scan (at least 1) |
+| `<scan><horizontal><min_angle>`, `<max_angle>` | 0, 0 | first and last ray, radians |
+| `<scan><vertical><samples>`, `<min_angle>`, `<max_angle>` | 1, 0, 0 | a LaserScan holds one plane: the middle one is cast |
+| `<range><min>`, `<range><max>` | required | rays start at min; no hit within max reads +inf |
+| `<range><resolution>` | 0 | ranges are quantised to it (0: not quantised) |
+| `<noise>` (`type`, `mean`, `stddev`) | none | gaussian noise per ray |
+| `<update_rate>` (of the `<sensor>`) | the physics rate | scans per second |
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.bus import messages
-from simbot.description.model import Lidar as LidarSpec
-from simbot.description.model import Noise
+from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
-from simbot.sim.system import (
-    Sampled,
-    SystemConfigError,
-    SystemContext,
-    applied_noise,
-    sensor_frame,
-    sensor_rate,
-    sensor_topic,
-)
+from simbot.sim.sensor_params import Noise, SdfElement
+from simbot.sim.system import Sampled, SystemConfigError, SystemContext, sensor_frame, sensor_rate, sensor_topic
 
 log = logging.getLogger(__name__)
 
 
-def ray_directions(spec: LidarSpec) -> tuple[npt.NDArray[np.float64], float]:
+@dataclass(frozen=True)
+class ScanAxis:
+    samples: int = 1
+    min_angle: float = 0.0
+    max_angle: float = 0.0
+
+    @staticmethod
+    def from_sdf(element: SdfElement) -> ScanAxis:
+        return ScanAxis(element.integer("samples", 1), element.number("min_angle", 0.0), element.number("max_angle", 0.0))
+
+
+@dataclass(frozen=True)
+class LidarParams:
+    """A lidar's SDF parameters (the table in the module docstring)."""
+
+    horizontal: ScanAxis
+    vertical: ScanAxis
+    range_min: float
+    range_max: float
+    range_resolution: float = 0.0
+    noise: Noise = Noise()
+
+    @staticmethod
+    def from_sdf(sensor: Sensor) -> LidarParams:
+        root = SdfElement.of(sensor)
+        element = root.child("lidar") or root.child("ray")
+        if element is None:
+            raise SystemConfigError(f"sensor {sensor.name}: type {sensor.type!r} needs a <lidar> or <ray> element")
+        scan = element.require("scan")
+        ranges = element.require("range")
+        params = LidarParams(
+            horizontal=ScanAxis.from_sdf(scan.require("horizontal")),
+            vertical=ScanAxis.from_sdf(scan.child_or_empty("vertical")),
+            range_min=ranges.required_number("min"),
+            range_max=ranges.required_number("max"),
+            range_resolution=ranges.number("resolution", 0.0),
+            noise=(element.noise() or Noise()).applied,
+        )
+        _check(sensor.name, params)
+        return params
+
+
+def ray_directions(spec: LidarParams) -> tuple[npt.NDArray[np.float64], float]:
     """Unit vectors of every ray in the sensor frame (x forward, z up), and the angle increment."""
     h = spec.horizontal
     angles = np.linspace(h.min_angle, h.max_angle, h.samples)
@@ -45,7 +92,7 @@ def ray_directions(spec: LidarSpec) -> tuple[npt.NDArray[np.float64], float]:
     return directions, increment
 
 
-def _check(name: str, spec: LidarSpec) -> None:
+def _check(name: str, spec: LidarParams) -> None:
     if spec.horizontal.samples < 1:
         raise SystemConfigError(f"sensor {name}: <horizontal><samples> must be at least 1, got {spec.horizontal.samples}")
     if not 0 <= spec.range_min < spec.range_max or not math.isfinite(spec.range_max):
@@ -59,18 +106,15 @@ class Lidar(Sampled):
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
-        if sensor.lidar is None:
-            raise SystemConfigError(f"sensor {sensor.name}: type {sensor.type!r} needs a <lidar> or <ray> element")
-        _check(sensor.name, sensor.lidar)
+        self.params = LidarParams.from_sdf(sensor)
         rate = sensor_rate(sensor, 1.0 / ctx.physics.step_size)
         super().__init__(sensor.name, rate)
-        self._spec = sensor.lidar
         self._model, self._link, self._pose = model, link.name, sensor.pose
         self._physics = ctx.physics
         self._physics.blind_rays_to(model)
         self._rng = ctx.rng
-        self._directions, increment = ray_directions(sensor.lidar)
-        h = sensor.lidar.horizontal
+        self._directions, increment = ray_directions(self.params)
+        h = self.params.horizontal
         self._frame = sensor_frame(sensor)
         self._angles = (h.min_angle, h.max_angle, increment)
         self._times = (0.0, 1.0 / rate)
@@ -79,7 +123,7 @@ class Lidar(Sampled):
     def post_update(self, now_ns: int) -> None:
         if not self.due(now_ns):
             return
-        spec = self._spec
+        spec = self.params
         self._pub.put(
             messages.laser_scan(now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), self.scan())
         )
@@ -87,7 +131,7 @@ class Lidar(Sampled):
 
     def scan(self) -> npt.NDArray[np.float64]:
         """The ranges the lidar reads now: true distances, noise, quantisation, +inf for no return."""
-        spec = self._spec
+        spec = self.params
         position, quat = self._physics.frame_pose(self._model, self._link, self._pose)
         directions = self._directions @ quaternion_to_matrix(quat).T
         origin = np.asarray(position)
@@ -96,7 +140,7 @@ class Lidar(Sampled):
         return self._measured(ranges)
 
     def _measured(self, ranges: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        spec = self._spec
+        spec = self.params
         hit = np.isfinite(ranges)
         noisy = ranges + _noise(spec.noise, self._rng, ranges.shape)
         if spec.range_resolution > 0:
@@ -104,9 +148,8 @@ class Lidar(Sampled):
         return np.where(hit, np.clip(noisy, spec.range_min, spec.range_max), np.inf)
 
 
-def _noise(sdf_noise: Noise | None, rng: np.random.Generator, shape: tuple[int, ...]) -> npt.NDArray[np.float64] | float:
+def _noise(noise: Noise, rng: np.random.Generator, shape: tuple[int, ...]) -> npt.NDArray[np.float64] | float:
     """SDF gaussian noise (mean, stddev) per ray; nothing drawn where there is none."""
-    noise = applied_noise(sdf_noise)
     if noise.stddev == 0 and noise.mean == 0:
         return 0.0
     return rng.normal(noise.mean, noise.stddev, shape)

@@ -1,0 +1,203 @@
+"""The OpenGL 3.3 renderer: moderngl on a headless EGL context (the GPU where there is one, Mesa's
+llvmpipe on the CPU where there is not).
+
+The scene comes from the worker's PyBullet copy (`BulletScene`): every visual shape of every link,
+tessellated once (`shapes.py`). Bodies that never move are baked into one world-frame vertex
+buffer, drawn in one call; each link of a moving body is one buffer in its link frame, drawn with
+the link's transform of the request. Lighting is TinyRenderer's model (ambient + diffuse of the
+world's sun, no specular), per vertex, so a fragment costs one colour write.
+
+The projection flips y, so the framebuffer's first row is the image's top row and the pixels are
+read straight into the camera's shared memory, with no copy. A depth camera reads the depth
+buffer too and turns it into metres (`outputs.py`); it draws with depth clamping, so geometry
+nearer than the near plane is kept (and reads −inf) rather than cut away, and it discards what
+lies beyond the far plane (+inf, the background).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
+from simbot.sim.render.shapes import triangles
+from simbot.sim.render.specs import CameraSpec, Light, Transform
+
+log = logging.getLogger(__name__)
+
+GL_DEPTH_CLAMP = 0x864F
+BACKGROUND = (0.7, 0.7, 0.8)
+"""The sky, TinyRenderer's clear colour."""
+FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
+
+_VERTEX = """
+#version 330
+uniform mat4 view_projection;
+uniform mat4 model;
+uniform vec3 to_light;
+uniform float ambient;
+uniform float diffuse;
+uniform mat4 view;
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_color;
+out vec3 color;
+out float eye_depth;
+void main() {
+    vec4 world = model * vec4(in_position, 1.0);
+    vec3 normal = normalize(mat3(model) * in_normal);
+    color = in_color * (ambient + diffuse * max(dot(normal, to_light), 0.0));
+    eye_depth = -(view * world).z;
+    gl_Position = view_projection * world;
+}
+"""
+
+_FRAGMENT = """
+#version 330
+uniform float far;
+uniform bool mono;
+in vec3 color;
+in float eye_depth;
+out vec4 out_color;
+void main() {
+    if (eye_depth > far) discard;
+    float luma = dot(color, vec3(0.299, 0.587, 0.114));
+    out_color = vec4(mono ? vec3(luma) : color, 1.0);
+}
+"""
+
+
+@dataclass
+class _Part:
+    """A vertex array drawn with one transform: the static world, or one moving link."""
+
+    vao: Any
+    body: str | None
+    """None for the static world (identity transform)."""
+    link: int
+
+
+@dataclass
+class _Target:
+    spec: CameraSpec
+    fbo: Any
+    projection: Matrix
+
+
+class GlRenderer:
+    """Draws the worker's scene into per-camera framebuffers; see the module docstring."""
+
+    name = "gl"
+
+    def __init__(self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec], threads: int | None = None) -> None:
+        if threads is not None:
+            os.environ["LP_NUM_THREADS"] = str(threads)  # read by Mesa's llvmpipe when the context opens
+        import moderngl  # an import error is a reason to fall back, reported by the worker
+
+        self.scene = scene
+        self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)
+        self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.program = self.ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+        to_light = -np.asarray(light.direction, dtype=np.float64)
+        self.program["to_light"].value = tuple(to_light / np.linalg.norm(to_light))
+        self.program["ambient"].value = light.ambient
+        self.program["diffuse"].value = light.diffuse
+        self.parts = self._build_parts()
+        self.targets = {i: self._target(spec) for i, spec in cameras.items()}
+
+    # --- the scene
+
+    def _build_parts(self) -> list[_Part]:
+        parts: list[_Part] = []
+        static: list[npt.NDArray[np.float32]] = []
+        for body in self.scene.bodies:
+            shapes = self.scene.visual_shapes(body.name)
+            if body.static:
+                frames = self.scene.link_matrices(body.name)
+                static += [_vertices(shape, frames[shape.link]) for shape in shapes]
+                continue
+            for link in sorted({shape.link for shape in shapes}):
+                data = np.concatenate([_vertices(s, np.eye(4)) for s in shapes if s.link == link])
+                if len(data):
+                    parts.append(_Part(self._vao(data), body.name, link))
+        if static:
+            world = np.concatenate(static)
+            if len(world):
+                parts.insert(0, _Part(self._vao(world), None, -1))
+        log.debug("GL scene: %d draws, %d vertices", len(parts), sum(p.vao.vertices for p in parts))
+        return parts
+
+    def _vao(self, data: npt.NDArray[np.float32]) -> Any:
+        buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
+        return self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f", "in_position", "in_normal", "in_color")])
+
+    def _target(self, spec: CameraSpec) -> _Target:
+        size = (spec.width, spec.height)
+        color = self.ctx.renderbuffer(size, components=3 if spec.channels != 1 else 1)
+        depth = self.ctx.depth_texture(size) if spec.depth else self.ctx.depth_renderbuffer(size)
+        projection = FLIP_Y @ projection_matrix(spec.vfov_deg, spec.width / spec.height, spec.near, spec.far)
+        return _Target(spec, self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth), projection)
+
+    # --- a frame
+
+    def render(self, camera: int, pose: Transform, color: memoryview | None, depth: memoryview | None) -> None:
+        """Draw camera `camera` at `pose` (the scene already posed); read colour (uint8) and window
+        depth (float32, 0..1) straight into the given buffers."""
+        target = self.targets[camera]
+        spec = target.spec
+        view = view_matrix(pose)
+        program = self.program
+        program["view_projection"].write(_gl(target.projection @ view))
+        program["view"].write(_gl(view))
+        program["far"].value = spec.far
+        program["mono"].value = spec.channels == 1
+        target.fbo.use()
+        target.fbo.clear(*BACKGROUND, 1.0, depth=1.0)
+        if spec.depth:
+            self.ctx.enable_direct(GL_DEPTH_CLAMP)
+        try:
+            self._draw()
+        finally:
+            if spec.depth:
+                self.ctx.disable_direct(GL_DEPTH_CLAMP)
+        if color is not None:
+            target.fbo.read_into(color, components=spec.channels, alignment=1)
+        if depth is not None:
+            target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
+
+    def _draw(self) -> None:
+        frames: dict[str, dict[int, Matrix]] = {}
+        model = self.program["model"]
+        for part in self.parts:
+            if part.body is None:
+                model.write(_gl(np.eye(4)))
+            else:
+                if part.body not in frames:
+                    frames[part.body] = self.scene.link_matrices(part.body)
+                model.write(_gl(frames[part.body][part.link]))
+            part.vao.render()
+
+    def close(self) -> None:
+        self.ctx.release()
+
+
+def _gl(m: Matrix) -> bytes:
+    """A 4×4 matrix as GLSL's column-major float32 bytes."""
+    return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
+
+
+def _vertices(shape: VisualShape, link_to_world: Matrix) -> npt.NDArray[np.float32]:
+    """Interleaved position, normal, colour rows of the shape, transformed by `link_to_world`."""
+    positions, normals = triangles(shape)
+    rotation = link_to_world[:3, :3]
+    positions = positions @ rotation.T + link_to_world[:3, 3]
+    normals = normals @ rotation.T
+    colors = np.broadcast_to(np.asarray(shape.rgba[:3], dtype=np.float32), positions.shape)
+    return np.hstack([positions, normals, colors]).astype(np.float32)

@@ -1,0 +1,63 @@
+"""From what a renderer drew to what a camera publishes, in place in the camera's shared memory:
+depth in metres, pixel noise, and the organised point cloud of an RGBD camera. Both renderers
+hand over the same raw form (uint8 colour, window depth 0..1), so this is shared by both."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from simbot.sim.render.specs import CameraSpec, Depths, Pixels, Points
+
+LUMA = (0.299, 0.587, 0.114)
+"""ITU-R BT.601 luminance weights, as OpenCV's RGB2GRAY and Gazebo's L8 conversion."""
+
+
+def linear_depth(window: Depths, near: float, far: float) -> None:
+    """Window depth (0..1, OpenGL's perspective) → metres along the optical axis, in place.
+    REP 118: +inf where nothing was drawn (beyond far), −inf where the nearest surface was
+    nearer than near (a depth camera draws with depth clamping, so those read exactly 0)."""
+    nothing = window >= 1.0
+    too_near = window <= 0.0
+    np.multiply(window, far - near, out=window)
+    np.subtract(far, window, out=window)
+    np.divide(near * far, window, out=window)
+    window[nothing] = np.inf
+    window[too_near] = -np.inf
+
+
+def luminance(rgb: Pixels) -> Pixels:
+    weights = np.asarray(LUMA, dtype=np.float32)
+    out: Pixels = np.rint(rgb.astype(np.float32) @ weights).astype(np.uint8)
+    return out
+
+
+def add_noise(pixels: Pixels, stddev: float, rng: np.random.Generator) -> None:
+    """Gaussian noise of `stddev` (fraction of full scale), in place, clipped to 0..255."""
+    noise = rng.standard_normal(pixels.shape, dtype=np.float32) * np.float32(stddev * 255.0)
+    pixels[...] = np.clip(np.rint(pixels + noise), 0, 255).astype(np.uint8)
+
+
+class PointGrid:
+    """Per-pixel ray slopes of a camera, (u − cx)/fx and (v − cy)/fy, worked out once."""
+
+    def __init__(self, spec: CameraSpec) -> None:
+        cx, cy = spec.principal_point
+        self.x = ((np.arange(spec.width, dtype=np.float32) - cx) / spec.fx)[np.newaxis, :]
+        self.y = ((np.arange(spec.height, dtype=np.float32) - cy) / spec.fx)[:, np.newaxis]
+
+    def fill(self, depth: Depths, rgb: Pixels, out: Points) -> None:
+        """x y z rgb per pixel in the optical frame (x right, y down, z forward); NaN where the
+        depth is not finite (PCL's convention for an organised cloud)."""
+        z = np.where(np.isfinite(depth), depth, np.float32(np.nan))
+        out[..., 0] = self.x * z
+        out[..., 1] = self.y * z
+        out[..., 2] = z
+        packed = (rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8) | rgb[..., 2]
+        out[..., 3] = packed.view(np.float32)
+
+
+def packed_rgb(points: Points) -> npt.NDArray[np.uint8]:
+    """The r g b of a point cloud's packed float (for tests and clients)."""
+    packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)
+    return np.stack([(packed >> 16) & 255, (packed >> 8) & 255, packed & 255], axis=-1).astype(np.uint8)

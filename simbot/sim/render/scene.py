@@ -1,0 +1,145 @@
+"""A render worker's copy of the server's scene: the same URDFs in its own PyBullet DIRECT client,
+posed from each request. Both renderers draw from it: TinyRenderer through PyBullet itself, the
+OpenGL renderer from its visual shapes and link poses."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from simbot.sim.render.specs import BodyState, SceneBody, Transform
+
+Matrix = npt.NDArray[np.float64]
+
+
+class VisualShape(NamedTuple):
+    """One visual of a link, as PyBullet's getVisualShapeData gives it."""
+
+    link: int
+    """-1 for the base."""
+    geometry: int
+    """pb.GEOM_BOX, GEOM_SPHERE, GEOM_CYLINDER, GEOM_CAPSULE, GEOM_PLANE or GEOM_MESH."""
+    dimensions: tuple[float, ...]
+    """Box: full size; sphere: (radius, ..); cylinder and capsule: (length, radius, ..); mesh: scale."""
+    mesh: str
+    """The mesh file for GEOM_MESH."""
+    local: Transform
+    """The visual's pose in its URDF link frame."""
+    rgba: tuple[float, float, float, float]
+
+
+@dataclass
+class BulletScene:
+    """The bodies loaded as the server loaded them, posed on request."""
+
+    pb: ModuleType
+    bodies: Sequence[SceneBody]
+    client: int = -1
+    ids: dict[str, int] = field(default_factory=dict)
+    movable: dict[str, tuple[int, ...]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.client = self.pb.connect(self.pb.DIRECT)
+        self._load_bodies()
+
+    def _load_bodies(self) -> None:
+        """The same flags as the server, so that base centre-of-mass frames agree."""
+        pb = self.pb
+        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+        with tempfile.TemporaryDirectory(prefix="simbot-render-") as folder:
+            for n, body in enumerate(self.bodies):
+                path = os.path.join(folder, f"{n}.urdf")
+                with open(path, "w", encoding="utf-8") as file:
+                    file.write(body.urdf)
+                try:
+                    body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
+                except pb.error as exc:
+                    raise RuntimeError(f"body {body.name!r}: {exc}") from None
+                # loadURDF places the URDF root link frame; the base pose given is the COM frame's
+                pb.resetBasePositionAndOrientation(body_id, *body.base, physicsClientId=self.client)
+                self.ids[body.name] = body_id
+                self.movable[body.name] = self._one_dof_joints(body_id)
+
+    def _one_dof_joints(self, body_id: int) -> tuple[int, ...]:
+        pb = self.pb
+        one_dof = (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC)
+        count = pb.getNumJoints(body_id, physicsClientId=self.client)
+        types = [pb.getJointInfo(body_id, j, physicsClientId=self.client)[2] for j in range(count)]
+        return tuple(j for j, kind in enumerate(types) if kind in one_dof)
+
+    def apply(self, states: Mapping[str, BodyState]) -> None:
+        """Put the moving bodies where the request says."""
+        pb, client = self.pb, self.client
+        for name, state in states.items():
+            body_id = self.ids[name]
+            pb.resetBasePositionAndOrientation(body_id, *state.base, physicsClientId=client)
+            movable = self.movable[name]
+            if movable and len(state.joints) <= movable[-1]:
+                raise ValueError(f"body {name!r}: {len(state.joints)} joint positions, joint {movable[-1]} moves")
+            for j in movable:
+                pb.resetJointState(body_id, j, state.joints[j], physicsClientId=client)
+
+    def visual_shapes(self, name: str) -> list[VisualShape]:
+        """The body's visuals, in its URDF link frames."""
+        shapes = self.pb.getVisualShapeData(self.ids[name], physicsClientId=self.client)
+        return [
+            VisualShape(s[1], s[2], tuple(s[3]), s[4].decode(errors="replace") if isinstance(s[4], bytes) else str(s[4]), (s[5], s[6]), s[7])
+            for s in shapes
+        ]
+
+    def link_matrices(self, name: str) -> dict[int, Matrix]:
+        """World transform (4×4) of each URDF link frame of the body, -1 the base, as posed now."""
+        pb, client, body_id = self.pb, self.client, self.ids[name]
+        base = matrix(*pb.getBasePositionAndOrientation(body_id, physicsClientId=client))
+        inertial = matrix(*pb.getDynamicsInfo(body_id, -1, physicsClientId=client)[3:5])
+        frames = {-1: base @ np.linalg.inv(inertial)}  # the base pose is its centre of mass's
+        count = pb.getNumJoints(body_id, physicsClientId=client)
+        if count:
+            states = pb.getLinkStates(body_id, list(range(count)), computeForwardKinematics=True, physicsClientId=client)
+            frames.update((j, matrix(state[4], state[5])) for j, state in enumerate(states))
+        return frames
+
+    def close(self) -> None:
+        self.pb.disconnect(physicsClientId=self.client)
+
+
+def matrix(position: Sequence[float], quat: Sequence[float]) -> Matrix:
+    """4×4 homogeneous transform from PyBullet's (xyz, quaternion xyzw)."""
+    x, y, z, w = quat
+    out = np.eye(4)
+    out[:3, :3] = (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
+    out[:3, 3] = position
+    return out
+
+
+def view_matrix(pose: Transform) -> Matrix:
+    """World → OpenGL eye coordinates for a camera that looks along its +x with z up (SDF)."""
+    camera = matrix(*pose)
+    # eye axes in the camera frame: x_eye = -y_cam (right), y_eye = z_cam (up), z_eye = -x_cam (back)
+    eye_in_camera = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    world_to_camera = np.linalg.inv(camera)
+    return eye_in_camera @ world_to_camera  # type: ignore[no-any-return]
+
+
+def projection_matrix(vfov_deg: float, aspect: float, near: float, far: float) -> Matrix:
+    """OpenGL's perspective projection (gluPerspective), as PyBullet's computeProjectionMatrixFOV."""
+    f = 1.0 / np.tan(np.radians(vfov_deg) / 2.0)
+    return np.array(
+        [
+            [f / aspect, 0.0, 0.0, 0.0],
+            [0.0, f, 0.0, 0.0],
+            [0.0, 0.0, (far + near) / (near - far), 2.0 * far * near / (near - far)],
+            [0.0, 0.0, -1.0, 0.0],
+        ]
+    )

@@ -1,0 +1,24 @@
+"""Depth camera (SDF `depth_camera`, also `depth`): a `32FC1` sensor_msgs/Image of metres along
+the optical axis (REP 118: z-depth, so a wall square to the axis reads one value everywhere; +inf
+where nothing lies within the far clip, −inf where a surface is nearer than the near clip).
+
+The same camera as `camera` (its SDF parameters, its camera_info beside the image key, Gazebo's
+sibling `camera_info`), rendering depth only; `<image><format>` is ignored. Pixel noise is not
+applied to depth.
+"""
+
+from __future__ import annotations
+
+from simbot.bus import messages
+from simbot.sim.system import SimBus
+from simbot.sim.systems.camera import Camera, Output
+
+
+class DepthCamera(Camera):
+    """sensor_msgs/Image (32FC1) on `<topic>` and CameraInfo beside it."""
+
+    depth = True
+    color = False
+
+    def advertise(self, bus: SimBus, topic: str) -> list[Output]:
+        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.depth))]

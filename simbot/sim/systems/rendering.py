@@ -1,0 +1,188 @@
+"""Rendering: the one system that renders every camera-type sensor of the world.
+
+Camera sensors (`camera`, `depth_camera`, `rgbd_camera`, and any sensor module that follows the
+`RenderedSensor` contract) register here when they are built; this system owns the render pool
+(simbot/sim/render/), started in the background when the first image is wanted, and decides at
+each step which cameras render. The sensors themselves only say what they render (a
+`CameraSpec`), whether anyone wants it, and turn a finished `Frame` into messages. As Gazebo's
+Sensors system gives all sensors one render engine, one owner here keeps the cameras from
+coordinating among themselves.
+
+Scheduling, after each physics step:
+- A camera whose tick comes and whose outputs someone subscribes to waits for a frame. When only
+  its camera_info is subscribed, camera_info goes out at the tick.
+- Real time and fast mode: the waiting cameras render as one set, from one snapshot of the
+  moving bodies, at the first step when every frame of the previous set is out (a set shares one
+  stamp, as Gazebo's cameras do, and a stitcher pairing six images by stamp finds them
+  together). A tick that finds its camera still waiting is skipped and counted (`skipped` in
+  world state), so rendering never slows the physics.
+- Lockstep: every frame is rendered at its exact sim time, and the step that took it waits until
+  the frames of all cameras due then are published, so after `multi_step` every frame up to
+  that time is out.
+
+A render worker that dies, or a pool that does not start, stops the cameras (an error in the log
+and in each camera's world state), never the simulation.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Protocol
+
+from simbot.description.model import World
+from simbot.description.poses import Pose
+from simbot.sim.physics import Physics
+from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, plan_pool
+from simbot.sim.system import SensorSettings
+
+log = logging.getLogger(__name__)
+
+LOCKSTEP_TIMEOUT_S = 120.0
+"""How long lockstep waits for one frame before it gives the cameras up as broken."""
+
+
+class RenderedSensor(Protocol):
+    """What a camera-type sensor gives the rendering system."""
+
+    spec: CameraSpec
+    where: tuple[str, str, Pose]
+    """(model, link, pose in the link): where the camera is, looking along its +x with z up."""
+    skipped: int
+
+    def due(self, now_ns: int) -> bool: ...
+
+    def wanted(self) -> bool:
+        """Someone subscribes to an output that needs rendering."""
+        ...
+
+    def publish_info(self, stamp_ns: int) -> None:
+        """camera_info alone, for a tick with no frame to render."""
+        ...
+
+    def publish(self, frame: Frame) -> None:
+        """The frame's messages and its camera_info, under the frame's stamp."""
+        ...
+
+
+def world_light(world: World) -> Light:
+    """The world's first directional light (the sun) drives the renderers' one light."""
+    sun = next((light for light in world.lights if light.type == "directional"), None)
+    return Light(direction=sun.direction) if sun else Light()
+
+
+class Rendering:
+    """Schedules the cameras and owns their render pool; see the module docstring."""
+
+    name = "rendering"
+
+    def __init__(self, physics: Physics, settings: SensorSettings, light: Light) -> None:
+        self.physics = physics
+        self.settings = settings
+        self.light = light
+        self.cameras: list[RenderedSensor] = []
+        self.pool: RenderPool | None = None
+        self.failure: str | None = None
+        self._starting: threading.Thread | None = None
+        self._waiting: set[int] = set()
+
+    def add(self, camera: RenderedSensor) -> int:
+        """Register a camera; its index in the pool."""
+        if self._starting is not None:
+            raise RuntimeError("cameras are registered before the first step")
+        self.cameras.append(camera)
+        return len(self.cameras) - 1
+
+    # --- the update
+
+    def post_update(self, now_ns: int) -> None:
+        for index, camera in enumerate(self.cameras):
+            if not camera.due(now_ns):
+                continue
+            if camera.wanted() and self.failure is None:
+                camera.skipped += index in self._waiting  # real time: the physics never waits for a frame
+                self._waiting.add(index)
+            else:
+                camera.publish_info(now_ns)
+        if self._waiting and self._ready() and self._idle():
+            self._request(now_ns)
+        self._deliver()
+
+    def _ready(self) -> bool:
+        """Whether the pool takes requests; starts it (in the background) on first call."""
+        if self.pool is not None:
+            return True
+        if self.failure is not None:
+            return False
+        if self._starting is None:
+            bodies = [SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0]) for name, body in self.physics.bodies.items()]
+            self._starting = threading.Thread(target=self._start, args=(bodies,), name="render-pool-start", daemon=True)
+            self._starting.start()
+        if self.settings.lockstep:
+            self._starting.join()
+        return self.pool is not None
+
+    def _start(self, bodies: list[SceneBody]) -> None:
+        """Runs in a thread (PyBullet is not touched here): spawning workers and loading the scene
+        takes seconds the loop must not wait."""
+        specs = [camera.spec for camera in self.cameras]
+        plan = plan_pool(len(specs), self.settings.render_workers)
+        try:
+            pool = RenderPool(bodies, specs, plan.workers, self.settings.renderer, self.light, gl_threads=plan.gl_threads)
+        except (OSError, RuntimeError, ValueError) as exc:
+            self.failure = f"the camera render workers did not start: {exc}"
+            log.error("%s; no images will be published", self.failure)
+            return
+        if pool.fallback_reason:
+            log.warning("cameras render with TinyRenderer: %s", pool.fallback_reason)
+        self.pool = pool
+
+    def _idle(self) -> bool:
+        """No frame of any camera outstanding (lockstep never has one here)."""
+        return self.pool is not None and not any(self.pool.busy(i) for i in range(len(self.cameras)))
+
+    def _request(self, now_ns: int) -> None:
+        """Every waiting camera renders from one snapshot of the moving bodies."""
+        assert self.pool is not None
+        states = {name: BodyState(*self.physics.body_state(name)) for name in self.physics.moving_bodies()}
+        waiting, self._waiting = sorted(self._waiting), set()
+        try:
+            for index in waiting:
+                self.pool.request(index, now_ns, self.physics.frame_pose(*self.cameras[index].where), states)
+        except RuntimeError as exc:
+            self.fail(str(exc))
+
+    def _deliver(self) -> None:
+        """Publishes the frames that are done; in lockstep, first waits for every outstanding one."""
+        if self.pool is None:
+            return
+        try:
+            waits = range(len(self.cameras)) if self.settings.lockstep else [None]
+            frames = [frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)]
+        except (RuntimeError, TimeoutError) as exc:
+            self.fail(str(exc))
+            return
+        for frame in frames:
+            self.cameras[frame.camera].publish(frame)
+
+    def fail(self, reason: str) -> None:
+        """A broken pool stops the cameras, not the simulation."""
+        log.error("cameras stopped: %s", reason)
+        self.failure = reason
+        self._waiting.clear()
+        self.close()
+
+    @property
+    def renderer(self) -> str | None:
+        return None if self.pool is None else self.pool.renderer_used
+
+    def reset(self, now_ns: int) -> None:
+        """The world was reset: waiting ticks belong to the old timeline."""
+        self._waiting.clear()
+
+    def close(self) -> None:
+        if self._starting is not None:
+            self._starting.join()
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = None
