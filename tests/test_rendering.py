@@ -1,6 +1,8 @@
-"""The render pool with real PyBullet in real worker processes: geometry of the images (pinhole
-facts), the light convention, moving bodies and joints, pixel formats and noise, the one
-outstanding request per camera, EGL or its fallback, and a dead or busy worker never hanging the caller."""
+"""The render pool with real PyBullet in real worker processes, with both renderers (OpenGL on EGL
+and TinyRenderer): geometry of the images (pinhole facts), the light convention, moving bodies and
+joints, pixel formats and noise, depth and points, the two renderers agreeing, the one
+outstanding request per camera, the fallback where no EGL context opens, and a dead or busy
+worker never hanging the caller."""
 
 from __future__ import annotations
 
@@ -19,7 +21,8 @@ import numpy.typing as npt
 import pytest
 
 from simbot.sim.bullet import pb
-from simbot.sim.rendering import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, Transform
+from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody
+from simbot.sim.render.specs import Transform
 
 W, H = 160, 120
 FX = 100.0
@@ -104,19 +107,42 @@ def scene() -> list[SceneBody]:
 
 CAMERAS = [
     CameraSpec("rgb", W, H, HFOV, 0.05, 50.0),
+    CameraSpec("rgbd", W, H, HFOV, 0.05, 50.0, depth=True, points=True),
     CameraSpec("mono", W, H, HFOV, 0.05, 50.0, channels=1),
     CameraSpec("full", 640, 480, HFOV, 0.05, 50.0),
     CameraSpec("noisy_a", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
     CameraSpec("noisy_b", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
     CameraSpec("noisy_c", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=8),
 ]
-RGB, MONO, FULL, NOISY_A, NOISY_B, NOISY_C = range(len(CAMERAS))
+RGB, RGBD, MONO, FULL, NOISY_A, NOISY_B, NOISY_C = range(len(CAMERAS))
+
+
+def egl_opens() -> str | None:
+    """Why no OpenGL 3.3 EGL context opens here, or None when one does."""
+    try:
+        import moderngl
+
+        moderngl.create_context(standalone=True, backend="egl", require=330).release()
+    except Exception as exc:  # noqa: BLE001 - any failure means no GL here
+        return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
+    return None
+
+
+NO_EGL = egl_opens()
+
+
+@pytest.fixture(scope="module", params=["gl", "tiny"])
+def renderer(request: pytest.FixtureRequest) -> str:
+    if request.param == "gl" and NO_EGL:
+        pytest.skip(NO_EGL)
+    return str(request.param)
 
 
 @pytest.fixture(scope="module")
-def shared_pool() -> Iterator[RenderPool]:
+def shared_pool(renderer: str) -> Iterator[RenderPool]:
     """Six cameras on two workers, the front faces lit."""
-    with RenderPool(scene(), CAMERAS, workers=2, light=FRONT_LIT) as render_pool:
+    with RenderPool(scene(), CAMERAS, workers=2, renderer=renderer, light=FRONT_LIT) as render_pool:
+        assert render_pool.renderer_used == renderer
         yield render_pool
 
 
@@ -134,7 +160,9 @@ def render(pool: RenderPool, camera: int, pose: Transform, states: dict[str, Bod
     pool.request(camera, 42, pose, states or {})
     frames = [f for f in pool.collect(wait_for=camera, timeout=WAIT) if f.camera == camera]
     assert len(frames) == 1
-    return frames[0]._replace(pixels=frames[0].pixels.copy())
+    frame = frames[0]
+    copied = {name: None if getattr(frame, name) is None else getattr(frame, name).copy() for name in ("color", "depth", "points")}
+    return frame._replace(**copied)
 
 
 def mask(pixels: npt.NDArray[np.uint8], channel: int) -> npt.NDArray[np.bool_]:
@@ -150,29 +178,29 @@ def centroid_column(m: npt.NDArray[np.bool_]) -> float:
 
 def test_box_ahead_fills_the_centre_with_its_pinhole_width(pool: RenderPool) -> None:
     """A 1 m red face 2 m ahead: red at the centre, fx·size/d pixels wide; looking back, nothing."""
-    pixels = render(pool, RGB, AHEAD).pixels
+    pixels = render(pool, RGB, AHEAD).color
     assert pixels.shape == (H, W, 3) and pixels.dtype == np.uint8
     red = mask(pixels, 0)
     assert red[H // 2, W // 2]
     assert red[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
     assert red[:, W // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)  # square pixels: fy = fx
-    behind = render(pool, RGB, yawed((0.0, 0.0, 0.0), math.pi)).pixels
+    behind = render(pool, RGB, yawed((0.0, 0.0, 0.0), math.pi)).color
     assert not mask(behind, 0).any()
 
 
 def test_camera_pose_moves_the_image(pool: RenderPool) -> None:
     """A camera 0.2 m to the left sees the box 10 px further right; tilted up, the box moves down."""
-    left = render(pool, RGB, at((0.0, 0.2, 0.0))).pixels
+    left = render(pool, RGB, at((0.0, 0.2, 0.0))).color
     assert centroid_column(mask(left, 0)) == pytest.approx(W / 2 + FX * 0.2 / RED_FACE - 0.5, abs=2)
     pitch = -0.1  # a negative pitch about y raises the optical axis (z up)
-    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)))).pixels
+    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)))).color
     rows = np.nonzero(mask(up, 0))[0]
     assert rows.mean() == pytest.approx(H / 2 + FX * math.tan(0.1) - 0.5, abs=2)  # row 0 is the top
 
 
 def test_full_size_image(pool: RenderPool) -> None:
     """640×480 RGB, the box in the middle, four times as wide as at 160×120 with the same fov."""
-    pixels = render(pool, FULL, AHEAD).pixels
+    pixels = render(pool, FULL, AHEAD).color
     assert pixels.shape == (480, 640, 3) and pixels.dtype == np.uint8
     assert mask(pixels, 0)[240].sum() == pytest.approx(4 * FX * RED_SIZE / RED_FACE, abs=2)
 
@@ -181,9 +209,9 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
     """The green box moved 0.3 m to the left (+y) shifts left by fx·dy/d pixels."""
     camera = at(MOVER_AT)
     centre = (MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0)
-    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), ())}).pixels, 1))
+    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), ())}).color, 1))
     moved = BodyState(at((centre[0], 0.3, 0.0)), ())
-    after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved}).pixels, 1))
+    after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved}).color, 1))
     assert before == pytest.approx(W / 2 - 0.5, abs=1)
     assert after - before == pytest.approx(-FX * 0.3 / MOVER_FACE, abs=2)
 
@@ -191,8 +219,8 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
 def test_joint_positions_move_links(pool: RenderPool) -> None:
     """The arm swung by 0.1 rad about z puts its box fx·tan(0.1) pixels to the left."""
     camera = at(ARM_AT)
-    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.0,))}).pixels, 1))
-    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.1,))}).pixels, 1))
+    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.0,))}).color, 1))
+    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.1,))}).color, 1))
     assert straight == pytest.approx(W / 2 - 0.5, abs=1)
     assert swung - straight == pytest.approx(-FX * math.tan(0.1), abs=2)
 
@@ -200,24 +228,24 @@ def test_joint_positions_move_links(pool: RenderPool) -> None:
 def test_base_poses_are_centre_of_mass_frames(pool: RenderPool) -> None:
     """A body whose centre of mass is 0.4 m beside its visual, placed by PyBullet's base pose, shows its visual
     where the server has it (centred), not 0.4 m (20 px) off."""
-    pixels = render(pool, RGB, at(OFFSET_AT)).pixels
+    pixels = render(pool, RGB, at(OFFSET_AT)).color
     assert centroid_column(mask(pixels, 0)) == pytest.approx(W / 2 - 0.5, abs=1)
 
 
-def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool) -> None:
+def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, renderer: str) -> None:
     """Lit from behind the camera, an orange face shows its material colour; the default light (travelling
     towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
-    lit = render(pool, RGB, at(ORANGE_AT)).pixels[H // 2, W // 2].astype(float)
+    lit = render(pool, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
     np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
-    with RenderPool([b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1) as default_light:
-        shaded = render(default_light, RGB, at(ORANGE_AT)).pixels[H // 2, W // 2].astype(float)
+    with RenderPool([b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1, renderer=renderer) as default_light:
+        shaded = render(default_light, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
     np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
 
 
 def test_mono_is_luminance(pool: RenderPool) -> None:
     """channels=1: H×W uint8, the BT.601 luminance of the RGB image."""
-    rgb = render(pool, RGB, AHEAD).pixels.astype(float)
-    mono = render(pool, MONO, AHEAD).pixels
+    rgb = render(pool, RGB, AHEAD).color.astype(float)
+    mono = render(pool, MONO, AHEAD).color
     assert mono.shape == (H, W) and mono.dtype == np.uint8
     np.testing.assert_allclose(mono, rgb @ [0.299, 0.587, 0.114], atol=1)
 
@@ -225,12 +253,30 @@ def test_mono_is_luminance(pool: RenderPool) -> None:
 def test_noise_has_the_configured_spread_and_follows_the_seed(pool: RenderPool) -> None:
     """σ 0.02 of full scale is ≈ 5.1 levels on a flat region; same seed, same image; another seed, another."""
     wall = at(GREY_AT)
-    clean = render(pool, RGB, wall).pixels.astype(float)
+    clean = render(pool, RGB, wall).color.astype(float)
     assert clean.std() == 0 and clean[0, 0, 0] == pytest.approx(128, abs=2)  # mid-grey: no clipping
-    a, b, c = (render(pool, cam, wall).pixels for cam in (NOISY_A, NOISY_B, NOISY_C))
+    a, b, c = (render(pool, cam, wall).color for cam in (NOISY_A, NOISY_B, NOISY_C))
     assert (a - clean).std() == pytest.approx(0.02 * 255, rel=0.2)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_depth_is_z_along_the_optical_axis_and_points_lie_on_the_surface(pool: RenderPool) -> None:
+    """A wall square to the axis 2 m ahead reads 2.00 m at every pixel (z-depth, not range), its points lie on
+    the plane z = 2 in the optical frame within 1 cm and carry the wall's colour; nothing in view reads +inf."""
+    frame = render(pool, RGBD, at(GREY_AT))
+    assert frame.depth is not None and frame.points is not None and frame.color is not None
+    assert frame.depth.shape == (H, W) and frame.depth.dtype == np.float32
+    np.testing.assert_allclose(frame.depth, 2.0, atol=0.01)
+    points = frame.points
+    np.testing.assert_allclose(points[..., 2], 2.0, atol=0.01)
+    u, v = np.meshgrid(np.arange(W) - (W - 1) / 2, np.arange(H) - (H - 1) / 2)
+    np.testing.assert_allclose(points[..., 0], u * 2.0 / FX, atol=0.01)  # x right
+    np.testing.assert_allclose(points[..., 1], v * 2.0 / FX, atol=0.01)  # y down
+    packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)
+    assert int(packed[0, 0]) == (int(frame.color[0, 0, 0]) << 16) | (int(frame.color[0, 0, 1]) << 8) | int(frame.color[0, 0, 2])
+    sky = render(pool, RGBD, at((GREY_AT[0] + 100.0, 0.0, 0.0)))  # past the last region: nothing within the far clip
+    assert np.isposinf(sky.depth).all() and np.isnan(sky.points[..., :3]).all()
 
 
 def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: RenderPool) -> None:
@@ -263,27 +309,96 @@ def test_bad_requests_are_refused(pool: RenderPool) -> None:
     assert not pool.busy(RGB)
 
 
+SHAPES_URDF = """<robot name="shapes">
+  <link name="box"><visual><origin xyz="1.8 -0.9 0"/><geometry><box size="0.4 0.6 0.8"/></geometry>
+    <material name="r"><color rgba="1 0 0 1"/></material></visual></link>
+  <joint name="j1" type="fixed"><parent link="box"/><child link="cylinder"/></joint>
+  <link name="cylinder"><visual><origin xyz="1.8 -0.3 0" rpy="0.3 0 0"/><geometry><cylinder radius="0.25" length="0.8"/></geometry>
+    <material name="g"><color rgba="0 1 0 1"/></material></visual></link>
+  <joint name="j2" type="fixed"><parent link="box"/><child link="sphere"/></joint>
+  <link name="sphere"><visual><origin xyz="1.8 0.3 0"/><geometry><sphere radius="0.3"/></geometry>
+    <material name="b"><color rgba="0 0 1 1"/></material></visual></link>
+  <joint name="j3" type="fixed"><parent link="box"/><child link="capsule"/></joint>
+  <link name="capsule"><visual><origin xyz="1.8 0.9 0" rpy="0 0.4 0"/><geometry><capsule radius="0.2" length="0.5"/></geometry>
+    <material name="m"><color rgba="1 0 1 1"/></material></visual></link>
+  <joint name="j4" type="fixed"><parent link="box"/><child link="mesh"/></joint>
+  <link name="mesh"><visual><origin xyz="1.5 0 -0.55" rpy="1.5708 0 0"/><geometry><mesh filename="{mesh}" scale="0.004 0.004 0.004"/></geometry>
+    <material name="c"><color rgba="0 1 1 1"/></material></visual></link>
+</robot>"""
+PRIMARIES = {"box": (0, (1, 2)), "cylinder": (1, (0, 2)), "sphere": (2, (0, 1))}
+
+
+def _silhouettes(pixels: npt.NDArray[np.uint8]) -> dict[str, npt.NDArray[np.bool_]]:
+    """Each object by its colour: red box, green cylinder, blue sphere, magenta capsule, cyan mesh."""
+    hi, lo = pixels > 100, pixels < 40
+    return {
+        "box": hi[..., 0] & lo[..., 1] & lo[..., 2],
+        "cylinder": lo[..., 0] & hi[..., 1] & lo[..., 2],
+        "sphere": lo[..., 0] & lo[..., 1] & hi[..., 2],
+        "capsule": hi[..., 0] & lo[..., 1] & hi[..., 2],
+        "mesh": lo[..., 0] & hi[..., 1] & hi[..., 2],
+    }
+
+
+def test_gl_and_tiny_draw_every_shape_with_the_same_silhouette() -> None:
+    """Box, cylinder, sphere, capsule and mesh (the robot's wheel) from the same pose. Box, cylinder
+    and mesh: per-object silhouettes of the two renderers overlap with IoU ≥ 0.97 (they differ by
+    edge pixels: TinyRenderer samples half a pixel off the pixel centres). TinyRenderer draws
+    spheres and capsules as coarse polyhedra (its sphere covers 7 % less than the true disc), so
+    there its silhouette must lie inside GL's (≥ 97 % of it), and GL's sphere must match the true
+    silhouette (each pixel's centre ray against the sphere) with IoU ≥ 0.97."""
+    if NO_EGL:
+        pytest.skip(NO_EGL)
+    urdf = SHAPES_URDF.format(mesh=Path(__file__).resolve().parents[1] / "meshes" / "wheel.stl")
+    bodies = [SceneBody("shapes", urdf, True, com_pose(urdf, (0.0, 0.0, 0.0)))]
+    camera = CameraSpec("c", 640, 480, 1.6, 0.05, 50.0)
+    images = {}
+    for name in ("gl", "tiny"):
+        with RenderPool(bodies, [camera], workers=1, renderer=name) as one:
+            images[name] = render(one, 0, AHEAD).color
+    gl, tiny = _silhouettes(images["gl"]), _silhouettes(images["tiny"])
+    for shape in ("box", "cylinder", "mesh"):
+        iou = (gl[shape] & tiny[shape]).sum() / (gl[shape] | tiny[shape]).sum()
+        assert iou >= 0.97, f"{shape}: IoU {iou:.3f} between the gl and tiny silhouettes"
+    for shape in ("sphere", "capsule"):
+        inside = (gl[shape] & tiny[shape]).sum() / tiny[shape].sum()
+        assert inside >= 0.97, f"{shape}: only {inside:.3f} of TinyRenderer's silhouette lies inside GL's"
+    true = _sphere_silhouette(camera, centre=(1.8, 0.3, 0.0), radius=0.3)
+    iou = (gl["sphere"] & true).sum() / (gl["sphere"] | true).sum()
+    assert iou >= 0.97, f"sphere: IoU {iou:.3f} between GL's silhouette and the true one"
+
+
+def _sphere_silhouette(camera: CameraSpec, centre: tuple[float, float, float], radius: float) -> npt.NDArray[np.bool_]:
+    """The pixels whose centre ray (camera at the origin looking along +x, z up) meets the sphere."""
+    cx, cy = camera.principal_point
+    u, v = np.meshgrid(np.arange(camera.width) - cx, np.arange(camera.height) - cy)
+    rays = np.stack([np.full(u.shape, camera.fx), -u, -v], axis=-1)
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    to_centre = np.asarray(centre) / np.linalg.norm(centre)
+    return rays @ to_centre > math.cos(math.asin(radius / np.linalg.norm(centre)))  # type: ignore[no-any-return]
+
+
 def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
     """A state the worker cannot apply (the arm without its joint position) fails that frame only."""
     pool.request(RGB, 7, at(ARM_AT), {"arm": BodyState(at(ARM_AT), ())})
     with pytest.raises(RuntimeError, match="arm"):
         pool.collect(wait_for=RGB, timeout=WAIT)
     assert not pool.busy(RGB)
-    assert mask(render(pool, RGB, AHEAD).pixels, 0)[H // 2, W // 2]
+    assert mask(render(pool, RGB, AHEAD).color, 0)[H // 2, W // 2]
 
 
 QUIET_SCRIPT = """
-from simbot.sim.rendering import CameraSpec, RenderPool, SceneBody
+from simbot.sim.render import CameraSpec, RenderPool, SceneBody
 if __name__ == "__main__":
     body = SceneBody("red", {urdf!r}, True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
-    with RenderPool([body], [CameraSpec("c", 32, 24, 1.5, 0.05, 50.0)], workers=1, renderer="egl") as pool:
+    with RenderPool([body], [CameraSpec("c", 32, 24, 1.5, 0.05, 50.0)], workers=1, renderer="auto") as pool:
         pool.request(0, 1, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {{}})
         pool.collect(wait_for=0, timeout=10)
 """
 
 
 def test_workers_keep_pybullet_chatter_off_stdout_and_stderr(tmp_path: Path) -> None:
-    """PyBullet and the EGL plugin print from C; none of it reaches the server's stdout or stderr."""
+    """PyBullet and Mesa print from C; none of it reaches the server's stdout or stderr."""
     script = tmp_path / "quiet.py"
     script.write_text(QUIET_SCRIPT.format(urdf=box_urdf((0.1, 1.0, 1.0), RED)))
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
@@ -291,23 +406,28 @@ def test_workers_keep_pybullet_chatter_off_stdout_and_stderr(tmp_path: Path) -> 
     assert (done.stdout, done.stderr) == ("", "")
 
 
-def test_egl_or_a_stated_fallback() -> None:
-    """EGL is used, or the reason it is not is stated and TinyRenderer used; the image is right either way."""
-    with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="egl") as egl:
-        if egl.renderer_used == "egl":
-            assert egl.fallback_reason is None
-        else:
-            assert egl.renderer_used == "tiny" and egl.fallback_reason
-        pixels = render(egl, RGB, AHEAD).pixels
-    red = (pixels[..., 0] > 120) & (pixels[..., 1] < 60) & (pixels[..., 2] < 60)  # EGL shades with its own light
-    assert red[H // 2, W // 2]
-    assert red[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+def test_auto_falls_back_to_tiny_with_the_reason_where_no_egl_context_opens(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No EGL vendor library (glvnd finds no ICD): `auto` renders with TinyRenderer and says why; `gl` refuses to start."""
+    monkeypatch.setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent/egl_vendor.json")
+    with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="auto") as fallback:
+        assert fallback.renderer_used == "tiny"
+        assert fallback.fallback_reason and "EGL" in fallback.fallback_reason
+        assert mask(render(fallback, RGB, AHEAD).color, 0)[H // 2, W // 2]
+    with pytest.raises(RuntimeError, match="--renderer gl: no OpenGL 3.3 EGL context"):
+        RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="gl", start_timeout=WAIT)
+
+
+def test_gl_is_the_default_where_egl_opens() -> None:
+    if NO_EGL:
+        pytest.skip(NO_EGL)
+    with RenderPool(scene()[:1], CAMERAS[:1], workers=1) as default:
+        assert default.renderer_used == "gl" and default.fallback_reason is None and default.device
 
 
 def test_close_during_a_render_is_prompt() -> None:
     """close() while a large frame renders returns within a couple of seconds and ends the workers."""
     big = CameraSpec("big", 2000, 2000, HFOV, 0.05, 50.0)
-    render_pool = RenderPool(scene()[:1], [big], workers=1)
+    render_pool = RenderPool(scene()[:1], [big], workers=1, renderer="tiny")  # TinyRenderer: seconds a frame
     (pid,) = render_pool.pids
     render_pool.request(0, 1, AHEAD, {})
     time.sleep(0.05)
@@ -325,7 +445,7 @@ def test_a_killed_worker_raises_instead_of_hanging() -> None:
     """A worker killed mid-request: collect(wait_for=) raises RuntimeError naming it; the camera is no longer
     busy and a new request for it raises too."""
     big = CameraSpec("big", 2000, 2000, HFOV, 0.05, 50.0)  # slow enough to be killed mid-render
-    with RenderPool(scene()[:1], [CAMERAS[RGB], big], workers=2) as render_pool:
+    with RenderPool(scene()[:1], [CAMERAS[RGB], big], workers=2, renderer="tiny") as render_pool:
         render_pool.request(1, 1, AHEAD, {})
         os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
         with pytest.raises(RuntimeError, match=r"worker 1 .*died.*big"):

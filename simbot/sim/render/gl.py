@@ -32,8 +32,8 @@ from simbot.sim.render.specs import CameraSpec, Light, Transform
 log = logging.getLogger(__name__)
 
 GL_DEPTH_CLAMP = 0x864F
-BACKGROUND = (0.7, 0.7, 0.8)
-"""The sky, TinyRenderer's clear colour."""
+BACKGROUND = (1.0, 1.0, 1.0)
+"""White, as TinyRenderer clears (so the two renderers give the same images, and mono of it is white too)."""
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 
 _VERTEX = """

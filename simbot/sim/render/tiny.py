@@ -12,6 +12,11 @@ from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
 from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, Transform
 
 
+CLEARED_DEPTH = 1.0 - 1e-6
+"""TinyRenderer clears its depth buffer to just under 1; at or above this, nothing was drawn (a
+surface within about 1 cm of a 50 m far clip reads +inf too)."""
+
+
 class TinyRenderer:
     """Draws with getCameraImage(ER_TINY_RENDERER) into the camera's buffers."""
 
@@ -47,6 +52,7 @@ class TinyRenderer:
             color[...] = luminance(rgb) if spec.channels == 1 else rgb
         if depth is not None:
             depth[...] = np.asarray(image[3], dtype=np.float32).reshape(spec.height, spec.width)
+            depth[depth >= CLEARED_DEPTH] = 1.0
 
     def close(self) -> None:
         """Nothing of its own: the scene's client is the worker's to disconnect."""
