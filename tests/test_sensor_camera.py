@@ -30,9 +30,25 @@ HFOV = 2.0944
 BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server(WORLD, "lockstep", extra=AT_ORIGIN) as server:
+def _egl() -> str | None:
+    try:
+        import moderngl
+
+        moderngl.create_context(standalone=True, backend="egl", require=330).release()
+    except Exception as exc:  # noqa: BLE001 - any failure means no GL here
+        return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
+    return None
+
+
+NO_EGL = _egl()
+
+
+@pytest.fixture(scope="module", params=["gl", "tiny"])
+def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
+    """The geometry, intrinsics, stamps and rendering-on-demand tests run with each renderer."""
+    if request.param == "gl" and NO_EGL:
+        pytest.skip(NO_EGL)
+    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--renderer", request.param]) as server:
         yield server
 
 
@@ -129,8 +145,9 @@ def test_rates_over_ten_seconds_in_lockstep() -> None:
 
 def test_in_real_time_the_cameras_render_as_sets_sharing_a_stamp() -> None:
     """One render worker cannot keep six cameras at 30 Hz, so ticks are skipped, but always all six
-    together: every stamp that reaches one camera reaches all six (what a stitcher pairs by)."""
-    with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--render-workers", "1"]) as sim:
+    together: every stamp that reaches one camera reaches all six (what a stitcher pairs by).
+    TinyRenderer, so that one worker surely falls behind."""
+    with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--render-workers", "1", "--renderer", "tiny"]) as sim:
         collectors = {topic: sim.subscribe(topic, IMAGE) for topic in CAMERAS}
         collectors["camera_front"].wait_count(6, timeout=60.0, what="camera_front images")
         stamps = {topic: {stamp_ns(m) for m in c.messages()} for topic, c in collectors.items()}
@@ -142,9 +159,25 @@ def test_in_real_time_the_cameras_render_as_sets_sharing_a_stamp() -> None:
         assert skipped > 0, "one worker kept six cameras at 30 Hz: the test no longer shows sets being skipped together"
 
 
-def test_camera_rate_option_and_egl_renderer_or_its_fallback() -> None:
-    """--camera-rate 10 gives 10 Hz; --renderer egl renders the same box, or falls back to TinyRenderer with a warning."""
-    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120", "--renderer", "egl"]) as sim:
+def test_every_image_has_its_camera_info_under_the_same_stamp_in_real_time() -> None:
+    """All six cameras at 640×480 in real time for 3 s of frames: each image's stamp has a camera_info
+    with that stamp (what image_transport's CameraSubscriber and exact-time synchronisers pair)."""
+    with running_server(WORLD, "realtime", extra=AT_ORIGIN) as sim:
+        images = {topic: sim.subscribe(topic, IMAGE) for topic in CAMERAS}
+        infos = {topic: sim.subscribe(f"{topic}/camera_info", CAMERA_INFO) for topic in CAMERAS}
+        first = images["camera_front"].wait_count(1, timeout=60.0, what="a first camera_front image")
+        start = stamp_ns(first[0])
+        images["camera_front"].wait_for(lambda items: stamp_ns(items[-1]) >= start + 3_000_000_000, timeout=60.0, what="3 s of frames")
+        for topic in CAMERAS:
+            stamps = [stamp_ns(m) for m in images[topic].messages()][:-1]  # the last one's info may be in flight
+            info_stamps = {stamp_ns(m) for m in infos[topic].messages()}
+            missing = [s for s in stamps if s not in info_stamps]
+            assert len(stamps) >= 10 and not missing, f"{topic}: {len(missing)} of {len(stamps)} images have no camera_info with their stamp"
+
+
+def test_camera_rate_option_and_the_renderer_in_world_state() -> None:
+    """--camera-rate 10 gives 10 Hz; world state names the renderer the default picked (gl where EGL opens)."""
+    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120"]) as sim:
         images = sim.subscribe("camera_front", IMAGE)
         sim.prime(images, chunk=100, timeout=60.0)
         start = stamp_ns(images.messages()[-1])
@@ -153,10 +186,18 @@ def test_camera_rate_option_and_egl_renderer_or_its_fallback() -> None:
         assert len([m for m in frames if start < stamp_ns(m) <= start + 1_000_000_000]) == 10
         red = _red(messages.image_pixels(frames[-1]))
         assert red[60, 80], "the red box is not at the image centre"
-        renderer = sim.state()["sensors"]["camera_front"]["renderer"]
-        assert renderer in ("egl", "tiny")
-        if renderer == "tiny":
-            assert "--renderer egl is not available" in sim.stderr(), "fell back to TinyRenderer without a warning"
+        assert sim.state()["sensors"]["camera_front"]["renderer"] == ("tiny" if NO_EGL else "gl")
+
+
+def test_auto_falls_back_to_tiny_with_one_log_line_where_no_egl_context_opens(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No EGL vendor library: the server renders with TinyRenderer, logs why once, and the image is right."""
+    monkeypatch.setenv("__EGL_VENDOR_LIBRARY_FILENAMES", "/nonexistent/egl_vendor.json")
+    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-size", "160x120"]) as sim:
+        images = sim.subscribe("camera_front", IMAGE)
+        sim.prime(images, chunk=100, timeout=60.0)
+        assert _red(messages.image_pixels(images.messages()[-1]))[60, 80]
+        assert sim.state()["sensors"]["camera_front"]["renderer"] == "tiny"
+        assert sim.stderr().count("cameras render with TinyRenderer: no OpenGL 3.3 EGL context") == 1, sim.stderr()
 
 
 def test_bad_camera_options_are_one_line_errors() -> None:
@@ -164,7 +205,7 @@ def test_bad_camera_options_are_one_line_errors() -> None:
 
     from server_helpers import server_command
 
-    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "ogre"), ("--render-workers", "0")):
+    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "egl"), ("--render-workers", "0")):
         result = run(server_command(option, value, "--world", "empty"), capture_output=True, text=True, timeout=30)
         assert result.returncode == 2, (option, value, result.stderr)
         assert option in result.stderr and "Traceback" not in result.stderr
