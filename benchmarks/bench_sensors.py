@@ -5,9 +5,11 @@ PyBullet call it is built on.
 Every figure is a ratio against a baseline measured in the same run, so it holds even where the
 machine is shared and noisy:
 
-1. rendering capacity: a bare TinyRenderer loop in this process (`getCameraImage` with the same
-   arguments the render workers use), in the warehouse with the robot, from the robot's six
-   camera poses in turn, times the render workers that fit (`worker_count(6)`);
+1. rendering capacity: bare render loops in this process, in the warehouse with the robot, from
+   the robot's six camera poses in turn: TinyRenderer (`getCameraImage` with the same arguments
+   the render workers use) and the OpenGL renderer (`GlRenderer` on the same scene, reading the
+   pixels back), in frames per CPU second; capacity is the renderer's frames per wall second on
+   one core times the render workers that fit (`plan_pool(6)`);
 2. real time, every sensor subscribed (six cameras at 640×480, then at 320×240, lidars, IMU):
    the physics real-time factor (sim-time advance / wall time over the window) and the images
    a client receives per wall second, against that capacity; the server's and the workers' CPU
@@ -56,13 +58,15 @@ from simbot.bus import BusOptions, Node, messages
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
 from simbot.sim.physics import RAY_BLIND_GROUP, Physics
-from simbot.sim.rendering import CameraSpec, Light
+from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
+from simbot.sim.render.gl import GlRenderer
+from simbot.sim.render.scene import BulletScene
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
 from simbot.sim.system import SensorSettings
-from simbot.sim.systems.camera import Camera, worker_count
+from simbot.sim.systems.camera import Camera, CameraParams
 from simbot.sim.systems.imu import Imu
-from simbot.sim.systems.lidar import Lidar, ray_directions
+from simbot.sim.systems.lidar import Lidar, LidarParams, ray_directions
 
 log = logging.getLogger("bench_sensors")
 
@@ -99,9 +103,9 @@ def robot_views(physics: Physics, size: tuple[int, int]) -> list[View]:
     workers render, so the bare loop draws the same triangles."""
     views = []
     for link, sensor in physics.body(ROBOT_NAME).model.sensors():
-        if sensor.camera is None:
+        if sensor.type != "camera":
             continue
-        cam = sensor.camera
+        cam = CameraParams.from_sdf(sensor)
         spec = CameraSpec(sensor.name, size[0], size[1], cam.horizontal_fov, cam.near, cam.far)
         position, quat = physics.frame_pose(ROBOT_NAME, link.name, sensor.pose)
         rotation = np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
@@ -140,6 +144,31 @@ def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: f
         bare_render(client, views[frames % len(views)], light)
         frames += 1
     return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu)
+
+
+def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float, str]:
+    """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
+    the same scene and views, one llvmpipe thread, pixels read back into an array."""
+    bodies = [SceneBody(name, body.urdf, body.model.static, physics.body_state(name)[0]) for name, body in physics.bodies.items()]
+    scene = BulletScene(pb, bodies)
+    renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
+    poses = [physics.frame_pose(*where) for where in camera_mounts(physics)]
+    pixels = np.zeros(views[0].spec.shape, dtype=np.uint8)
+    try:
+        renderer.render(0, poses[0], pixels, None)
+        frames, start, cpu = 0, time.perf_counter(), time.process_time()
+        while time.perf_counter() - start < seconds or frames % len(views):
+            renderer.render(frames % len(views), poses[frames % len(views)], pixels, None)
+            frames += 1
+        return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu), renderer.device
+    finally:
+        renderer.close()
+        scene.close()
+
+
+def camera_mounts(physics: Physics) -> list[tuple[str, str, Any]]:
+    """(model, link, pose) of each of the robot's cameras, in SDF order."""
+    return [(ROBOT_NAME, link.name, s.pose) for link, s in physics.body(ROBOT_NAME).model.sensors() if s.type == "camera"]
 
 
 class Counter:
@@ -183,9 +212,14 @@ class Costs:
     round_trip_ms: float = math.nan
     bare_image_ms: float = math.nan
     capacity_fps: dict[tuple[int, int], float] = field(default_factory=dict)
-    """Bare TinyRenderer frames per wall second on one core, by image size."""
+    """Bare frames per wall second on one core of the renderer the server uses, by image size."""
     cpu_fps: dict[tuple[int, int], float] = field(default_factory=dict)
-    """Bare TinyRenderer frames per CPU second, by image size."""
+    """Bare frames per CPU second of the renderer the server uses, by image size."""
+    tiny_cpu_fps: dict[tuple[int, int], float] = field(default_factory=dict)
+    gl_cpu_fps: dict[tuple[int, int], float] = field(default_factory=dict)
+    tiny_fps: dict[tuple[int, int], float] = field(default_factory=dict)
+    gl_fps: dict[tuple[int, int], float] = field(default_factory=dict)
+    gl_device: str = "none"
     renderer: str = "tiny"
     fallback: str | None = None
 
@@ -219,11 +253,11 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
         lidar.post_update(now)
 
     link, sensor = next((lk, s) for lk, s in physics.body(ROBOT_NAME).model.sensors() if s.name == lidar.name)
-    assert sensor.lidar is not None
+    params = LidarParams.from_sdf(sensor)
     position, quat = physics.frame_pose(ROBOT_NAME, link.name, sensor.pose)
-    directions = ray_directions(sensor.lidar)[0] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
-    starts = (np.asarray(position) + directions * sensor.lidar.range_min).tolist()
-    ends = (np.asarray(position) + directions * sensor.lidar.range_max).tolist()
+    directions = ray_directions(params)[0] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
+    starts = (np.asarray(position) + directions * params.range_min).tolist()
+    ends = (np.asarray(position) + directions * params.range_max).tolist()
     client = physics.client
     costs.lidar_ms = per_call_ms(ours, repeats)
     costs.rays_ms = per_call_ms(
@@ -252,21 +286,20 @@ def imu_costs(server: Server, costs: Costs, repeats: int) -> None:
 def camera_costs(server: Server, costs: Costs, rounds: int) -> None:
     """Each camera through the real pool: the server's request (pose, body states, pipe), the
     worker's render (Frame.render_s), and the server's encode + publish (Camera.publish)."""
-    physics, cameras = server.physics, systems_of(server, Camera)
-    rig = cameras[0].rig
-    if not rig.ready() or rig.pool is None:
-        raise RuntimeError(f"render pool did not start: {rig.failure}")
-    costs.renderer, costs.fallback = rig.pool.renderer_used, rig.pool.fallback_reason
-    mounts = {s.name: (ROBOT_NAME, lk.name, s.pose) for lk, s in physics.body(ROBOT_NAME).model.sensors()}
-    where = {c.index: mounts[c.name] for c in cameras}
+    physics, cameras, rendering = server.physics, systems_of(server, Camera), server.rendering
+    if not rendering._ready() or rendering.pool is None:
+        raise RuntimeError(f"render pool did not start: {rendering.failure}")
+    pool = rendering.pool
+    costs.renderer, costs.fallback = pool.renderer_used, pool.fallback_reason
     request, render, publish, trip = [], [], [], []
     for n in range(rounds + 1):
         for cam in cameras:
             now = server.sim.clock.now_ns + n * len(cameras) + cam.index  # a fresh snapshot each time
             start = time.perf_counter()
-            rig.pool.request(cam.index, now, physics.frame_pose(*where[cam.index]), rig.states(now))
+            states = {name: BodyState(*physics.body_state(name)) for name in physics.moving_bodies()}
+            pool.request(cam.index, now, physics.frame_pose(*cam.where), states)
             requested = time.perf_counter()
-            (frame,) = rig.pool.collect(wait_for=cam.index, timeout=FIRST_FRAME_TIMEOUT_S)
+            (frame,) = pool.collect(wait_for=cam.index, timeout=FIRST_FRAME_TIMEOUT_S)
             collected = time.perf_counter()
             cam.publish(frame)
             published = time.perf_counter()
@@ -287,16 +320,21 @@ def measure_in_process(seconds: float) -> Costs:
     with in_process_server() as (server, client):
         count_topics(client, [*CAMERAS, *LIDARS, IMU])  # the bytes really leave, as they do for a subscriber
         time.sleep(0.5)
-        light = systems_of(server, Camera)[0].rig.light
+        light = server.rendering.light
         for size in ((640, 480), (320, 240)):
             views = robot_views(server.physics, size)
-            costs.capacity_fps[size], costs.cpu_fps[size] = bare_render_fps(server.physics.client, views, light, seconds)
-            log.info("bare TinyRenderer %dx%d: %.1f frames/s on one core", *size, costs.capacity_fps[size])
-        costs.bare_image_ms = 1e3 / costs.capacity_fps[(640, 480)]  # the mean over the six views, as render_ms
+            costs.tiny_fps[size], costs.tiny_cpu_fps[size] = bare_render_fps(server.physics.client, views, light, seconds)
+            log.info("bare TinyRenderer %dx%d: %.1f frames/s on one core", *size, costs.tiny_fps[size])
+            costs.gl_fps[size], costs.gl_cpu_fps[size], costs.gl_device = bare_gl_fps(server.physics, views, light, seconds)
+            log.info("bare GL %dx%d: %.1f frames/s on one core (%s)", *size, costs.gl_fps[size], costs.gl_device)
         lidar_costs(server, costs, 100)
         imu_costs(server, costs, 2000)
         log.info("in-process: starting the render pool for the camera costs")
         camera_costs(server, costs, 3)
+        bare = costs.gl_fps if costs.renderer == "gl" else costs.tiny_fps
+        costs.capacity_fps = bare
+        costs.cpu_fps = costs.gl_cpu_fps if costs.renderer == "gl" else costs.tiny_cpu_fps
+        costs.bare_image_ms = 1e3 / bare[(640, 480)]  # the mean over the six views, as render_ms
     return costs
 
 
@@ -581,43 +619,48 @@ def _camera_rows(label: str, run: Run, costs: Costs, size: tuple[int, int], work
             f"real time, 6 cameras {label}: images/s received, all cameras",
             f"{fps:.1f} = {fps / capacity:.0%} of capacity ({verdict(fps >= CAPACITY_TARGET * capacity)})",
             f"≥ {CAPACITY_TARGET:.0%} of capacity",
-            f"capacity {capacity:.1f}/s = bare TinyRenderer {costs.capacity_fps[size]:.1f}/s × {workers} worker(s)",
+            f"capacity {capacity:.1f}/s = bare {costs.renderer} {costs.capacity_fps[size]:.1f}/s × {workers} worker(s)",
         ),
         (
             f"real time, 6 cameras {label}: images per render-worker CPU second",
             f"{per_cpu:.1f} = {per_cpu / costs.cpu_fps[size]:.0%} of bare "
             f"(workers got {run.worker_cpu:.2f} of a core each second)",
             "—",
-            f"bare TinyRenderer {costs.cpu_fps[size]:.1f} per CPU second",
+            f"bare {costs.renderer} {costs.cpu_fps[size]:.1f} per CPU second",
         ),
     ]
 
 
-def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, every_core: Run, fast: Run, bare: BareLoop) -> list[str]:
+def _per_camera(label: str, run: Run, target: float) -> tuple[str, str, str, str]:
+    rates = [run.per_second(c) for c in CAMERAS]
+    return (
+        f"real time, {label}: images/s per camera (front, back, front_right, back_right, front_left, back_left)",
+        ", ".join(f"{r:.1f}" for r in rates) + f" ({verdict(min(rates) >= target)})",
+        f"≥ {target:.0f} each",
+        f"{CAMERA_TARGET_HZ:.0f} Hz in the SDF",
+    )
+
+
+def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, big_tiny: Run, fast: Run, bare: BareLoop) -> list[str]:
     """One markdown table, ready for the README."""
-    cores = len(os.sched_getaffinity(0))
-    per_cam = ", ".join(f"{small.per_second(c):.1f}" for c in CAMERAS)
+    gl_over_tiny = costs.gl_cpu_fps[(640, 480)] / costs.tiny_cpu_fps[(640, 480)]
     image_ms = costs.request_ms + costs.render_ms + costs.publish_ms
     fast_per_cpu, bare_per_cpu = fast.rtf / fast.server_cpu, bare.rtf / bare.cpu
     rows = [
+        (
+            "GL renderer, 640×480 warehouse frame, six poses: frames per CPU second",
+            f"{costs.gl_cpu_fps[(640, 480)]:.0f} = {gl_over_tiny:.1f}× TinyRenderer ({verdict(gl_over_tiny >= 10)})",
+            "≥ 10×",
+            f"bare TinyRenderer {costs.tiny_cpu_fps[(640, 480)]:.1f} per CPU second ({costs.gl_device})",
+        ),
         ("real time, nothing subscribed: real-time factor", f"{idle.rtf:.3f}", "1.0", "—"),
-        _rtf_row("640×480", big, idle),
-        *_camera_rows("640×480", big, costs, (640, 480), workers),
-        _rtf_row("320×240", small, idle),
-        *_camera_rows("320×240", small, costs, (320, 240), workers),
-        (
-            "real time, 320×240: images/s per camera (front, back, front_right, back_right, front_left, back_left)",
-            per_cam,
-            f"{CAMERA_TARGET_HZ:.0f} each",
-            f"capacity / 6 = {costs.capacity_fps[(320, 240)] * workers / len(CAMERAS):.1f} each",
-        ),
-        _rtf_row(f"320×240, --render-workers {cores}", every_core, idle),
-        (
-            f"real time, 320×240, --render-workers {cores}: images/s per camera",
-            ", ".join(f"{every_core.per_second(c):.1f}" for c in CAMERAS),
-            f"{CAMERA_TARGET_HZ:.0f} each",
-            f"bare TinyRenderer 320×240 on one core / 6 = {costs.capacity_fps[(320, 240)] / len(CAMERAS):.1f} each",
-        ),
+        _rtf_row(f"640×480 ({big.renderer})", big, idle),
+        _per_camera(f"6 cameras 640×480 ({big.renderer})", big, 25.0),
+        *_camera_rows(f"640×480 ({big.renderer})", big, costs, (640, 480), workers),
+        _rtf_row(f"320×240 ({small.renderer})", small, idle),
+        _per_camera(f"6 cameras 320×240 ({small.renderer})", small, 29.0),
+        _rtf_row(f"640×480 ({big_tiny.renderer})", big_tiny, idle),
+        _per_camera(f"6 cameras 640×480 ({big_tiny.renderer})", big_tiny, 25.0),
         (
             "fast mode, lidars + IMU subscribed, driving: real-time factor",
             f"{fast.rtf:.1f}× = {fast.rtf / bare.rtf:.2f} of bare ({verdict(fast.rtf >= FAST_TARGET)})",
@@ -661,7 +704,7 @@ def main() -> None:
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     short = args.seconds / 2
-    workers = worker_count(len(CAMERAS))
+    workers = plan_pool(len(CAMERAS)).workers
 
     costs = measure_in_process(short / 2)
     log.info("server: real time, nothing subscribed")
@@ -671,27 +714,27 @@ def main() -> None:
     big = run_server("realtime", everything, args.seconds, ["--camera-size", "640x480"])
     log.info("server: real time, every sensor subscribed, 320x240")
     small = run_server("realtime", everything, args.seconds, ["--camera-size", "320x240"])
-    cores = len(os.sched_getaffinity(0))
-    log.info("server: real time, every sensor subscribed, 320x240, a render worker on every core")
-    every_core = run_server("realtime", everything, args.seconds, ["--camera-size", "320x240", "--render-workers", str(cores)])
+    log.info("server: real time, every sensor subscribed, 640x480, TinyRenderer")
+    big_tiny = run_server("realtime", everything, args.seconds, ["--camera-size", "640x480", "--renderer", "tiny"])
     log.info("server: fast mode, lidars and IMU, driving")
     fast = run_server("fast", [*LIDARS, IMU], short, drive=True)
     log.info("bare PyBullet loop, wheels driven")
     bare = bare_physics(short)
 
     print()
-    print("\n".join(table(costs, workers, idle, big, small, every_core, fast, bare)))
+    print("\n".join(table(costs, workers, idle, big, small, big_tiny, fast, bare)))
     fallback = f", fell back: {costs.fallback}" if costs.fallback else ", no fallback"
     print(f"\nraw: {workers} render worker(s) on {len(os.sched_getaffinity(0))} cores; renderer {costs.renderer}{fallback}")
     print(f"  camera round trip (request to collected, in-process, worker alone): {costs.round_trip_ms:.1f} ms")
-    for size in costs.capacity_fps:
-        print(f"  bare TinyRenderer {size[0]}x{size[1]}: {costs.capacity_fps[size]:.1f}/s wall, {costs.cpu_fps[size]:.1f}/s CPU")
+    for size in costs.tiny_fps:
+        print(f"  bare TinyRenderer {size[0]}x{size[1]}: {costs.tiny_fps[size]:.1f}/s wall, {costs.tiny_cpu_fps[size]:.1f}/s CPU")
+        print(f"  bare GL {size[0]}x{size[1]}: {costs.gl_fps[size]:.1f}/s wall, {costs.gl_cpu_fps[size]:.1f}/s CPU ({costs.gl_device})")
     print(f"  bare PyBullet loop, wheels driven: {bare.rtf:.2f}× real time with {bare.cpu:.2f} of a core")
     runs = {
         "real time, nothing subscribed": idle,
         "real time, 640x480": big,
         "real time, 320x240": small,
-        f"real time, 320x240, {cores} render workers": every_core,
+        "real time, 640x480, TinyRenderer": big_tiny,
         "fast, lidars + IMU": fast,
     }
     for label, run in runs.items():

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 from simbot.description import load_model, load_world
 from simbot.description.model import Cylinder
 
@@ -23,8 +25,8 @@ def test_reference_robot(reference: Path, clean_resource_path: None, caplog: pyt
     robot = load_model(reference / "urdf" / "Flexley_Tug.sdf")
     sensors = {s.name: s for _, s in robot.sensors()}
     assert sorted(s.type for s in sensors.values()) == ["camera"] * 6 + ["gpu_lidar"] * 2 + ["imu"]
-    assert sensors["lidar_front"].lidar.horizontal.samples == 720  # type: ignore[union-attr]
-    assert sensors["imu_sensor"].imu.linear_acceleration_noise[2].stddev == 1.7e-2  # type: ignore[union-attr]
+    assert LidarParams.from_sdf(sensors["lidar_front"]).horizontal.samples == 720
+    assert ImuParams.from_sdf(sensors["imu_sensor"]).linear_acceleration_noise[2].stddev == 1.7e-2
     warnings = _warnings(caplog)
     assert len(warnings) == 11 and all(MISSING_MESH in w for w in warnings)  # 11 mesh visuals, none shipped
     assert any("chassis.stl" in w and "urdf/../meshes/chassis.stl" in w for w in warnings), "names the paths tried"

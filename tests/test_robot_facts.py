@@ -8,6 +8,9 @@ import numpy as np
 import pytest
 from conftest import ROBOT_SDF
 
+from simbot.sim.systems.camera import CameraParams
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 from simbot.description import Model, load_model
 from simbot.description.model import Box, Cylinder, Sphere
 from simbot.description.poses import Pose
@@ -52,11 +55,11 @@ def test_imu(robot: Model) -> None:
     assert robot.joint("imu_joint").type == "fixed" and robot.joint("imu_joint").parent == "base_link"
     (sensor,) = imu_link.sensors
     assert sensor.type == "imu" and sensor.update_rate == 200 and sensor.topic == "imu_scan" and sensor.frame_name == "imu_link"
-    assert sensor.imu is not None
-    for noise in sensor.imu.angular_velocity_noise:
-        assert noise is not None and noise.type == "gaussian" and noise.mean == 0 and noise.stddev == 2e-4
-    for noise in sensor.imu.linear_acceleration_noise:
-        assert noise is not None and noise.type == "gaussian" and noise.stddev == 1.7e-2
+    imu = ImuParams.from_sdf(sensor)
+    for noise in imu.angular_velocity_noise:
+        assert noise.type == "gaussian" and noise.mean == 0 and noise.stddev == 2e-4
+    for noise in imu.linear_acceleration_noise:
+        assert noise.type == "gaussian" and noise.stddev == 1.7e-2
 
 
 @pytest.mark.parametrize(
@@ -77,8 +80,8 @@ def test_lidars(robot: Model, side: str, link_xyz: tuple[float, ...], link_yaw: 
     in_model = link.pose @ sensor.pose
     assert math.isclose(in_model.xyz[0], sensor_x, abs_tol=TOL)
     assert math.isclose(math.cos(_yaw(in_model)), looks, abs_tol=TOL)
-    lidar = sensor.lidar
-    assert lidar is not None and lidar.horizontal.samples == 720
+    lidar = LidarParams.from_sdf(sensor)
+    assert lidar.horizontal.samples == 720
     assert (lidar.horizontal.min_angle, lidar.horizontal.max_angle) == (-1.396263, 1.396263)
     assert (lidar.range_min, lidar.range_max, lidar.range_resolution) == (0.08, 10.0, 0.01)
 
@@ -100,8 +103,8 @@ def test_cameras(robot: Model) -> None:
     for name, (x, y, yaw) in CAMERAS.items():
         sensor = cameras[name]
         assert _close(sensor.pose.xyz, (x, y, 0.39)) and math.isclose(math.cos(_yaw(sensor.pose) - yaw), 1.0, abs_tol=TOL)
-        camera = sensor.camera
-        assert camera is not None and (camera.width, camera.height, camera.format) == (640, 480, "R8G8B8")
+        camera = CameraParams.from_sdf(sensor)
+        assert (camera.width, camera.height, camera.format) == (640, 480, "R8G8B8")
         assert (camera.horizontal_fov, camera.near, camera.far, sensor.update_rate) == (2.0944, 0.05, 50, 30)
         assert sensor.topic == name
 

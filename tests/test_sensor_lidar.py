@@ -24,6 +24,8 @@ import pytest
 from conftest import REPO, ROBOT_SDF
 from server_helpers import POSE_STAMPED, Collector, SimServer, pose_of, reset_before_each, running_server, stamp_ns
 
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.rotations import quaternion_to_matrix
@@ -406,15 +408,15 @@ def test_reference_robot_sensors_description(reference: Path) -> None:
     for name, link in (("lidar_front", "base_scan_front"), ("lidar_back", "base_scan_back")):
         on, lidar = sensors[name]
         assert on == link and lidar.topic == name and lidar.frame_name == link and lidar.update_rate == 5
-        spec = lidar.lidar
-        assert spec is not None and spec.horizontal.samples == SAMPLES
+        spec = LidarParams.from_sdf(lidar)
+        assert spec.horizontal.samples == SAMPLES
         assert (spec.horizontal.min_angle, spec.horizontal.max_angle) == (-ANGLE_MAX, ANGLE_MAX)
         assert (spec.range_min, spec.range_max, spec.range_resolution) == (RANGE_MIN, RANGE_MAX, RESOLUTION)
     on, imu = sensors["imu_sensor"]
     assert on == "imu_link" and imu.topic == "/imu_scan" and imu.frame_name == "imu_link" and imu.update_rate == 200
-    assert imu.imu is not None
-    assert [n.stddev for n in imu.imu.angular_velocity_noise] == [2e-4] * 3  # type: ignore[union-attr]
-    assert [n.stddev for n in imu.imu.linear_acceleration_noise] == [1.7e-2] * 3  # type: ignore[union-attr]
+    imu_params = ImuParams.from_sdf(imu)
+    assert [n.stddev for n in imu_params.angular_velocity_noise] == [2e-4] * 3
+    assert [n.stddev for n in imu_params.linear_acceleration_noise] == [1.7e-2] * 3
     cameras = [s for _, s in sensors.values() if s.type == "camera"]
     assert sorted(c.topic or "" for c in cameras) == sorted(
         f"{n}_cam" for n in ("front", "back", "front_right", "back_right", "front_left", "back_left")
