@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
+from gl_helpers import NO_EGL
 
 from simbot.sim.bullet import pb
-from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody
+from simbot.sim.render import BodyState, CameraSpec, Frame, Light, PoolPlan, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.specs import Transform
 
 W, H = 160, 120
@@ -117,18 +118,6 @@ CAMERAS = [
 RGB, RGBD, MONO, FULL, NOISY_A, NOISY_B, NOISY_C = range(len(CAMERAS))
 
 
-def egl_opens() -> str | None:
-    """Why no OpenGL 3.3 EGL context opens here, or None when one does."""
-    try:
-        import moderngl
-
-        moderngl.create_context(standalone=True, backend="egl", require=330).release()
-    except Exception as exc:  # noqa: BLE001 - any failure means no GL here
-        return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
-    return None
-
-
-NO_EGL = egl_opens()
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
@@ -460,3 +449,19 @@ def test_a_scene_that_does_not_load_fails_the_start() -> None:
     broken = SceneBody("broken", "<robot name='x'><link", True, AHEAD)
     with pytest.raises(RuntimeError, match="failed to start.*broken"):
         RenderPool([broken], CAMERAS[:1], workers=1, start_timeout=WAIT)
+
+
+@pytest.mark.parametrize(
+    ("cores", "asked", "plan"),
+    [
+        (2, None, PoolPlan(1, 1)),  # this machine: the physics keeps one core, one worker with one rasterizer thread
+        (1, None, PoolPlan(1, 1)),  # one core: still one worker (at nice 10, the physics wins)
+        (16, None, PoolPlan(6, 2)),  # a worker per camera, the 15 cores left shared out: 6 × 2 ≤ 15
+        (8, None, PoolPlan(6, 1)),
+        (16, 2, PoolPlan(2, 7)),  # --render-workers 2: each worker rasterizes on 7 threads
+        (4, 10, PoolPlan(6, 1)),  # never more workers than cameras
+    ],
+)
+def test_workers_times_threads_fit_every_core_but_the_physics_one(cores: int, asked: int | None, plan: PoolPlan) -> None:
+    assert plan_pool(6, asked, cores) == plan
+    assert plan.workers * plan.gl_threads <= max(1, cores - 1) or asked is not None

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from gl_helpers import NO_EGL
 from server_helpers import SimServer, running_server, stamp_ns
 
 from simbot.bus import messages
@@ -30,17 +31,6 @@ HFOV = 2.0944
 BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
 
 
-def _egl() -> str | None:
-    try:
-        import moderngl
-
-        moderngl.create_context(standalone=True, backend="egl", require=330).release()
-    except Exception as exc:  # noqa: BLE001 - any failure means no GL here
-        return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
-    return None
-
-
-NO_EGL = _egl()
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])

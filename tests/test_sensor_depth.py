@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from gl_helpers import NO_EGL
 from server_helpers import SimServer, running_server, server_command, stamp_ns
 
 from simbot.bus import messages
@@ -30,17 +31,6 @@ W, H, HFOV = 160, 120, 1.2
 FX = (W / 2) / math.tan(HFOV / 2)
 
 
-def _egl() -> str | None:
-    try:
-        import moderngl
-
-        moderngl.create_context(standalone=True, backend="egl", require=330).release()
-    except Exception as exc:  # noqa: BLE001 - any failure means no GL here
-        return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
-    return None
-
-
-NO_EGL = _egl()
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
