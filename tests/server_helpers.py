@@ -23,7 +23,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -286,6 +286,16 @@ class SimServer:
                 raise AssertionError(f"no messages within {timeout} s of subscribing: {[len(c) for c in collectors]}")
             self.step(chunk)
             time.sleep(0.01)
+
+    def latest(self, topics: Mapping[str, str], chunk: int = 20, timeout: float = 60.0) -> dict[str, Any]:
+        """Lockstep: subscribes to each topic (key → type), steps until each has a message, and
+        returns the last of each; unsubscribes again, so cameras stop rendering."""
+        collectors = {topic: self.subscribe(topic, typename) for topic, typename in topics.items()}
+        try:
+            self.prime(*collectors.values(), chunk=chunk, timeout=timeout)
+            return {topic: c.messages()[-1] for topic, c in collectors.items()}
+        finally:
+            self.unsubscribe_all()
 
     # process
 

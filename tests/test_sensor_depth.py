@@ -41,17 +41,8 @@ def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
         yield server
 
 
-def _latest(sim: SimServer, topics: dict[str, str]) -> dict[str, object]:
-    collectors = {topic: sim.subscribe(topic, typename) for topic, typename in topics.items()}
-    try:
-        sim.prime(*collectors.values(), chunk=100, timeout=60.0)  # the first subscription starts the render workers
-        return {topic: c.messages()[-1] for topic, c in collectors.items()}
-    finally:
-        sim.unsubscribe_all()
-
-
 def test_depth_camera_reads_z_depth_of_the_wall_with_its_camera_info_beside_it(sim: SimServer) -> None:
-    got = _latest(sim, {"depth_camera": IMAGE, "depth_camera/camera_info": INFO})
+    got = sim.latest({"depth_camera": IMAGE, "depth_camera/camera_info": INFO}, chunk=100)
     image, info = got["depth_camera"], got["depth_camera/camera_info"]
     assert (image.encoding, image.width, image.height, image.step) == ("32FC1", W, H, W * 4)  # type: ignore[attr-defined]
     assert image.header.frame_id == "depth_cam_optical_frame"  # type: ignore[attr-defined]

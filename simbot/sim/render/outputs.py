@@ -56,8 +56,3 @@ class PointGrid:
         packed = (rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8) | rgb[..., 2]
         out[..., 3] = packed.view(np.float32)
 
-
-def packed_rgb(points: Points) -> npt.NDArray[np.uint8]:
-    """The r g b of a point cloud's packed float (for tests and clients)."""
-    packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)
-    return np.stack([(packed >> 16) & 255, (packed >> 8) & 255, packed & 255], axis=-1).astype(np.uint8)

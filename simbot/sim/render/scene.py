@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from simbot.rotations import quaternion_to_matrix
 from simbot.sim.render.specs import BodyState, SceneBody, Transform
 
 Matrix = npt.NDArray[np.float64]
@@ -112,13 +113,8 @@ class BulletScene:
 
 def matrix(position: Sequence[float], quat: Sequence[float]) -> Matrix:
     """4×4 homogeneous transform from PyBullet's (xyz, quaternion xyzw)."""
-    x, y, z, w = quat
     out = np.eye(4)
-    out[:3, :3] = (
-        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
-        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
-        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
-    )
+    out[:3, :3] = quaternion_to_matrix(quat)
     out[:3, 3] = position
     return out
 
