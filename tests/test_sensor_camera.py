@@ -10,6 +10,8 @@ centred, fx·1 m / 2.5 m = 74 px wide at 640 × 480 with the SDF's 120° field o
 from __future__ import annotations
 
 import math
+import os
+import signal
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -195,3 +197,29 @@ def test_bad_camera_options_are_one_line_errors() -> None:
         result = run(server_command(option, value, "--world", "empty"), capture_output=True, text=True, timeout=30)
         assert result.returncode == 2, (option, value, result.stderr)
         assert option in result.stderr and "Traceback" not in result.stderr
+
+
+def _render_workers(pid: int) -> list[int]:
+    """The server's render worker processes: its spawned children other than multiprocessing's resource tracker."""
+    found = []
+    for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split():
+        cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+        if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
+            found.append(int(child))
+    return found
+
+
+def test_a_killed_render_worker_stops_the_cameras_not_the_simulation() -> None:
+    """SIGKILL to the render worker: world state reports the cameras' error, and sim time and odom go on."""
+    with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--camera-size", "160x120"]) as sim:
+        images = sim.subscribe("camera_front", IMAGE)
+        images.wait_count(3, timeout=60.0, what="camera_front images")
+        (worker,) = _render_workers(sim.process.pid)
+        os.kill(worker, signal.SIGKILL)
+        wait_until = sim.state()["sim_time"]
+        while "error" not in sim.state()["sensors"]["camera_front"]:
+            assert sim.state()["sim_time"] < wait_until + 10.0, "no camera error reported within 10 s of sim time"
+        assert "died" in sim.state()["sensors"]["camera_front"]["error"]
+        odom = sim.subscribe("odom", "nav_msgs/msg/Odometry")
+        odom.wait_count(25, timeout=10.0, what="odom after the worker died")  # 50 Hz: half a second
+        assert sim.alive() and sim.state()["real_time_factor"] > 0.5
