@@ -188,6 +188,15 @@ def test_compilers_are_in_the_build_stage_and_not_in_the_image(dockerfile: list[
     assert [copy.split() for copy in final.all("COPY")] == [["--from=build", "/opt/simbot", "/opt/simbot"]]
 
 
+def test_the_image_and_the_test_stage_have_mesa_egl_for_the_gl_renderer(dockerfile: list[Stage], final: Stage) -> None:
+    """libEGL (glvnd), Mesa's EGL vendor library and its llvmpipe driver: without them the cameras
+    fall back to TinyRenderer (a fifteenth of the frames) and the gl tests skip."""
+    mesa = {"libegl1", "libegl-mesa0", "libgl1-mesa-dri"}
+    test = next(stage for stage in dockerfile if stage.name == "test")
+    assert mesa <= installed_packages(final)
+    assert mesa <= installed_packages(test)
+
+
 def test_image_runs_as_a_user_and_checks_its_health(final: Stage) -> None:
     user = final.last("USER").split(":")[0]
     assert user not in ("root", "0"), user
