@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
 from simbot.sim.render.shapes import triangles
-from simbot.sim.render.specs import CameraSpec, Light, Transform
+from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, Transform
 
 log = logging.getLogger(__name__)
 
@@ -101,14 +101,15 @@ class GlRenderer:
         import moderngl  # an import error is a reason to fall back, reported by the worker
 
         self.scene = scene
-        self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)
+        self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
         self.program = self.ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+        self.uniforms = {name: _uniform(self.program, name) for name in _UNIFORMS}
         to_light = -np.asarray(light.direction, dtype=np.float64)
-        self.program["to_light"].value = tuple(to_light / np.linalg.norm(to_light))
-        self.program["ambient"].value = light.ambient
-        self.program["diffuse"].value = light.diffuse
+        self.uniforms["to_light"].value = tuple(to_light / np.linalg.norm(to_light))
+        self.uniforms["ambient"].value = light.ambient
+        self.uniforms["diffuse"].value = light.diffuse
         self.parts = self._build_parts()
         self.targets = {i: self._target(spec) for i, spec in cameras.items()}
 
@@ -147,17 +148,17 @@ class GlRenderer:
 
     # --- a frame
 
-    def render(self, camera: int, pose: Transform, color: memoryview | None, depth: memoryview | None) -> None:
+    def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None:
         """Draw camera `camera` at `pose` (the scene already posed); read colour (uint8) and window
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
         spec = target.spec
         view = view_matrix(pose)
-        program = self.program
-        program["view_projection"].write(_gl(target.projection @ view))
-        program["view"].write(_gl(view))
-        program["far"].value = spec.far
-        program["mono"].value = spec.channels == 1
+        uniforms = self.uniforms
+        uniforms["view_projection"].write(_gl(target.projection @ view))
+        uniforms["view"].write(_gl(view))
+        uniforms["far"].value = spec.far
+        uniforms["mono"].value = spec.channels == 1
         target.fbo.use()
         target.fbo.clear(*BACKGROUND, 1.0, depth=1.0)
         if spec.depth:
@@ -174,7 +175,7 @@ class GlRenderer:
 
     def _draw(self) -> None:
         frames: dict[str, dict[int, Matrix]] = {}
-        model = self.program["model"]
+        model = self.uniforms["model"]
         for part in self.parts:
             if part.body is None:
                 model.write(_gl(np.eye(4)))
@@ -188,6 +189,17 @@ class GlRenderer:
         self.ctx.release()
 
 
+_UNIFORMS = ("view_projection", "view", "model", "to_light", "ambient", "diffuse", "far", "mono")
+
+
+def _uniform(program: Any, name: str) -> Any:
+    """A uniform of the program; a shader that lost one (the compiler drops what is unused) fails here, not mid-frame."""
+    member = program.get(name, None)
+    if member is None:
+        raise RuntimeError(f"the GL program has no uniform {name!r}")
+    return member
+
+
 def _gl(m: Matrix) -> bytes:
     """A 4×4 matrix as GLSL's column-major float32 bytes."""
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
@@ -195,9 +207,9 @@ def _gl(m: Matrix) -> bytes:
 
 def _vertices(shape: VisualShape, link_to_world: Matrix) -> npt.NDArray[np.float32]:
     """Interleaved position, normal, colour rows of the shape, transformed by `link_to_world`."""
-    positions, normals = triangles(shape)
+    local_positions, local_normals = triangles(shape)
     rotation = link_to_world[:3, :3]
-    positions = positions @ rotation.T + link_to_world[:3, 3]
-    normals = normals @ rotation.T
+    positions = local_positions @ rotation.T + link_to_world[:3, 3]
+    normals = local_normals @ rotation.T
     colors = np.broadcast_to(np.asarray(shape.rgba[:3], dtype=np.float32), positions.shape)
     return np.hstack([positions, normals, colors]).astype(np.float32)

@@ -5,7 +5,6 @@ hand over the same raw form (uint8 colour, window depth 0..1), so this is shared
 from __future__ import annotations
 
 import numpy as np
-import numpy.typing as npt
 
 from simbot.sim.render.specs import CameraSpec, Depths, Pixels, Points
 

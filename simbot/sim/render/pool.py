@@ -26,6 +26,7 @@ requests for its cameras raise RuntimeError naming the worker and its cameras; c
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -103,7 +104,7 @@ class RenderPool:
         cameras: Sequence[CameraSpec],
         workers: int,
         renderer: str = "auto",
-        light: Light = Light(),
+        light: Light | None = None,
         start_timeout: float = START_TIMEOUT_S,
         gl_threads: int | None = None,
     ) -> None:
@@ -116,11 +117,11 @@ class RenderPool:
         self._finished: list[Frame] = []  # received, not yet handed over
         self._failures: list[str] = []
         self._shms = [SharedMemory(create=True, size=spec.nbytes) for spec in self.cameras]
-        self._buffers = [CameraBuffers(spec, shm) for spec, shm in zip(self.cameras, self._shms)]
+        self._buffers = [CameraBuffers(spec, shm) for spec, shm in zip(self.cameras, self._shms, strict=True)]
         n = min(workers, len(self.cameras))
         self._worker_of = [i % n for i in range(len(self.cameras))] if n else []
         try:
-            self._start(bodies, n, renderer, light, gl_threads)
+            self._start(bodies, n, renderer, light or Light(), gl_threads)
             ready = self._await_ready(start_timeout)
         except BaseException:
             self.close()
@@ -342,10 +343,8 @@ def _check_config(bodies: Sequence[SceneBody], cameras: Sequence[CameraSpec], wo
 def _stop_workers(workers: Sequence[_Worker]) -> None:
     """Ask politely, give a frame's time, then terminate, then kill."""
     for worker in workers:
-        try:
+        with contextlib.suppress(OSError):  # a dead worker's pipe: it is stopped already
             worker.conn.send(("stop",))
-        except OSError:
-            pass
     deadline = time.monotonic() + STOP_GRACE_S
     for worker in workers:
         worker.process.join(max(0.0, deadline - time.monotonic()))
@@ -366,9 +365,7 @@ def _free(shm: SharedMemory) -> None:
         shm.close()
     except BufferError:
         log.debug("shared memory %s still viewed by a caller's frame; unmapped when that goes", shm.name)
-    try:
+    with contextlib.suppress(FileNotFoundError):
         shm.unlink()
-    except FileNotFoundError:
-        pass
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 from functools import cache
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -55,7 +56,8 @@ _FACES = [(axis, sign) for axis in range(3) for sign in (1.0, -1.0)]
 
 def box(half: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Twelve triangles, flat normals, centred on the origin."""
-    positions, normals = [], []
+    positions: list[npt.NDArray[np.float64]] = []
+    normals: list[npt.NDArray[np.float64]] = []
     for axis, sign in _FACES:
         u, v = (axis + 1) % 3, (axis + 2) % 3
         corners = []
@@ -94,8 +96,9 @@ def revolved(profile: list[tuple[float, float, float, float]]) -> tuple[npt.NDAr
     """A surface of revolution about z: each pair of profile points sweeps a band of quads."""
     angles = np.linspace(0.0, 2.0 * np.pi, SEGMENTS + 1)
     cos, sin = np.cos(angles), np.sin(angles)
-    positions, normals = [], []
-    for (r0, z0, nr0, nz0), (r1, z1, nr1, nz1) in zip(profile, profile[1:]):
+    positions: list[npt.NDArray[np.float64]] = []
+    normals: list[npt.NDArray[np.float64]] = []
+    for (r0, z0, nr0, nz0), (r1, z1, nr1, nz1) in zip(profile, profile[1:], strict=False):
         if r0 == r1 == 0.0 or (r0 == r1 and z0 == z1):
             continue  # a degenerate band: the pole, or the seam between a cap and the side
         ring0 = np.stack([r0 * cos, r0 * sin, np.full_like(cos, z0)], axis=1)
@@ -121,7 +124,7 @@ def _mesh_file(path: str) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float
     import trimesh  # yourdfpy's dependency: STL, OBJ, PLY, glTF
 
     try:
-        loaded = trimesh.load(path, force="mesh")
+        loaded: Any = trimesh.load(path, force="mesh")
     except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds for a bad file
         log.warning("mesh %s cannot be read (%s); it is not drawn", path, exc)
         return np.zeros((0, 3)), np.zeros((0, 3))

@@ -148,3 +148,21 @@ class Frame(NamedTuple):
     points: Points | None
     render_s: float
     """Seconds the worker spent on it (scene update, render, conversion, copy)."""
+
+    def rgb(self) -> Pixels:
+        """The colour image; ValueError for a camera that renders none."""
+        if self.color is None:
+            raise ValueError(f"camera {self.camera} renders no colour")
+        return self.color
+
+    def metres(self) -> Depths:
+        """The depth image; ValueError for a camera that renders none."""
+        if self.depth is None:
+            raise ValueError(f"camera {self.camera} renders no depth")
+        return self.depth
+
+    def cloud(self) -> Points:
+        """The point cloud; ValueError for a camera that renders none."""
+        if self.points is None:
+            raise ValueError(f"camera {self.camera} renders no points")
+        return self.points

@@ -11,7 +11,6 @@ from simbot.sim.render.outputs import luminance
 from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
 from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, Transform
 
-
 CLEARED_DEPTH = 1.0 - 1e-6
 """TinyRenderer clears its depth buffer to just under 1; at or above this, nothing was drawn (a
 surface within about 1 cm of a 50 m far clip reads +inf too)."""

@@ -177,4 +177,4 @@ def _silence_stdio() -> None:
     os.dup2(devnull, 1)
     os.dup2(devnull, 2)
     os.close(devnull)
-    sys.stderr = open(real_stderr, "w", buffering=1, encoding="utf-8", errors="replace")
+    sys.stderr = open(real_stderr, "w", buffering=1, encoding="utf-8", errors="replace")  # noqa: SIM115 - for the process's life

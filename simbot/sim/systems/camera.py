@@ -138,7 +138,7 @@ class Camera(Sampled):
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
         """The camera's products: here the colour image on the sensor's topic."""
-        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.image(f.stamp_ns, self.frame_id, f.color))]
+        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.image(f.stamp_ns, self.frame_id, f.rgb()))]
 
     def info_key(self, topic: str) -> str:
         return camera_info_key(topic)

@@ -21,4 +21,4 @@ class DepthCamera(Camera):
     color = False
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
-        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.depth))]
+        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.metres()))]
