@@ -111,6 +111,8 @@ class GlRenderer:
         self.uniforms["ambient"].value = light.ambient
         self.uniforms["diffuse"].value = light.diffuse
         self.parts = self._build_parts()
+        self._posed = -1
+        self._model_matrices: list[bytes] = []
         self.targets = {i: self._target(spec) for i, spec in cameras.items()}
 
     # --- the scene
@@ -174,16 +176,19 @@ class GlRenderer:
             target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
     def _draw(self) -> None:
-        frames: dict[str, dict[int, Matrix]] = {}
         model = self.uniforms["model"]
-        for part in self.parts:
-            if part.body is None:
-                model.write(_gl(np.eye(4)))
-            else:
-                if part.body not in frames:
-                    frames[part.body] = self.scene.link_matrices(part.body)
-                model.write(_gl(frames[part.body][part.link]))
+        for part, transform in zip(self.parts, self._transforms(), strict=True):
+            model.write(transform)
             part.vao.render()
+
+    def _transforms(self) -> list[bytes]:
+        """Each part's model matrix for the scene's current pose, worked out once per pose (the
+        six cameras of a set share it)."""
+        if self._posed != self.scene.version:
+            frames = {body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}}
+            self._model_matrices = [_gl(np.eye(4) if p.body is None else frames[p.body][p.link]) for p in self.parts]
+            self._posed = self.scene.version
+        return self._model_matrices
 
     def close(self) -> None:
         self.ctx.release()

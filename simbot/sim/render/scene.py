@@ -45,6 +45,10 @@ class BulletScene:
     client: int = -1
     ids: dict[str, int] = field(default_factory=dict)
     movable: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    posed: dict[str, BodyState] | None = None
+    """The states last applied."""
+    version: int = 0
+    """Counts the changes of pose: what a renderer caches per pose is valid while it holds."""
 
     def __post_init__(self) -> None:
         self.client = self.pb.connect(self.pb.DIRECT)
@@ -76,7 +80,12 @@ class BulletScene:
         return tuple(j for j, kind in enumerate(types) if kind in one_dof)
 
     def apply(self, states: Mapping[str, BodyState]) -> None:
-        """Put the moving bodies where the request says."""
+        """Put the moving bodies where the request says. The cameras of a set share one snapshot:
+        the same states again cost nothing (and keep `version`, so link poses stay cached)."""
+        if states == self.posed:
+            return
+        self.posed = None  # until every body is placed: a request that fails halfway leaves no valid pose
+        self.version += 1
         pb, client = self.pb, self.client
         for name, state in states.items():
             body_id = self.ids[name]
@@ -86,6 +95,7 @@ class BulletScene:
                 raise ValueError(f"body {name!r}: {len(state.joints)} joint positions, joint {movable[-1]} moves")
             for j in movable:
                 pb.resetJointState(body_id, j, state.joints[j], physicsClientId=client)
+        self.posed = dict(states)
 
     def visual_shapes(self, name: str) -> list[VisualShape]:
         """The body's visuals, in its URDF link frames."""
