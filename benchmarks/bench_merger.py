@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 from timing import per_call_ms
 
-from clients.merger import Binning, ScanMerger, to_message
+from simbot.clients.merger import Binning, ScanMerger, to_message
 from simbot.bus import decode, encode, messages
 from simbot.bus.transforms import transform_matrix
 

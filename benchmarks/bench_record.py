@@ -22,9 +22,9 @@ import numpy as np
 from timing import per_call_ms
 
 from clients import tap
-from clients.record import Bag
-from clients.tap import RawSample
-from clients.topics import Topic
+from simbot.clients.record import Bag
+from simbot.clients.tap import RawSample
+from simbot.clients.topics import Topic
 from simbot.bus import encode, messages
 
 RATES_HZ = {"imu_scan": 200.0, "lidar_front": 10.0, "camera_front": 12.0}

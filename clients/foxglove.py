@@ -27,7 +27,7 @@ What foxglove_bridge does for a ROS 2 graph, for the simbot bus, on Foxglove's o
 
 Foxglove's callbacks and Zenoh's only queue; the loop does the rest. The SDK is imported only
 when the server starts, so `--help` works without it. Run it as `simbot foxglove` or
-`python -m clients.foxglove` (as a path, `python clients/foxglove.py`, it would shadow the SDK).
+`python -m simbot.clients.foxglove` (as a path, `python clients/foxglove.py`, it would shadow the SDK).
 """
 
 from __future__ import annotations
@@ -42,9 +42,9 @@ from collections.abc import Sequence
 from functools import cache
 from typing import TYPE_CHECKING, NamedTuple, cast
 
-from clients.common import ClientError, Mailbox, client_parser, run_client
-from clients.tap import RawSample, Tap, published
-from clients.topics import Topic
+from .common import ClientError, Mailbox, client_parser, run_client
+from .tap import RawSample, Tap, published
+from .topics import Topic
 from simbot.bus import Node, UnknownMessageType, message_type
 from simbot.bus.codec import TYPESTORE
 

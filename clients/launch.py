@@ -3,7 +3,7 @@
     simbot launch [--world W] [--clients merger,stitcher,monitor] [--server-args "--mode fast ..."]
                   [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
 
-Each child is a subprocess (`python -m simbot.sim.server`, `python -m clients.<name>`) whose
+Each child is a subprocess (`python -m simbot.sim.server`, `python -m simbot.clients.<name>`) whose
 stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). The
 server listens where launch's `--listen` says (default `tcp/127.0.0.1:7447`) and the clients
 connect there, all with the same `--namespace` and `--zenoh-config`. The clients start only once
@@ -38,9 +38,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import IO
 
-from clients.common import EXIT_USAGE, client_parser
-from clients.state import NoWorld, ask
-from clients.topics import live_topics, world_names
+from .common import EXIT_USAGE, client_parser
+from .state import NoWorld, ask
+from .topics import live_topics, world_names
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
 
 EXIT_FAILURE = 1
@@ -157,7 +157,7 @@ def make_plan(args: argparse.Namespace) -> Plan:
     server += [word for endpoint in args.connect for word in ("--connect", endpoint)]
     connect = [word for endpoint in endpoints for word in ("--connect", endpoint)]
     connect += ["--connect-timeout", str(args.connect_timeout)]
-    clients = {name: [sys.executable, "-m", f"clients.{name}", *connect, *shared] for name in names}
+    clients = {name: [sys.executable, "-m", f"simbot.clients.{name}", *connect, *shared] for name in names}
     bus = BusOptions(connect=endpoints, namespace=args.namespace, connect_timeout=CONNECT_TRY_S)
     return Plan([*server, *extra], clients, bus)
 

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from clients.common import Mailbox, client_parser, number, run_client
-from clients.topics import Traffic, format_rate, latched, live_topics, world_names
+from .common import Mailbox, client_parser, number, run_client
+from .topics import Traffic, format_rate, latched, live_topics, world_names
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
 

@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
+from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
 from simbot.bus.transforms import planar_pose

@@ -23,8 +23,8 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from clients.common import ClientError, client_parser, number, run_client
-from clients.topics import live_topics, world_names
+from .common import ClientError, client_parser, number, run_client
+from .topics import live_topics, world_names
 from simbot.bus import Node, ServiceError
 from simbot.rotations import yaw_of
 

@@ -74,7 +74,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
+from .common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.frames import optical_frame
 from simbot.bus.node import RateLimitedWarnings

@@ -21,7 +21,7 @@ from typing import Any
 
 import zenoh
 
-from clients.topics import Topic, live_topics, schema_type
+from .topics import Topic, live_topics, schema_type
 from simbot.bus import DecodeError, Node, UnknownMessageType, decode, messages
 from simbot.bus.node import RateLimitedWarnings
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import zenoh
 
-from clients.common import ClientError, client_parser, number, run_client
+from .common import ClientError, client_parser, number, run_client
 from simbot.bus import Node
 from simbot.bus.graph import KINDS, Kind, discover
 

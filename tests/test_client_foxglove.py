@@ -41,7 +41,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
 
-from clients.tap import published
+from simbot.clients.tap import published
 from simbot.bus import decode, encode, messages
 from simbot.bus.codec import TYPESTORE
 

@@ -42,7 +42,7 @@ from client_helpers import client_command, client_process
 from conftest import REPO, ROBOT_SDF
 from server_helpers import TF_MESSAGE, SimServer, running_server
 
-from clients.stitcher import (
+from simbot.clients.stitcher import (
     CAMERA_INFO,
     CAMERAS,
     IMAGE,
