@@ -39,7 +39,7 @@ def rename(head: bytes, old: bytes, new: bytes) -> bytes:
     """The head with the subprotocol `old` called `new` in its Sec-WebSocket-Protocol lines (nowhere else)."""
 
     def line(match: re.Match[bytes]) -> bytes:
-        names = [new if name.strip() == old else name for name in match.group(2).split(b",")]
+        names = [name.replace(old, new) if name.strip() == old else name for name in match.group(2).split(b",")]
         return match.group(1) + b",".join(names)
 
     return PROTOCOL_LINE.sub(line, head)

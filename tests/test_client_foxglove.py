@@ -203,9 +203,11 @@ class Bridge:
 
 @pytest.fixture(scope="module")
 def bridge(sim: SimServer) -> Iterator[Bridge]:
-    """`simbot foxglove` on a free port for the module; stopped with SIGTERM, exit 0 asserted."""
+    """`simbot foxglove` on a free port for the module, serving once it yields; stopped with SIGTERM, exit 0 asserted."""
     port = free_port()
     with client_process(sim, "foxglove", "--port", str(port)) as process:
+        with viewer(port) as client:
+            client.server_info()
         yield Bridge(process, port)
 
 
