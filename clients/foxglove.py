@@ -46,12 +46,13 @@ from collections.abc import Sequence
 from functools import cache
 from typing import TYPE_CHECKING, NamedTuple, cast
 
+from simbot.bus import Node, UnknownMessageType, message_type
+from simbot.bus.codec import TYPESTORE
+
 from .common import ClientError, Mailbox, client_parser, run_client
 from .subprotocols import LOOPBACK, SubprotocolFront
 from .tap import RawSample, Tap, published
 from .topics import Topic
-from simbot.bus import Node, UnknownMessageType, message_type
-from simbot.bus.codec import TYPESTORE
 
 if TYPE_CHECKING:
     import foxglove

@@ -26,6 +26,7 @@ listening; it opens one only to wait for the world control.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shlex
@@ -38,10 +39,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import IO
 
+from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
+
 from .common import EXIT_USAGE, client_parser
 from .state import NoWorld, ask
 from .topics import live_topics, world_names
-from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
 
 EXIT_FAILURE = 1
 LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
@@ -207,10 +209,8 @@ def end(children: Sequence[Child]) -> None:
             child.process.send_signal(sig)
         deadline = time.monotonic() + grace
         for child in running:
-            try:
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 child.process.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
 
 
 def try_open(bus: BusOptions) -> Node | None:

@@ -46,10 +46,10 @@ from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
 
-from simbot.clients.subprotocols import legacy_only, offered, rename
-from simbot.clients.tap import published
 from simbot.bus import decode, encode, messages
 from simbot.bus.codec import TYPESTORE
+from simbot.clients.subprotocols import legacy_only, offered, rename
+from simbot.clients.tap import published
 
 SUBPROTOCOL = Subprotocol("foxglove.sdk.v1")
 LEGACY_SUBPROTOCOL = Subprotocol("foxglove.websocket.v1")  # Lichtblick, @foxglove/ws-protocol 0.8
@@ -238,7 +238,7 @@ def test_advertises_every_published_key_with_its_ros2_schema(sim: SimServer, app
     """One channel per published key, `/` + topic; its schema, parsed alone, is exactly the ROS 2 type."""
     with sim.client() as node:
         expected = published(node)
-    assert SERVER_KEYS <= set(expected), f"the server does not publish {sorted(SERVER_KEYS - set(expected))}"
+    assert set(expected) >= SERVER_KEYS, f"the server does not publish {sorted(SERVER_KEYS - set(expected))}"
     info = app.server_info()
     assert "time" in info["capabilities"] and info["name"] == f"simbot {sim.namespace}"
     topics = {"/" + name for name in expected}
@@ -278,7 +278,7 @@ def test_forwards_bus_payloads_unchanged_at_sim_time(sim: SimServer, app: Viewer
             lags.append(frame.timestamp - stamp)
     at_stamp = sum(lag == 0 for lag in lags)
     print(f"{len(scans)} scans, {len(samples)} IMU samples; timestamp − stamp {min(lags) / 1e6:.0f}…{max(lags) / 1e6:.0f} ms, {at_stamp} at the stamp")
-    assert 0 <= min(lags) and max(lags) <= CLOCK_PERIOD_NS  # never before the data was taken, within a clock tick of it
+    assert min(lags) >= 0 and max(lags) <= CLOCK_PERIOD_NS  # never before the data was taken, within a clock tick of it
     broadcast = [t for t in times if t >= min(clock_ns)]  # from when the test's own clock subscriber was live
     assert len(broadcast) >= 10 and set(broadcast) <= clock_ns and times == sorted(times)
 
