@@ -32,24 +32,9 @@ class StandInPhysics:
 
 
 @dataclass
-class Both:
-    """A system with every phase."""
-
-    name: str
-    calls: Calls
-
-    def pre_update(self, now_ns: int) -> None:
-        self.calls.append(("pre", self.name, str(now_ns)))
-
-    def post_update(self, now_ns: int) -> None:
-        self.calls.append(("post", self.name, str(now_ns)))
-
-    def reset(self, now_ns: int) -> None:
-        self.calls.append(("reset", self.name, str(now_ns)))
-
-
-@dataclass
 class PreOnly:
+    """A system with only pre_update (the runner keeps one list per phase, by the methods a system has)."""
+
     name: str
     calls: Calls
 
@@ -59,11 +44,20 @@ class PreOnly:
 
 @dataclass
 class PostOnly:
+    """A system with only post_update."""
+
     name: str
     calls: Calls
 
     def post_update(self, now_ns: int) -> None:
         self.calls.append(("post", self.name, str(now_ns)))
+
+
+class Both(PreOnly, PostOnly):
+    """A system with every phase, reset included."""
+
+    def reset(self, now_ns: int) -> None:
+        self.calls.append(("reset", self.name, str(now_ns)))
 
 
 @dataclass
