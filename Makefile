@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test bench urdf meshes layout clean
+.PHONY: run test lint bench urdf meshes layout clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -17,6 +17,12 @@ run: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
+
+## ruff's checks and its format check over the tree, mypy over simbot/ and clients/ (rules and strictness in pyproject.toml).
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 
 ## Speed, as ratios against a baseline measured in the same run (figures in the README).
 bench: $(STAMP)
@@ -39,4 +45,4 @@ layout: $(STAMP)
 	$(BIN)/python layouts/make_layout.py
 
 clean:
-	rm -rf $(VENV) build dist .pytest_cache
+	rm -rf $(VENV) build dist .pytest_cache .ruff_cache .mypy_cache

@@ -29,9 +29,9 @@ import numpy as np
 import numpy.typing as npt
 from timing import per_call_ms
 
-from clients.merger import Binning, ScanMerger, to_message
 from simbot.bus import decode, encode, messages
 from simbot.bus.transforms import transform_matrix
+from simbot.clients.merger import Binning, ScanMerger, to_message
 
 TARGET_MS = 2.0
 SAMPLES, ANGLE_MAX, RANGE = 720, 1.396263, (0.08, 10.0)

@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 from timing import per_call_ms
 
-from clients import tap
-from clients.record import Bag
-from clients.tap import RawSample
-from clients.topics import Topic
+from simbot.clients import tap
 from simbot.bus import encode, messages
+from simbot.clients.record import Bag
+from simbot.clients.tap import RawSample
+from simbot.clients.topics import Topic
 
 RATES_HZ = {"imu_scan": 200.0, "lidar_front": 10.0, "camera_front": 12.0}
 """Messages per second of each kind on the whole bus: the IMU, both lidars, all six cameras together."""

@@ -31,9 +31,17 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from clients.stitcher import CAMERAS, DEFAULT_RADIUS_M, CameraModel, CylinderStitcher, Intrinsics, Pixels, StripStitcher
 from simbot.bus import encode, messages
 from simbot.bus.frames import OPTICAL_RPY, optical_frame
+from simbot.clients.stitcher import (
+    CAMERAS,
+    DEFAULT_RADIUS_M,
+    CameraModel,
+    CylinderStitcher,
+    Intrinsics,
+    Pixels,
+    StripStitcher,
+)
 from simbot.description.poses import Pose
 
 WIDTH, HEIGHT = 640, 480

@@ -24,10 +24,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from clients.common import Mailbox, Recent, client_parser, number, run_client
-from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
+
+from .common import Mailbox, Recent, client_parser, number, run_client
+from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
 

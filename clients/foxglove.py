@@ -8,6 +8,10 @@ What foxglove_bridge does for a ROS 2 graph, for the simbot bus, on Foxglove's o
   CDR bytes unchanged (message encoding `cdr`); its schema is the ROS 2 type (`ros2msg`), named
   `sensor_msgs/msg/LaserScan` and holding the `.msg` definition with its dependencies, as
   rosbag2's MCAP files and foxglove_bridge give it, so the app decodes it like theirs.
+- Both names of the protocol are served: `foxglove.sdk.v1` (current Foxglove apps) and
+  `foxglove.websocket.v1` (Lichtblick, `@foxglove/ws-protocol`), which foxglove-sdk refuses: the
+  SDK listens on a private loopback port behind a front that renames the subprotocol in the
+  handshake (`subprotocols.py`).
 - The graph is read about once a second: a key that appears gets a channel, one that goes has its
   channel closed.
 - A key is subscribed on the bus (through `clients.tap`, which drops malformed payloads and counts
@@ -27,7 +31,7 @@ What foxglove_bridge does for a ROS 2 graph, for the simbot bus, on Foxglove's o
 
 Foxglove's callbacks and Zenoh's only queue; the loop does the rest. The SDK is imported only
 when the server starts, so `--help` works without it. Run it as `simbot foxglove` or
-`python -m clients.foxglove` (as a path, `python clients/foxglove.py`, it would shadow the SDK).
+`python -m simbot.clients.foxglove` (as a path, `python clients/foxglove.py`, it would shadow the SDK).
 """
 
 from __future__ import annotations
@@ -42,11 +46,13 @@ from collections.abc import Sequence
 from functools import cache
 from typing import TYPE_CHECKING, NamedTuple, cast
 
-from clients.common import ClientError, Mailbox, client_parser, run_client
-from clients.tap import RawSample, Tap, published
-from clients.topics import Topic
 from simbot.bus import Node, UnknownMessageType, message_type
 from simbot.bus.codec import TYPESTORE
+
+from .common import ClientError, Mailbox, client_parser, run_client
+from .subprotocols import LOOPBACK, SubprotocolFront
+from .tap import RawSample, Tap, published
+from .topics import Topic
 
 if TYPE_CHECKING:
     import foxglove
@@ -271,22 +277,33 @@ def _require_sdk() -> None:
 
 
 def _start_server(args: argparse.Namespace, listener: Listener, context: foxglove.Context) -> WebSocketServer:
-    """Foxglove's WebSocket server with the Time capability; a port in use (or a bad host) is a ClientError."""
+    """Foxglove's WebSocket server with the Time capability, on a private loopback port behind the front."""
     import foxglove
     from foxglove.websocket import Capability
 
     try:
         return foxglove.start_server(
             name=f"simbot {args.namespace}" if args.namespace else "simbot",
-            host=args.host,
-            port=args.port,
+            host=LOOPBACK,
+            port=0,
             capabilities=[Capability.Time],
             server_listener=cast("ServerListener", listener),  # has the callbacks a server without ClientPublish calls
             context=context,
         )
     except RuntimeError as exc:
         reason = str(exc).removeprefix("FoxgloveError: ")
-        raise ClientError(f"cannot serve on {args.host} port {args.port} (--host, --port): {reason}") from None
+        raise ClientError(f"cannot start Foxglove's server on {LOOPBACK}: {reason}") from None
+
+
+def _bind_front(args: argparse.Namespace) -> SubprotocolFront:
+    """The front where the user asked, taking both subprotocols; a port in use (or a bad host) is a ClientError."""
+    front = SubprotocolFront(args.host, args.port)
+    try:
+        front.bind()
+    except OSError as exc:
+        front.stop()
+        raise ClientError(f"cannot serve on {args.host} port {args.port} (--host, --port): {exc.strerror or exc}") from None
+    return front
 
 
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
@@ -294,9 +311,15 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
     listener = Listener()
     context = foxglove.Context()
-    server = _start_server(args, listener, context)
+    front = _bind_front(args)
+    try:
+        server = _start_server(args, listener, context)
+    except ClientError:
+        front.stop()
+        raise
+    front.serve(server.port)
     bridge = Bridge(node, server, context, listener)
-    logger.info("serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, server.port))
+    logger.info("serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, front.port))
     next_graph = 0.0
     try:
         while not stop.is_set():
@@ -306,6 +329,7 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
             bridge.apply_changes()
             bridge.pump(WAIT_S)
     finally:
+        front.stop()
         server.stop()
         bridge.close()
     logger.info("%s", bridge.summary())

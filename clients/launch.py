@@ -3,7 +3,7 @@
     simbot launch [--world W] [--clients merger,stitcher,monitor] [--server-args "--mode fast ..."]
                   [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
 
-Each child is a subprocess (`python -m simbot.sim.server`, `python -m clients.<name>`) whose
+Each child is a subprocess (`python -m simbot.sim.server`, `python -m simbot.clients.<name>`) whose
 stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). The
 server listens where launch's `--listen` says (default `tcp/127.0.0.1:7447`) and the clients
 connect there, all with the same `--namespace` and `--zenoh-config`. The clients start only once
@@ -26,6 +26,7 @@ listening; it opens one only to wait for the world control.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shlex
@@ -38,10 +39,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import IO
 
-from clients.common import EXIT_USAGE, client_parser
-from clients.state import NoWorld, ask
-from clients.topics import live_topics, world_names
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
+
+from .common import EXIT_USAGE, client_parser
+from .state import NoWorld, ask
+from .topics import live_topics, world_names
 
 EXIT_FAILURE = 1
 LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
@@ -157,7 +159,7 @@ def make_plan(args: argparse.Namespace) -> Plan:
     server += [word for endpoint in args.connect for word in ("--connect", endpoint)]
     connect = [word for endpoint in endpoints for word in ("--connect", endpoint)]
     connect += ["--connect-timeout", str(args.connect_timeout)]
-    clients = {name: [sys.executable, "-m", f"clients.{name}", *connect, *shared] for name in names}
+    clients = {name: [sys.executable, "-m", f"simbot.clients.{name}", *connect, *shared] for name in names}
     bus = BusOptions(connect=endpoints, namespace=args.namespace, connect_timeout=CONNECT_TRY_S)
     return Plan([*server, *extra], clients, bus)
 
@@ -207,10 +209,8 @@ def end(children: Sequence[Child]) -> None:
             child.process.send_signal(sig)
         deadline = time.monotonic() + grace
         for child in running:
-            try:
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 child.process.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
 
 
 def try_open(bus: BusOptions) -> Node | None:

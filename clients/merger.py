@@ -44,10 +44,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import StampedSets, StaticTransforms, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
+
+from .common import StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.merger")
 

@@ -27,10 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from clients.common import Mailbox, client_parser, number, run_client
-from clients.topics import Traffic, format_rate, latched, live_topics, world_names
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
+
+from .common import Mailbox, client_parser, number, run_client
+from .topics import Traffic, format_rate, latched, live_topics, world_names
 
 REFRESH_S = 1.0
 RATE_HORIZON_S = 3.0

@@ -26,9 +26,10 @@ from rosbags.interfaces import Connection, ConnectionExtRosbag2, QosDurability
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 
-from clients.common import ClientError, client_parser, number, run_client
 from simbot.bus import Node
 from simbot.bus.node import Publisher
+
+from .common import ClientError, client_parser, number, run_client
 
 logger = logging.getLogger(__name__)
 

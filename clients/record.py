@@ -33,11 +33,12 @@ from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.rosbag2.errors import WriterError
 
-from clients.common import ClientError, client_parser, number, run_client
-from clients.tap import RawSample, Tap, published
-from clients.topics import Topic, latched
 from simbot.bus import Node
 from simbot.bus.codec import TYPESTORE
+
+from .common import ClientError, client_parser, number, run_client
+from .tap import RawSample, Tap, published
+from .topics import Topic, latched
 
 logger = logging.getLogger(__name__)
 

@@ -37,10 +37,11 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
 from simbot.bus.transforms import planar_pose
+
+from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
 
 PROG = "simbot snapshot"
 PANORAMA = "camera_360/image_raw"

@@ -23,10 +23,11 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from clients.common import ClientError, client_parser, number, run_client
-from clients.topics import live_topics, world_names
 from simbot.bus import Node, ServiceError
 from simbot.rotations import yaw_of
+
+from .common import ClientError, client_parser, number, run_client
+from .topics import live_topics, world_names
 
 EXIT_NO_WORLD = 1
 DEFAULT_TIMEOUT_S = 2.0

@@ -74,11 +74,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 from simbot.bus import Node, messages
 from simbot.bus.frames import optical_frame
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
+
+from .common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.stitcher")
 

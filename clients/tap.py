@@ -21,9 +21,10 @@ from typing import Any
 
 import zenoh
 
-from clients.topics import Topic, live_topics, schema_type
 from simbot.bus import DecodeError, Node, UnknownMessageType, decode, messages
 from simbot.bus.node import RateLimitedWarnings
+
+from .topics import Topic, live_topics, schema_type
 
 logger = logging.getLogger(__name__)
 

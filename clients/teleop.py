@@ -35,10 +35,11 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from clients.common import Recent, StaticTransforms, client_parser, number, run_client
-from clients.terminal import Terminal, terminal_input
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
+
+from .common import Recent, StaticTransforms, client_parser, number, run_client
+from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
 

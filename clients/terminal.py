@@ -24,7 +24,7 @@ import tty
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
-from clients.common import ClientError
+from .common import ClientError
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # typing.Self from Python 3.11

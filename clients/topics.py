@@ -31,9 +31,10 @@ from dataclasses import dataclass
 
 import zenoh
 
-from clients.common import ClientError, client_parser, number, run_client
 from simbot.bus import Node
 from simbot.bus.graph import KINDS, Kind, discover
+
+from .common import ClientError, client_parser, number, run_client
 
 DEFAULT_WINDOW_S = 2.0
 LATCH_QUERY_TIMEOUT_S = 0.5
@@ -205,7 +206,7 @@ def table_rows(node: Node, measurement: Measurement | None) -> list[tuple[str, .
     """One row per live key: the graph's keys, plus keys that only the measurement saw."""
     topics = live_topics(node)
     if measurement is not None:
-        for key in measurement.traffic.keys():
+        for key in measurement.traffic.keys():  # noqa: SIM118 - Traffic is not a dict: keys() is its own method
             name = topic_name(key, node.namespace)
             if name not in topics:
                 topics[name] = Topic(name, key, schema_type(measurement.encodings.get(key, "")) or "?", ())

@@ -24,8 +24,8 @@ from typing import Any
 
 import foxglove.layouts as fl
 
-from clients.merger import MERGED_TOPIC, TARGET_FRAME
-from clients.stitcher import IMAGE_TOPIC
+from simbot.clients.merger import MERGED_TOPIC, TARGET_FRAME
+from simbot.clients.stitcher import IMAGE_TOPIC
 
 FIXED_FRAME = "odom"
 PANORAMA = "/" + IMAGE_TOPIC

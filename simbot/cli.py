@@ -2,7 +2,7 @@
 with one line on stderr, never a traceback.
 
 The client programs (`clients/`) are subcommands too: `simbot teleop ARGS` runs
-`clients.teleop.main(ARGS)`, imported only when asked for, so `simbot describe` never loads them.
+`simbot.clients.teleop.main(ARGS)`, imported only when asked for, so `simbot describe` never loads them.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ CLIENTS: dict[str, str] = {
     "play": "publish a recorded bag back onto the bus at its recorded rate",
     "foxglove": "serve the live bus to the Foxglove app over its WebSocket protocol (pip install 'simbot[foxglove]')",
 }
-"""Client subcommands: each is the module `clients.<name>`, whose `main(argv)` takes the rest of the line."""
+"""Client subcommands: each is the module `simbot.clients.<name>`, whose `main(argv)` takes the rest of the line."""
 
 
 def _sdf2urdf(args: argparse.Namespace) -> int:
@@ -77,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `simbot` console script."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in CLIENTS:
-        client: Callable[[Sequence[str]], int] = importlib.import_module(f"clients.{argv[0]}").main
+        client: Callable[[Sequence[str]], int] = importlib.import_module(f"simbot.clients.{argv[0]}").main
         return client(argv[1:])
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")

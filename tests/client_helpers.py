@@ -33,7 +33,7 @@ ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]|\x1b[()][A-Z0-9]|\r")
 
 
 def client_command(name: str, *args: str) -> list[str]:
-    return [sys.executable, "-m", f"clients.{name}", *args]
+    return [sys.executable, "-m", f"simbot.clients.{name}", *args]
 
 
 class OnBus(Protocol):

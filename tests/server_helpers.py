@@ -392,14 +392,6 @@ def running_server(
         tmp.cleanup()
 
 
-@pytest.fixture
-def client_node(request: pytest.FixtureRequest) -> Iterator[Node]:
-    """A fresh client node on the bus of the test module's `sim` server (a late joiner)."""
-    sim: SimServer = request.getfixturevalue("sim")
-    with sim.client() as node:
-        yield node
-
-
 def module_server(world: str, mode: str = "lockstep") -> Any:
     """A test module's `sim` fixture: one server for the whole module (`sim = module_server("empty")`)."""
 

@@ -1,7 +1,7 @@
 """`simbot foxglove` (clients/foxglove.py): a real server, a real bridge process, a WebSocket client in the test.
 
 The client here speaks Foxglove's WebSocket protocol as the app does (subprotocol
-`foxglove.sdk.v1`, the one foxglove-sdk 0.30's server accepts): JSON `serverInfo`, `advertise`
+`foxglove.sdk.v1`, or `foxglove.websocket.v1` as Lichtblick and `@foxglove/ws-protocol` offer): JSON `serverInfo`, `advertise`
 and `unadvertise` in; `subscribe` / `unsubscribe` out; binary frames in, `messageData` (opcode
 0x01: uint32 subscription id, uint64 timestamp, payload) and `time` (0x02: uint64), little-endian.
 
@@ -11,13 +11,17 @@ byte-identical to what a Zenoh subscriber in the test receives on the same key; 
 time broadcasts that are sim times of `clock`, each message at a clock tick or its own stamp,
 never before that stamp and within one clock period (10 ms, the clock's 100 Hz) of it; a camera rendered only while a viewer subscribes (the
 server's world state counts its images); garbage on a watched key dropped, the next valid scan
-forwarded. One server in real time (160×120 cameras) and one bridge serve the module.
+forwarded. The official client, `@foxglove/ws-protocol` in Node, lists the channels and decodes a
+scan with `@foxglove/rosmsg2-serialization` (skipped where Node is absent). One server in real time
+(160×120 cameras) and one bridge serve the module.
 """
 
 from __future__ import annotations
 
+import base64
 import itertools
 import json
+import shutil
 import signal
 import socket
 import struct
@@ -31,21 +35,25 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from bus_helpers import free_port
 from client_helpers import ClientProcess, bus_args, client_command, client_process
 from conftest import REPO
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from server_helpers import Collector, SimServer, payload, raw_samples, running_server, stamp_ns, wait_until
-from websockets.exceptions import ConnectionClosed
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Subprotocol
 
-from clients.tap import published
 from simbot.bus import decode, encode, messages
 from simbot.bus.codec import TYPESTORE
+from simbot.clients.subprotocols import legacy_only, offered, rename
+from simbot.clients.tap import published
 
 SUBPROTOCOL = Subprotocol("foxglove.sdk.v1")
+LEGACY_SUBPROTOCOL = Subprotocol("foxglove.websocket.v1")  # Lichtblick, @foxglove/ws-protocol 0.8
+NODE_CLIENT = Path(__file__).resolve().parent / "node"
 MESSAGE_DATA, TIME = 0x01, 0x02
 CHEAP_CAMERAS = ("--camera-size", "160x120")
 CLOCK_PERIOD_NS = 10_000_000  # the server's clock, 100 Hz of sim time
@@ -135,12 +143,12 @@ class Viewer:
 
 
 @contextmanager
-def viewer(port: int) -> Iterator[Viewer]:
+def viewer(port: int, subprotocol: Subprotocol = SUBPROTOCOL) -> Iterator[Viewer]:
     """A Viewer connected to the bridge on `port` (retried while the bridge is still starting)."""
     deadline = time.monotonic() + WAIT_S
     while True:
         try:
-            ws = connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], max_size=None, open_timeout=5)
+            ws = connect(f"ws://127.0.0.1:{port}", subprotocols=[subprotocol], max_size=None, open_timeout=5)
             break
         except OSError:
             if time.monotonic() > deadline:
@@ -195,9 +203,11 @@ class Bridge:
 
 @pytest.fixture(scope="module")
 def bridge(sim: SimServer) -> Iterator[Bridge]:
-    """`simbot foxglove` on a free port for the module; stopped with SIGTERM, exit 0 asserted."""
+    """`simbot foxglove` on a free port for the module, serving once it yields; stopped with SIGTERM, exit 0 asserted."""
     port = free_port()
     with client_process(sim, "foxglove", "--port", str(port)) as process:
+        with viewer(port) as client:
+            client.server_info()
         yield Bridge(process, port)
 
 
@@ -207,6 +217,20 @@ def app(bridge: Bridge) -> Iterator[Viewer]:
         yield client
 
 
+@pytest.fixture(scope="module")
+def node_client(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """tests/node's script with its pinned packages (@foxglove/ws-protocol, ...) installed by npm into a temp folder."""
+    if shutil.which("node") is None or shutil.which("npm") is None:
+        pytest.skip("Node.js and npm are not installed: the official Foxglove client runs in Node")
+    folder = tmp_path_factory.mktemp("node")
+    for name in ("package.json", "foxglove_client.mjs"):
+        shutil.copy(NODE_CLIENT / name, folder / name)
+    command = ["npm", "install", "--no-audit", "--no-fund", "--loglevel=error"]
+    done = subprocess.run(command, cwd=folder, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, f"npm install in {folder}:\n{done.stderr}"
+    return folder / "foxglove_client.mjs"
+
+
 # --- tests ----------------------------------------------------------------------------------
 
 
@@ -214,7 +238,7 @@ def test_advertises_every_published_key_with_its_ros2_schema(sim: SimServer, app
     """One channel per published key, `/` + topic; its schema, parsed alone, is exactly the ROS 2 type."""
     with sim.client() as node:
         expected = published(node)
-    assert SERVER_KEYS <= set(expected), f"the server does not publish {sorted(SERVER_KEYS - set(expected))}"
+    assert set(expected) >= SERVER_KEYS, f"the server does not publish {sorted(SERVER_KEYS - set(expected))}"
     info = app.server_info()
     assert "time" in info["capabilities"] and info["name"] == f"simbot {sim.namespace}"
     topics = {"/" + name for name in expected}
@@ -254,7 +278,7 @@ def test_forwards_bus_payloads_unchanged_at_sim_time(sim: SimServer, app: Viewer
             lags.append(frame.timestamp - stamp)
     at_stamp = sum(lag == 0 for lag in lags)
     print(f"{len(scans)} scans, {len(samples)} IMU samples; timestamp − stamp {min(lags) / 1e6:.0f}…{max(lags) / 1e6:.0f} ms, {at_stamp} at the stamp")
-    assert 0 <= min(lags) and max(lags) <= CLOCK_PERIOD_NS  # never before the data was taken, within a clock tick of it
+    assert min(lags) >= 0 and max(lags) <= CLOCK_PERIOD_NS  # never before the data was taken, within a clock tick of it
     broadcast = [t for t in times if t >= min(clock_ns)]  # from when the test's own clock subscriber was live
     assert len(broadcast) >= 10 and set(broadcast) <= clock_ns and times == sorted(times)
 
@@ -332,6 +356,56 @@ def test_a_second_viewer_also_gets_the_latched_keys(sim: SimServer, bridge: Brid
     for frame in frames:
         assert frame.payload == latched[0]
         assert frame.timestamp % CLOCK_PERIOD_NS == 0 and begun - CLOCK_LAG_NS <= frame.timestamp <= ended
+
+
+@pytest.mark.parametrize("subprotocol", [SUBPROTOCOL, LEGACY_SUBPROTOCOL])
+def test_both_names_of_the_protocol_are_served(bridge: Bridge, subprotocol: Subprotocol) -> None:
+    """A client offering only one name of the protocol gets that name back, the server's info and its channels."""
+    with viewer(bridge.port, subprotocol) as client:
+        assert client.ws.subprotocol == subprotocol
+        assert client.server_info()["name"].startswith("simbot")
+        client.wait_channels(lambda channels: "/lidar_front" in channels, "/lidar_front advertised")
+
+
+def test_the_front_renames_only_the_protocol_header() -> None:
+    """Golden bytes: the old name becomes the new one in Sec-WebSocket-Protocol lines only, case-insensitively."""
+    request = (
+        b"GET / HTTP/1.1\r\nHost: foxglove.websocket.v1\r\n"
+        b"sec-WebSocket-Protocol: x, foxglove.websocket.v1\r\nSec-WebSocket-Key: k\r\n\r\n"
+    )
+    renamed = rename(request, LEGACY_SUBPROTOCOL.encode(), SUBPROTOCOL.encode())
+    assert renamed == request.replace(b"x, foxglove.websocket.v1", b"x, foxglove.sdk.v1")
+    assert offered(request) == [b"x", b"foxglove.websocket.v1"] and legacy_only(request)
+    assert not legacy_only(renamed) and not legacy_only(b"GET / HTTP/1.1\r\n\r\n")
+
+
+def test_another_subprotocol_is_refused(bridge: Bridge) -> None:
+    """The front renames only Foxglove's old name; anything else meets the SDK's own refusal (HTTP 400)."""
+    with pytest.raises(InvalidStatus) as refused:
+        connect(f"ws://127.0.0.1:{bridge.port}", subprotocols=[Subprotocol("foxglove.websocket.v2")], open_timeout=5)
+    assert refused.value.response.status_code == 400
+
+
+def test_the_official_client_decodes_a_scan(sim: SimServer, bridge: Bridge, node_client: Path) -> None:
+    """@foxglove/ws-protocol (subprotocol foxglove.websocket.v1) lists every channel and, with
+    @foxglove/rosmsg2-serialization and the channel's schema, decodes a scan that is byte for byte one on the bus."""
+    with on_bus(sim, "lidar_front") as bus:
+        command = ["node", str(node_client), f"ws://127.0.0.1:{bridge.port}", "/lidar_front", str(WAIT_S)]
+        done = subprocess.run(command, capture_output=True, text=True, timeout=WAIT_S + 30, check=False)
+        assert done.returncode == 0, done.stderr
+        seen = json.loads(done.stdout)
+        data = base64.b64decode(seen["payload"])
+        bus["lidar_front"].wait_for(lambda payloads: data in payloads, 5.0, "the scan the client decoded, on the bus")
+    assert seen["subprotocol"] == LEGACY_SUBPROTOCOL and seen["schemaName"] == "sensor_msgs/msg/LaserScan"
+    assert {"/" + key for key in SERVER_KEYS} <= set(seen["topics"]), seen["topics"]
+    scan = decode(data, "sensor_msgs/msg/LaserScan")
+    expected = {
+        "frame_id": "base_scan_front", "stamp": [scan.header.stamp.sec, scan.header.stamp.nanosec],
+        "angle_min": float(scan.angle_min), "angle_max": float(scan.angle_max), "range_max": float(scan.range_max),
+        "ranges": [float(r) if np.isfinite(r) else str(r).replace("inf", "Infinity") for r in scan.ranges],
+    }  # fmt: skip
+    assert len(seen["ranges"]) == 720
+    assert {name: seen[name] for name in expected} == expected
 
 
 def test_a_port_in_use_is_one_line(sim: SimServer, bridge: Bridge) -> None:

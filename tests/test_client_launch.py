@@ -30,7 +30,7 @@ START_TIMEOUT_S = 60.0
 EXIT_TIMEOUT_S = 20.0
 """Launch ends its clients, then the server, each with SIGINT's 3 s grace: well within this."""
 CLIENTS = ("merger", "stitcher", "monitor")
-LAUNCH = (sys.executable, "-m", "clients.launch")
+LAUNCH = (sys.executable, "-m", "simbot.clients.launch")
 STARTED = re.compile(r"^\[launch\] started (\w+) \(pid (\d+)\)$", re.MULTILINE)
 
 
@@ -44,7 +44,7 @@ def pid_alive(pid: int) -> bool:
 
 
 class Launch:
-    """A `python -m clients.launch` process; its stdout gathered line by line by a thread."""
+    """A `python -m simbot.clients.launch` process; its stdout gathered line by line by a thread."""
 
     def __init__(self, args: Sequence[str]) -> None:
         self.port, self.namespace = free_port(), unique_namespace()

@@ -39,9 +39,9 @@ from client_helpers import client_command, client_process
 from conftest import REPO
 from server_helpers import Collector, SimServer, running_server, stamp_ns
 
-from clients.merger import BadScan, Binning, ScanMerger
 from simbot.bus import BusOptions, Node, decode, encode, messages
 from simbot.bus.transforms import transform_matrix
+from simbot.clients.merger import BadScan, Binning, ScanMerger
 
 WORLD = REPO / "tests" / "fixtures" / "merger_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"

@@ -26,7 +26,7 @@ from bus_helpers import endpoint, free_port, unique_namespace
 from client_helpers import client_process
 from server_helpers import REPO, running_server
 
-from clients import snapshot as snap
+from simbot.clients import snapshot as snap
 from simbot.bus import BusOptions, Node, messages
 
 RES = snap.RESOLUTION_M
@@ -40,7 +40,7 @@ ROBOT_POSE = (3.0, -1.0, math.pi / 2)
 TROLLEY_IN_ROBOT = (-2.5, 2.0, 0.5)
 """Where the synthetic trolley is in the robot's frame (x, y, yaw)."""
 EDGE_PX = 2
-SNAPSHOT = (sys.executable, "-m", "clients.snapshot")
+SNAPSHOT = (sys.executable, "-m", "simbot.clients.snapshot")
 EVERYTHING = (snap.SCAN, snap.PANORAMA, snap.DESCRIPTION, snap.ROBOT_POSE, snap.TROLLEY_POSE)
 """Slack for a polygon's 2-px outline and rounding to pixels."""
 

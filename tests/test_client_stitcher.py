@@ -42,7 +42,9 @@ from client_helpers import client_command, client_process
 from conftest import REPO, ROBOT_SDF
 from server_helpers import TF_MESSAGE, SimServer, running_server
 
-from clients.stitcher import (
+from simbot.bus import messages
+from simbot.bus.transforms import TransformTree
+from simbot.clients.stitcher import (
     CAMERA_INFO,
     CAMERAS,
     IMAGE,
@@ -52,8 +54,6 @@ from clients.stitcher import (
     Intrinsics,
     image_pixels,
 )
-from simbot.bus import messages
-from simbot.bus.transforms import TransformTree
 
 WORLD = str(REPO / "tests" / "fixtures" / "stitcher_pole.sdf")
 WIDTH, HEIGHT = 160, 120

@@ -153,12 +153,14 @@ def test_drive_stop_turn_and_quit_restoring_the_terminal(sim: SimServer) -> None
 
 def test_obstacle_in_the_path_blocks_driving_towards_it_not_turning(sim: SimServer) -> None:
     place(sim, BLOCK_FACE_X - 0.4 - FRONT_LIDAR_X, BLOCK_LANE_Y)  # front lidar 0.4 m from the box
+    commands = sim.subscribe("cmd_vel", TWIST)
     with teleop(sim) as client:
         client.wait_for(r"ahead 0\.(39|40|41) m")
         mark = client.mark()
         client.type("w")
         client.wait_for(r"BLOCKED forward", since=mark)
-        time.sleep(0.3)  # three ticks at 10 Hz: the refusal is logged once, not at every tick
+        # three more ticks of its 10 Hz commands: the refusal is logged once, not at every tick
+        commands.wait_count(len(commands) + 3, what="three more ticks of teleop's cmd_vel")
         assert_still(sim, "w with a box 0.4 m ahead")
         assert client.screen()[mark:].count("forward blocked") == 1, "the block was not logged exactly once"
 

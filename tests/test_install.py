@@ -1,7 +1,7 @@
 """A non-editable install works away from the repository: the wheel carries the assets and finds them.
 
-One module fixture builds the wheel (pip with build isolation, since hatchling is not in the
-dev venv) and installs it with its dependencies into a fresh venv; the tests then run that
+One module fixture builds the wheel (pip with build isolation, so the build backend need not be
+in the dev venv) and installs it with its dependencies into a fresh venv; the tests then run that
 venv's python and `simbot` from an empty folder, with no resource path variables set.
 """
 
@@ -101,6 +101,34 @@ def test_wheel_carries_the_assets(installed: Installed) -> None:
     assert not any(".mypy_cache" in n or "__pycache__" in n for n in names)
 
 
+def test_wheel_installs_only_simbot(installed: Installed) -> None:
+    """Every package of the checkout is in the wheel under simbot's name; nothing else is top level.
+
+    The clients (`clients/` in the repository) install as `simbot.clients`, so a wheel never puts a
+    package named `clients` into site-packages, where it would collide with anyone else's.
+    """
+    with zipfile.ZipFile(installed.wheel) as wheel:
+        names = set(wheel.namelist())
+    assert {name.split("/")[0] for name in names} == {"simbot", f"{installed.wheel.name.split('-py')[0]}.dist-info"}
+    packages = {p.relative_to(REPO).as_posix() for p in REPO.glob("simbot/**/__init__.py")}
+    clients = {f"simbot/{p.relative_to(REPO).as_posix()}" for p in REPO.glob("clients/*.py")}
+    assert packages | clients <= names, sorted((packages | clients) - names)
+    done = installed.run("python", "-c", "import clients")
+    assert done.returncode != 0 and "No module named 'clients'" in done.stderr, done.stderr
+
+
+def test_editable_install_has_no_top_level_clients(tmp_path: Path) -> None:
+    """The dev venv's editable install maps simbot.clients onto the checkout's clients/ and no more.
+
+    Run away from the checkout (whose folder is on sys.path only as the working directory).
+    """
+    code = "import importlib.util as u, simbot.clients.teleop as t; print(t.__file__, u.find_spec('clients'))"
+    done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=clean_env(), capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    teleop, spec = done.stdout.split()
+    assert Path(teleop) == REPO / "clients" / "teleop.py" and spec == "None", done.stdout
+
+
 def test_installed_simbot_is_not_the_repository(installed: Installed) -> None:
     """The fresh venv imports simbot from its own site-packages, not from the repository."""
     done = installed.run("python", "-c", "import simbot; print(simbot.__file__)")
@@ -137,7 +165,7 @@ CLIENT_SCRIPTS = ("simbot-teleop", "simbot-merger", "simbot-stitcher", "simbot-d
 
 
 def test_installed_clients_run_from_their_console_scripts_and_simbot(installed: Installed) -> None:
-    """The wheel carries `clients/`: each console script and each `simbot <client>` answers --help."""
+    """The wheel carries `simbot.clients`: each console script and each `simbot <client>` answers --help."""
     for script in CLIENT_SCRIPTS:
         done = installed.run(script, "--help")
         assert done.returncode == 0 and "--connect" in done.stdout, f"{script}: {done.stderr}"

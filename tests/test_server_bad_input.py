@@ -14,6 +14,7 @@ millimetre (the settled tug creeps less than 1e-6 m per 100 steps).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import random
 import subprocess
@@ -271,10 +272,8 @@ def test_deeply_nested_json_is_refused_not_fatal(name: str) -> None:
             reply: dict[str, Any] | None = sim.call(name, b"[" * 100_000, timeout=3.0)
         except TimeoutError:
             reply = None
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             sim.process.wait(timeout=0.5 if reply is not None else 3.0)
-        except subprocess.TimeoutExpired:
-            pass
         if not sim.alive():
             sim.stopped = True  # nothing left to stop; the assertion below says why
             tail = sim.stderr().strip().splitlines()[-1:]

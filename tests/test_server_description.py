@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import math
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -21,7 +22,7 @@ from server_helpers import (
     STRING,
     TF_MESSAGE,
     Collector,
-    client_node,  # noqa: F401  (a fixture the fixtures below use)
+    SimServer,
     module_server,
 )
 
@@ -51,6 +52,13 @@ sim = module_server("warehouse")
 @pytest.fixture(scope="module")
 def model() -> Model:
     return load_model(ROBOT_SDF)
+
+
+@pytest.fixture
+def client_node(sim: SimServer) -> Iterator[Node]:
+    """A fresh client node on the bus of the module's server (a late joiner)."""
+    with sim.client() as node:
+        yield node
 
 
 @pytest.fixture

@@ -48,7 +48,7 @@ def parse_token(token: str) -> Endpoint | None:
     parts = token.split("/", 3)
     if len(parts) != 4 or parts[0] != PREFIX or parts[1] not in KINDS:
         return None
-    kind: Kind = parts[1]  # type: ignore[assignment]  # checked against KINDS just above
+    kind: Kind = parts[1]  # narrowed to a Kind by the check against KINDS above
     return Endpoint(parts[3], kind, parts[2].replace("%", "/"))
 
 

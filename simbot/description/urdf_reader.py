@@ -120,7 +120,7 @@ def _geometry(geometry: yourdfpy.Geometry, base_dir: Path) -> Geometry:
     mesh = geometry.mesh
     scale = mesh.scale if mesh.scale is not None else (1.0, 1.0, 1.0)
     scale = (scale,) * 3 if np.isscalar(scale) else tuple(float(s) for s in scale)
-    return Mesh(mesh.filename, scale, resolve(mesh.filename, base_dir).path)  # type: ignore[arg-type]
+    return Mesh(mesh.filename, scale, resolve(mesh.filename, base_dir).path)
 
 
 def _link(urdf: yourdfpy.URDF, link: yourdfpy.Link, pose: Pose, path: Path) -> Link:

@@ -20,8 +20,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
-
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, load_description, load_world
 from simbot.description.model import Link, Model, Plugin, Sensor, World
@@ -33,7 +31,7 @@ from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext
+from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext, scoped_rng
 from simbot.sim.systems.clock_publisher import ClockPublisher
 from simbot.sim.systems.pose_publisher import PosePublisher
 from simbot.sim.systems.rendering import Rendering, world_light
@@ -94,7 +92,7 @@ class Server:
         self.physics.add_model(robot, ROBOT_NAME, Pose((x, y, z), (0.0, 0.0, yaw)))
         self.physics.save_initial_state()
         self.bus = SimBus(node)
-        self._seeds = np.random.SeedSequence(config.seed)
+        self._seed = config.seed
         self._settings = config.sensor_settings()
         self.rendering = Rendering(self.physics, self._settings, world_light(self.world))
         systems = self._systems(robot)
@@ -104,8 +102,9 @@ class Server:
     def _context(
         self, model: Model | None = None, name: str | None = None, plugin: Plugin | None = None, sensor: tuple[Link, Sensor] | None = None
     ) -> SystemContext:
-        rng = np.random.default_rng(self._seeds.spawn(1)[0])
         link, sdf_sensor = sensor if sensor else (None, None)
+        leaf = (link.name, sdf_sensor.name) if link and sdf_sensor else (plugin.name,) if plugin else ()
+        rng = scoped_rng(self._seed, name or "world", *leaf)
         return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings, self.rendering)
 
     def _systems(self, robot: Model) -> list[object]:

@@ -28,6 +28,7 @@ and with them the friction, flicker between pairs of wheels from step to step.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from simbot.sim.bullet import pb
 
@@ -95,7 +96,7 @@ class WheelFriction:
                 n = acc[0]
                 self._apply_one(self._wheels[link], (acc[1] / n, acc[2] / n, acc[3] / n), (acc[4] / n, acc[5] / n, acc[6] / n), n, state)
 
-    def _apply_one(self, wheel: Wheel, point: Vec3, normal: Vec3, load: float, state: tuple) -> None:  # type: ignore[type-arg]
+    def _apply_one(self, wheel: Wheel, point: Vec3, normal: Vec3, load: float, state: tuple[Any, ...]) -> None:
         centre, linear, angular = state[0], state[6], state[7]
         m = pb.getMatrixFromQuaternion(state[5])
         a = wheel.axle
