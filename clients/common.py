@@ -109,6 +109,24 @@ class Mailbox(Generic[T]):
             return self._items.popleft() if self._items else None
 
 
+class StatusLine:
+    """A line of figures on stderr: redrawn in place once a second on a terminal, printed every few
+    seconds elsewhere (a log file, `simbot launch`), so that a log is not flooded."""
+
+    def __init__(self, period_s: float = 1.0, plain_period_s: float = 5.0) -> None:
+        self.live = sys.stderr.isatty()
+        self._period_s = period_s if self.live else plain_period_s
+        self._next = time.monotonic() + self._period_s
+
+    def show(self, now: float, text: Callable[[], str]) -> None:
+        """Print `text()` when a period has passed since the last line (`now` from time.monotonic())."""
+        if now < self._next:
+            return
+        self._next = now + self._period_s
+        line = text()
+        print(f"\r\x1b[2K{line}" if self.live else line, end="" if self.live else "\n", file=sys.stderr, flush=True)
+
+
 class Recent:
     """The latest message of one topic while it is fresh: queued by Zenoh, read by the loop.
 

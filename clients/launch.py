@@ -44,7 +44,7 @@ from clients.topics import live_topics, world_names
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
 
 EXIT_FAILURE = 1
-LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
+LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove", "ros2")
 DEFAULT_CLIENTS = "merger,stitcher"
 NOT_LAUNCHABLE: dict[str, str] = {
     "teleop": "reads the keyboard: run `simbot teleop` in a terminal of its own",
