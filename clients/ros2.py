@@ -43,18 +43,20 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 import zenoh.ext
 
+from simbot.bus import Node
+
 from .common import ClientError, StatusLine, client_parser, run_client
 from .record import Selection
 from .state import NoWorld, ask
 from .tap import published
 from .topics import Topic, latched, live_topics, topic_name, world_names
-from simbot.bus import Node
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
     from rclpy.node import Node as RosNode
     from rclpy.publisher import Publisher as RosPublisher
     from rclpy.qos import QoSProfile
+    from rclpy.subscription import MessageInfo
     from rclpy.subscription import Subscription as RosSubscription
 
 logger = logging.getLogger(__name__)
@@ -149,7 +151,7 @@ class Outbound:
             return
         try:
             self.publisher.publish(sample.payload.to_bytes())
-        except Exception as exc:  # the publisher was destroyed while this sample was on its way
+        except RuntimeError as exc:  # rclpy's InvalidHandle: the publisher was destroyed while this sample was on its way
             logger.debug("/%s: not published: %s", self.topic.key, exc)
             return
         self._counter.add()
@@ -171,9 +173,9 @@ class Inbound:
         )
         self.subscription: RosSubscription[Any] = ros.create_subscription(msgtype, "/" + topic.key, self._on_message, qos(False), raw=True)
 
-    def _on_message(self, data: bytes, info: dict[str, Any]) -> None:
+    def _on_message(self, data: bytes, info: MessageInfo) -> None:
         """Executor (the loop): put the bytes on Zenoh, unless the bridge's own DDS publisher sent them."""
-        gid = bytes((info.get("publisher_gid") or {}).get("data", b""))
+        gid = bytes((info["publisher_gid"] or {}).get("data", b""))
         if gid in self._own or (gid and self._is_own(gid)):
             return
         self._publisher.put(data)
