@@ -48,7 +48,6 @@ from simbot.bus import Node
 from .common import ClientError, StatusLine, client_parser, run_client
 from .record import Selection
 from .state import NoWorld, ask
-from .tap import published
 from .topics import Topic, latched, live_topics, topic_name, world_names
 
 if TYPE_CHECKING:
@@ -65,8 +64,8 @@ NEEDS_RCLPY = "needs rclpy: source a ROS 2 install (Humble, Jazzy, Kilted), or p
 NODE_NAME = "simbot_ros2"
 DEPTH = 10
 GRAPH_PERIOD_S = 1.0
-WATCH_PERIOD_S = 0.1
-SPIN_S = 0.05
+WATCH_PERIOD_S = 0.2
+SPIN_S = 0.1
 STATE_TIMEOUT_S = 2.0
 CDR = zenoh.Encoding.APPLICATION_CDR
 
@@ -224,7 +223,7 @@ class Bridge:
         if graph != self._graph:
             self._graph = graph
             self._inputs = self._input_names(topics)
-        outputs = {name: topic for name, topic in published(self._node).items() if name in topics}
+        outputs = {name: topic for name, topic in topics.items() if "pub" in topic.kinds}
         inputs = {name: topics[name] for name in self._inputs if name in topics}
         self._update(self.routes.outbound, outputs, self._open_outbound, self._close_outbound)
         self._update(self.routes.inbound, inputs, self._open_inbound, lambda route: route.close())
@@ -330,7 +329,7 @@ def _require_rclpy() -> None:
 
 
 def _loop(bridge: Bridge, executor: Executor, stop: threading.Event) -> None:
-    """Spin the DDS side; look at the graph every second and at the DDS subscribers ten times a second."""
+    """Spin the DDS side; look at the graph every second and at the DDS subscribers five times a second."""
     status = StatusLine()
     next_graph = next_watch = 0.0
     while not stop.is_set():
