@@ -151,7 +151,7 @@ def bare_ros_publisher(ros: RosSide, typename: str, topic: str) -> Callable[[byt
 
     context = rclpy.Context()
     rclpy.init(context=context)
-    node = rclpy.create_node("bare", context=context)
+    node = rclpy.create_node("bare_" + topic.rsplit("/", 1)[-1], context=context)
     publisher = node.create_publisher(ros_type(typename), topic, QoSProfile(depth=10))
     deadline = time.monotonic() + WAIT_S
     while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
