@@ -34,7 +34,7 @@ import pytest
 from client_helpers import ClientProcess, client_process
 from conftest import REPO
 from server_helpers import Collector, SimServer, payload, raw_samples, running_server, wait_until
-from test_client_foxglove import camera_images
+from test_client_foxglove import camera_images, wait_camera_stopped
 
 INSIDE = os.environ.get("SIMBOT_TEST_NETNS") == "1"
 NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo"
@@ -246,14 +246,7 @@ def test_a_camera_renders_only_while_a_ros_node_subscribes(sim: SimServer, ros: 
     _, during = camera_images(sim)
     assert during["camera_front"] >= 3 and not any(n for name, n in during.items() if name != "camera_front"), during
     unsubscribe()
-
-    def stopped() -> bool:
-        t0, first = camera_images(sim)
-        time.sleep(1.0)
-        t1, second = camera_images(sim)
-        return t1 - t0 >= 0.5 and second["camera_front"] == first["camera_front"]
-
-    wait_until(stopped, WAIT_S, "camera_front to stop rendering once unwatched", poll=0.0)
+    wait_camera_stopped(sim, "camera_front")
 
 
 @dds
