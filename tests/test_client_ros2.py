@@ -299,3 +299,11 @@ def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(sim
         finally:
             node.destroy_node()
             rclpy.shutdown(context=context)
+
+
+def test_without_rclpy_it_says_where_to_get_it_and_exits_2() -> None:
+    """No DDS starts here: rclpy is hidden (an import of it fails), as on a machine without it."""
+    hide = "import sys; sys.modules['rclpy'] = None; from clients.ros2 import main; sys.exit(main(sys.argv[1:]))"
+    done = subprocess.run([sys.executable, "-c", hide, "--connect", "tcp/127.0.0.1:9"], cwd=REPO, capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2
+    assert done.stderr.strip() == "simbot ros2: error: needs rclpy: source a ROS 2 install (Humble, Jazzy, Kilted), or pip install 'simbot[ros2]'"
