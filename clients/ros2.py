@@ -164,6 +164,7 @@ class Inbound:
         self._ros = ros
         self._counter = counter
         self._own: set[bytes] = set()
+        self._others: set[bytes] = set()
         self._publisher = session.declare_publisher(
             topic.key,
             encoding=CDR.with_schema(topic.typename),
@@ -175,16 +176,19 @@ class Inbound:
     def _on_message(self, data: bytes, info: MessageInfo) -> None:
         """Executor (the loop): put the bytes on Zenoh, unless the bridge's own DDS publisher sent them."""
         gid = bytes((info["publisher_gid"] or {}).get("data", b""))
-        if gid in self._own or (gid and self._is_own(gid)):
+        if self._is_own(gid):
             return
         self._publisher.put(data)
         self._counter.add()
 
     def _is_own(self, gid: bytes) -> bool:
-        """Whether `gid` is one of the bridge's own publishers on this topic (learnt once per gid)."""
-        for info in self._ros.get_publishers_info_by_topic("/" + self.topic.key):
-            if info.node_name == self._ros.get_name() and info.node_namespace == self._ros.get_namespace():
-                self._own.add(bytes(info.endpoint_gid))
+        """Whether `gid` is one of the bridge's own publishers on this topic (the graph is asked once per publisher)."""
+        if gid not in self._own and gid not in self._others:
+            for info in self._ros.get_publishers_info_by_topic("/" + self.topic.key):
+                if info.node_name == self._ros.get_name() and info.node_namespace == self._ros.get_namespace():
+                    self._own.add(bytes(info.endpoint_gid))
+            if gid not in self._own:
+                self._others.add(gid)
         return gid in self._own
 
     def close(self) -> None:
@@ -226,7 +230,7 @@ class Bridge:
         outputs = {name: topic for name, topic in topics.items() if "pub" in topic.kinds}
         inputs = {name: topics[name] for name in self._inputs if name in topics}
         self._update(self.routes.outbound, outputs, self._open_outbound, self._close_outbound)
-        self._update(self.routes.inbound, inputs, self._open_inbound, lambda route: route.close())
+        self._update(self.routes.inbound, inputs, self._open_inbound, Inbound.close)
 
     def _input_names(self, topics: dict[str, Topic]) -> set[str]:
         """The server's input keys (its world state counts them) and the keys subscribed that nobody publishes."""
@@ -243,8 +247,9 @@ class Bridge:
     def _update(self, routes: dict[str, Any], live: dict[str, Topic], open_route: Callable[[list[Topic]], None], close: Callable[[Any], None]) -> None:
         gone = [name for name, route in routes.items() if _identity(live.get(name)) != _identity(route.topic)]
         for name in gone:
-            close(routes.pop(name))
-            logger.info("stopped carrying /%s", name)
+            route = routes.pop(name)
+            close(route)
+            logger.info("stopped carrying /%s", route.topic.key)
         new = [topic for name, topic in sorted(live.items()) if name not in routes and self._supported(topic)]
         if new:
             open_route(new)
