@@ -272,6 +272,25 @@ def test_bad_input_from_dds_is_dropped_and_counted_and_the_bridge_carries_on(sim
 
 
 @dds
+def test_a_key_carried_both_ways_is_not_echoed(sim: SimServer, ros: RosUser) -> None:
+    """cmd_vel also published on the bus (as `simbot teleop` does): a ROS node sees each command, and the
+    server receives each once, not again from the bridge's own DDS publisher through its own subscription."""
+    from geometry_msgs.msg import Twist
+
+    key = sim.key("cmd_vel")
+    commands, unsubscribe = ros.subscribe(Twist, topic(sim, "cmd_vel"))
+    wait_until(lambda: sim.drive(0.0) or len(commands), WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2)
+    seen, received = len(commands), sim.state()["received"][key]
+    for _ in range(5):
+        sim.drive(0.0)
+    commands.wait_count(seen + 5, WAIT_S, "the five commands on DDS")
+    wait_until(lambda: sim.state()["received"][key] >= received + 5, WAIT_S, "the server to receive the five")
+    time.sleep(0.5)  # an echo would take the path the ROS node's copy took, which has arrived: give it ample time
+    assert sim.state()["received"][key] == received + 5
+    unsubscribe()
+
+
+@dds
 def test_missing_type_support_is_one_warning_per_topic(sim: SimServer, bridge: ClientProcess, ros: RosUser) -> None:
     """With the wheels, tf2_msgs has no type support: /tf and /tf_static are named once each, the rest carried."""
     wait_until(lambda: f"{topic(sim, 'odom')} → DDS" in bridge.stderr(), WAIT_S, "the bridge to carry /odom")
