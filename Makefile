@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed-stamp
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove,ros2]'
 	touch $(STAMP)
 
 ## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher, the monitor and the Foxglove bridge on ws://127.0.0.1:8765 (Ctrl-C ends them all).
@@ -31,6 +31,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_merger.py
 	$(BIN)/python benchmarks/bench_stitcher.py
 	$(BIN)/python benchmarks/bench_record.py
+	$(BIN)/python benchmarks/bench_ros2.py
 
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)

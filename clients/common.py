@@ -30,6 +30,9 @@ from simbot.bus.sync import StampSync
 from simbot.bus.transforms import Matrix, TransformTree
 
 EXIT_USAGE = 2
+CLOCK = "rosgraph_msgs/msg/Clock"
+POLL_S = 0.02
+"""How long a client waiting for sim time to pass waits at a time (wall clock)."""
 T = TypeVar("T")
 Number = TypeVar("Number", int, float)
 
@@ -109,30 +112,91 @@ class Mailbox(Generic[T]):
             return self._items.popleft() if self._items else None
 
 
+class StatusLine:
+    """A line of figures on stderr: redrawn in place once a second on a terminal, printed every few
+    seconds elsewhere (a log file, `simbot launch`), so that a log is not flooded."""
+
+    def __init__(self, period_s: float = 1.0, plain_period_s: float = 5.0) -> None:
+        self.live = sys.stderr.isatty()
+        self._period_s = period_s if self.live else plain_period_s
+        self._next = time.monotonic() + self._period_s
+
+    def show(self, now: float, text: Callable[[], str]) -> None:
+        """Print `text()` when a period has passed since the last line (`now` from time.monotonic())."""
+        if now < self._next:
+            return
+        self._next = now + self._period_s
+        line = text()
+        print(f"\r\x1b[2K{line}" if self.live else line, end="" if self.live else "\n", file=sys.stderr, flush=True)
+
+
+class SimClock:
+    """Sim time from `clock`, in seconds: what the clients' freshness windows, docking checks and
+    teleop ticks count, so that a world running at 0.5× or 4× (or paused, or stepped) behaves the same.
+
+    A client that waits does so in short slices of wall time (`POLL_S`) and compares sim times.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._lock = threading.Lock()
+        self._ns: int | None = None
+        node.subscribe("clock", CLOCK, self._tick)
+
+    def _tick(self, msg: Any) -> None:
+        ns = messages.stamp_ns(msg.clock)
+        with self._lock:
+            self._ns = ns
+
+    def now(self) -> float | None:
+        """The latest sim time (s), or None before the first clock."""
+        with self._lock:
+            return None if self._ns is None else self._ns / 1e9
+
+
+class SimTicker:
+    """A period of sim time: due at the first clock and a period after each time it was; a world
+    reset (sim time going back) makes it due at once."""
+
+    def __init__(self, period_s: float) -> None:
+        self.period_s = period_s
+        self._began: float | None = None
+
+    def due(self, now: float | None) -> bool:
+        """Whether a period has passed at sim time `now` (never before the first clock); if so, the next begins."""
+        if now is None:
+            return False
+        if self._began is not None and self._began <= now < self._began + self.period_s:
+            return False
+        self._began = now
+        return True
+
+    def restart(self, now: float | None) -> None:
+        """The next period begins at `now` (an action taken out of turn)."""
+        self._began = now
+
+
 class Recent:
-    """The latest message of one topic while it is fresh: queued by Zenoh, read by the loop.
+    """The latest message of one stamped topic while it is fresh: queued by Zenoh, read by the loop.
 
     A keyboard client acting on stale data (a lidar that fell silent, a pose from a second ago)
-    would act on a world that has moved on, so a message older than `max_age_s` counts as none.
+    would act on a world that has moved on, so a message whose header stamp is more than
+    `max_age_s` of sim time before now counts as none.
     """
 
     def __init__(self, node: Node, topic: str, typename: str, max_age_s: float) -> None:
         self.max_age_s = max_age_s
-        self._inbox: Mailbox[tuple[float, Any]] = Mailbox()
-        self._latest: tuple[float, Any] | None = None
-        node.subscribe(topic, typename, self._arrived)
+        self._inbox: Mailbox[Any] = Mailbox()
+        self._latest: Any | None = None
+        node.subscribe(topic, typename, self._inbox.put)
 
-    def _arrived(self, msg: Any) -> None:
-        self._inbox.put((time.monotonic(), msg))
-
-    def get(self, now: float) -> Any | None:
-        """The latest message, or None when none came within `max_age_s` before `now` (time.monotonic())."""
+    def get(self, now: float | None) -> Any | None:
+        """The latest message, or None when none is stamped within `max_age_s` before `now` (sim time, s; None: no clock yet)."""
         arrived = self._inbox.get(timeout=0.0)
         if arrived is not None:
             self._latest = arrived
-        if self._latest is None or now - self._latest[0] > self.max_age_s:
+        if self._latest is None or now is None or now - messages.stamp_ns(self._latest.header) / 1e9 > self.max_age_s:
             return None
-        return self._latest[1]
+        return self._latest
 
 
 class StaticTransforms:

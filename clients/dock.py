@@ -7,9 +7,11 @@ once) and the attach command goes out after the third; a failed check ends the a
 warning and nothing is sent. `--yaw-tolerance` also requires their headings to agree within that
 many radians (off by default: the trolley is square and can be docked from any side).
 
-A pose counts as unknown, hence far, until one has arrived and when none has for a second (they
-come at 50 Hz). The client checks every 0.2 s and prints near / far when it changes; the status
-line shows the distance and the joint's state from the latched `detachable_joint/state`.
+A pose counts as unknown, hence far, until one has arrived and when none is stamped within the
+last second (they come at 50 Hz). The client checks every 0.2 s and prints near / far when it
+changes; the status line shows the distance and the joint's state from the latched
+`detachable_joint/state`. Every period here is sim time (`clock`): a world at 0.5× or 4× docks the
+same, and a paused one makes no checks.
 """
 
 from __future__ import annotations
@@ -19,7 +21,6 @@ import logging
 import math
 import sys
 import threading
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -27,7 +28,7 @@ from typing import Any
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
 
-from .common import Mailbox, Recent, client_parser, number, run_client
+from .common import POLL_S, Mailbox, Recent, SimClock, SimTicker, client_parser, number, run_client
 from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
@@ -58,8 +59,8 @@ class PoseWatch:
         self.model = model
         self._poses = Recent(node, f"model/{model}/pose", POSE_STAMPED, POSE_TIMEOUT_S)
 
-    def pose(self, now: float) -> Planar | None:
-        """(x, y, yaw), or None when no pose came within the last POSE_TIMEOUT_S."""
+    def pose(self, now: float | None) -> Planar | None:
+        """(x, y, yaw), or None when none is stamped within POSE_TIMEOUT_S of sim time before `now`."""
         msg = self._poses.get(now)
         return planar_pose(msg.pose) if msg is not None else None
 
@@ -131,27 +132,27 @@ class Docking:
 
 def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys at once, a check every period, the joint's state as it changes."""
+    clock = SimClock(node)
     robot, trolley = PoseWatch(node, args.robot), PoseWatch(node, args.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)
     docking = Docking(args, node.publisher("attach", messages.Empty, drop=False), node.publisher("detach", messages.Empty, drop=False), terminal)
     near: bool | None = None
-    next_check = time.monotonic()
+    checks = SimTicker(args.check_period)
     while not stop.is_set():
-        keys = terminal.read_keys(next_check - time.monotonic())
+        keys = terminal.read_keys(POLL_S)
         if keys is None or QUIT in keys:
             return
         while (state := joint_inbox.get(timeout=0.0)) is not None:
             if state.data != docking.joint:
                 docking.joint = state.data
                 terminal.message(f"joint {state.data}")
-        now = time.monotonic()
+        now = clock.now()
         verdict = nearness(robot.pose(now), trolley.pose(now), args.distance, args.yaw_tolerance)
         for key in keys:
             if docking.press(key, verdict):
-                next_check = now + args.check_period  # the attempt's next check, a period after its first
-        if now >= next_check:
-            next_check = now + args.check_period
+                checks.restart(now)  # the attempt's next check, a period after its first
+        if checks.due(now):
             docking.check(verdict)
         if verdict.near != near:
             near = verdict.near
@@ -172,7 +173,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--trolley", default="trolley", metavar="MODEL", help="the trolley's model name (default trolley)")
     parser.add_argument("--distance", type=positive, default=0.55, metavar="M", help="attach only within this XY distance (default 0.55)")
     parser.add_argument("--yaw-tolerance", type=positive, metavar="RAD", help="attach only with headings this close (default: any heading)")
-    parser.add_argument("--check-period", type=positive, default=0.2, metavar="S", help="seconds between the checks (default 0.2)")
+    parser.add_argument("--check-period", type=positive, default=0.2, metavar="S", help="seconds of sim time between the checks (default 0.2)")
     return parser
 
 

@@ -46,7 +46,7 @@ from .state import NoWorld, ask
 from .topics import live_topics, world_names
 
 EXIT_FAILURE = 1
-LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove")
+LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove", "ros2")
 DEFAULT_CLIENTS = "merger,stitcher"
 NOT_LAUNCHABLE: dict[str, str] = {
     "teleop": "reads the keyboard: run `simbot teleop` in a terminal of its own",

@@ -2,7 +2,8 @@
 
 Keys latch, as in ROS's teleop_twist_keyboard: w forward, s backward, a turn left, d turn right
 (each sets the whole command: a and d turn in place), x or space stop, q quit. The command
-goes out on `cmd_vel` at 10 Hz, and at once when a key changes it; a zero command goes out when
+goes out on `cmd_vel` at 10 Hz of sim time (`clock`, so a world at 0.5× or 4× gets the same
+commands per simulated second), and at once when a key changes it; a zero command goes out when
 the program ends, however it ends, and the terminal is given back as it was.
 
 The obstacle stop looks at the robot's path, not the lidars' whole 160° view, so that a shelf
@@ -14,7 +15,8 @@ the lidar (6 cm inside the chassis' front face, 10 cm inside its back face): for
 while the front lidar sees something closer than 0.5 m in the path, as SPEC says. Scans come at
 5 Hz, so a robot driving at 0.5 m/s stops about 0.1 m inside that distance (0.39 m measured).
 
-Unknown is not clear: with no scan for `--scan-timeout` seconds (five scans missed), or before
+Unknown is not clear: with no scan stamped within `--scan-timeout` seconds of sim time (five
+scans missed), or before
 `tf_static` gives the lidar's pose, driving that way is refused, because a silent lidar says
 nothing about what is ahead. Turning in place is never refused. The client logs once each time
 a drive becomes blocked; the status line shows it for as long as it lasts.
@@ -27,7 +29,6 @@ import logging
 import math
 import sys
 import threading
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -38,7 +39,7 @@ import numpy.typing as npt
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
 
-from .common import Recent, StaticTransforms, client_parser, number, run_client
+from .common import POLL_S, Recent, SimClock, SimTicker, StaticTransforms, client_parser, number, run_client
 from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
@@ -99,7 +100,7 @@ class PathWatch:
         self.ahead = ahead
         self._scans = Recent(node, topic, LASER_SCAN, settings.scan_timeout)
 
-    def nearest(self, transforms: StaticTransforms, settings: Settings, now: float) -> float | None:
+    def nearest(self, transforms: StaticTransforms, settings: Settings, now: float | None) -> float | None:
         """Metres from the lidar to the nearest return in the path (inf when clear); None with no recent scan or no sensor pose."""
         scan = self._scans.get(now)
         if scan is None:
@@ -166,11 +167,12 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
     front = PathWatch(node, "lidar_front", True, settings)
     back = PathWatch(node, "lidar_back", False, settings)
     cmd_vel = node.publisher("cmd_vel", messages.Twist, drop=False)
+    clock = SimClock(node)
+    ticker = SimTicker(settings.period)
     teleop = Teleop(settings)
     try:
-        next_tick = time.monotonic()
         while not stop.is_set():
-            keys = terminal.read_keys(next_tick - time.monotonic())
+            keys = terminal.read_keys(POLL_S)
             if keys is None:
                 return
             changed = False
@@ -178,10 +180,11 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
                 if key == QUIT:
                     return
                 changed = teleop.press(key) or changed
-            now = time.monotonic()
-            if not changed and now < next_tick:
+            now = clock.now()
+            if changed:
+                ticker.restart(now)
+            elif not ticker.due(now):
                 continue
-            next_tick = now + settings.period
             transforms.refresh()
             ahead, behind = front.nearest(transforms, settings, now), back.nearest(transforms, settings, now)
             linear, angular = teleop.command(ahead, behind)

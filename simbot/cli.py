@@ -33,6 +33,7 @@ CLIENTS: dict[str, str] = {
     "record": "record keys into a rosbag2 bag in MCAP storage; Ctrl-C closes it",
     "play": "publish a recorded bag back onto the bus at its recorded rate",
     "foxglove": "serve the live bus to the Foxglove app over its WebSocket protocol (pip install 'simbot[foxglove]')",
+    "ros2": "carry the bus to ROS 2 nodes (DDS) and back through rclpy, bytes unchanged (pip install 'simbot[ros2]')",
 }
 """Client subcommands: each is the module `simbot.clients.<name>`, whose `main(argv)` takes the rest of the line."""
 

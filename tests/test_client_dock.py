@@ -167,3 +167,21 @@ def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...],
     )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr
+
+
+def test_checks_count_sim_time_not_wall_time() -> None:
+    """In lockstep the world stands still between steps: the checks wait for sim time, however long in wall time."""
+    with running_server("warehouse", "lockstep", extra=SPAWN_UNDER_TROLLEY) as sim:
+        collector = joint_states(sim)
+        with dock(sim) as client:
+            wait_until(lambda: sim.step(20) and "trolley near" in client.screen(), 20.0, "near once the poses and the clock come", poll=0.05)
+            mark = client.mark()
+            client.type("t")
+            client.wait_for(r"checking 1/3", since=mark)
+            time.sleep(1.0)  # five check periods of wall time, none of sim time
+            assert "checking 2/3" not in client.screen()[mark:] and states(collector) == ["detached"]
+            sim.step(250)  # a check period and a clock tick or two
+            client.wait_for(r"checking 2/3", since=mark)
+            sim.step(250)
+            client.wait_for(r"attach sent: 3 checks near", since=mark)
+            collector.wait_for(lambda ms: ms[-1].data == "attached", what="'attached'")

@@ -186,6 +186,18 @@ def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:
     return state["sim_time"], {name: figures["messages"] for name, figures in state["sensors"].items() if name.startswith("camera_")}
 
 
+def wait_camera_stopped(sim: SimServer, camera: str) -> None:
+    """Until `camera` publishes no image over a second (at least half a second of sim time)."""
+
+    def stopped() -> bool:
+        t0, first = camera_images(sim)
+        time.sleep(1.0)
+        t1, second = camera_images(sim)
+        return t1 - t0 >= 0.5 and second[camera] == first[camera]
+
+    wait_until(stopped, WAIT_S, f"{camera} to stop rendering once unwatched", poll=0.0)
+
+
 # --- fixtures -------------------------------------------------------------------------------
 
 
@@ -295,14 +307,7 @@ def test_cameras_render_only_while_watched(sim: SimServer, app: Viewer) -> None:
     assert (image.width, image.height, image.encoding, len(image.data)) == (160, 120, "rgb8", 160 * 120 * 3)
     assert during["camera_front"] >= 3 and not any(n for name, n in during.items() if name != "camera_front"), during
     app.unsubscribe(subscription)
-
-    def stopped() -> bool:
-        t0, first = camera_images(sim)
-        time.sleep(1.0)
-        t1, second = camera_images(sim)
-        return t1 - t0 >= 0.5 and second["camera_front"] == first["camera_front"]
-
-    wait_until(stopped, WAIT_S, "camera_front to stop rendering once unwatched", poll=0.0)
+    wait_camera_stopped(sim, "camera_front")
     print(f"camera_front: {during['camera_front']} images while watched, other cameras 0")
 
 

@@ -184,7 +184,7 @@ def test_a_server_that_cannot_start_is_its_exit_code() -> None:
 @pytest.mark.parametrize(
     ("clients", "expected"),
     [
-        ("merger,bogus", r"unknown client 'bogus' \(valid: merger, stitcher, monitor, record, foxglove\)"),
+        ("merger,bogus", r"unknown client 'bogus' \(valid: merger, stitcher, monitor, record, foxglove, ros2\)"),
         ("teleop", r"teleop reads the keyboard"),
         ("stitcher,dock", r"dock reads the keyboard"),
         ("topics", r"topics is a one-shot tool"),

@@ -11,19 +11,24 @@ from __future__ import annotations
 
 import io
 import math
+import xml.etree.ElementTree as ET
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
+from urllib.parse import unquote, urlparse
 
 import numpy as np
 import pytest
 import yourdfpy
 from conftest import ROBOT_SDF
 from server_helpers import (
+    JOINT_STATE,
     STRING,
     TF_MESSAGE,
     Collector,
     SimServer,
     module_server,
+    stamp_ns,
 )
 
 from simbot.bus import Node
@@ -178,3 +183,68 @@ def test_tf_static_and_robot_description_agree(urdf_text: str, tf_static: dict[s
     for frame in shared:
         error = _close(_in_root(tf_static, frame), urdf.get_transform(frame, ROOT))
         assert error < TOL, f"{frame}: tf_static and robot_description differ by {error:.2e}"
+
+
+def test_robot_description_names_meshes_a_ros_host_finds(urdf_text: str) -> None:
+    """RViz on the same machine loads the meshes: `file://` URIs of files that exist."""
+    uris = [mesh.get("filename", "") for mesh in ET.fromstring(urdf_text).iter("mesh")]
+    assert uris, "robot_description names no mesh"
+    for uri in uris:
+        parsed = urlparse(uri)
+        assert parsed.scheme == "file", f"{uri!r} is not a file:// URI"
+        assert Path(unquote(parsed.path)).is_file(), f"{uri!r} names no file"
+
+
+def _tf_tree(messages: list[Any]) -> dict[str, tuple[str, np.ndarray]]:
+    """child → (parent, transform) from TFMessages, the latest of each child winning (as a tf buffer keeps it)."""
+    tree: dict[str, tuple[str, np.ndarray]] = {}
+    for message in messages:
+        for transform in message.transforms:
+            t, r = transform.transform.translation, transform.transform.rotation
+            matrix = np.eye(4)
+            matrix[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
+            matrix[:3, 3] = (t.x, t.y, t.z)
+            tree[transform.child_frame_id] = (transform.header.frame_id, matrix)
+    return tree
+
+
+def test_every_link_is_reachable_from_odom_and_the_wheels_turn_in_tf(
+    sim: SimServer, client_node: Node, urdf_text: str, tf_static: dict[str, tuple[str, np.ndarray]]
+) -> None:
+    """RViz's view: tf_static plus tf connect every URDF link (wheels, castor parts) to odom, the movable
+    joints at the joint-state rate (30 Hz: 3 messages in 0.1 s of sim time besides odom's 5), and a front
+    wheel's transform after a drive is what the URDF's kinematics gives at its joint_states position."""
+    tf: Collector[Any] = Collector()
+    states: Collector[Any] = Collector()
+    client_node.subscribe("tf", TF_MESSAGE, tf)
+    client_node.subscribe("joint_states", JOINT_STATE, states)
+    sim.prime(tf, states)
+    sim.drive(0.5)
+    sim.step(1000)
+    sim.drive(0.0)
+    tf.clear()
+    sim.step(100)
+    messages = tf.wait_for(lambda m: len(m) >= 8, what="odom and joint transforms for 0.1 s")
+    joints = [m for m in messages if m.transforms[0].header.frame_id != "odom"]
+    assert len(joints) == 3, f"{len(joints)} joint transform messages in 0.1 s of sim time, not 3 (30 Hz)"
+    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    tree = {**tf_static, **_tf_tree(messages)}
+    for link in urdf.link_map:
+        frame, chain = link, [link]
+        while frame != "odom":
+            assert frame in tree, f"{link} does not reach odom: the chain {' <- '.join(chain)} stops"
+            frame = tree[frame][0]
+            chain.append(frame)
+    last = joints[-1]
+    stamp = stamp_ns(last.transforms[0])
+    state = states.wait_stamp(stamp, what="joint_states at the tf stamp")
+    positions = dict(zip(state.name, state.position))
+    assert abs(positions["front_left_wheel_joint"]) > 5.0, "the wheel did not turn in 1 s at 0.5 m/s (0.5 / 0.075 rad/s)"
+    urdf.update_cfg({name: positions[name] for name in ("front_left_wheel_joint", "front_right_wheel_joint")})
+    for name in ("front_left_wheel_joint", "front_right_wheel_joint"):
+        joint = urdf.joint_map[name]
+        parent, matrix = _tf_tree([last])[joint.child]
+        assert parent == joint.parent
+        error = _close(matrix, urdf.get_transform(joint.child, joint.parent))
+        assert error < TOL, f"{name}: tf differs from the URDF's kinematics at {positions[name]:.3f} rad by {error:.2e}"
+    sim.reset()

@@ -69,6 +69,7 @@ class _Urdf:
 
     model: Model
     mesh_dir: Path | None
+    mesh_uris: bool = False
     robot: ET.Element = field(init=False)
     frames: dict[str, Pose] = field(default_factory=dict)
 
@@ -130,6 +131,8 @@ class _Urdf:
         """Relative to the URDF's folder when known, so a committed URDF holds no machine paths."""
         if mesh.path is None:
             raise DescriptionError(self.model.source, f"mesh {mesh.uri!r} was not resolved", "mesh")
+        if self.mesh_uris:
+            return mesh.path.resolve().as_uri()
         if self.mesh_dir is None:
             return str(mesh.path.resolve())
         return Path(os.path.relpath(mesh.path.resolve(), self.mesh_dir.resolve())).as_posix()
@@ -236,11 +239,12 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
         urdf.add_joint(f"{joint.name}__offset", "fixed", end, child.name)
 
 
-def model_to_urdf(model: Model, mesh_dir: Path | None = None) -> str:
-    """URDF text of `model`; mesh paths relative to `mesh_dir` (the URDF's folder) if given."""
+def model_to_urdf(model: Model, mesh_dir: Path | None = None, *, mesh_uris: bool = False) -> str:
+    """URDF text of `model`; mesh paths relative to `mesh_dir` (the URDF's folder) if given, absolute otherwise,
+    or `file://` URIs with `mesh_uris` (what ROS tools resolve: `robot_description`)."""
     root, children = _tree(model)
     links = {link.name: link for link in model.links}
-    urdf = _Urdf(model, mesh_dir)
+    urdf = _Urdf(model, mesh_dir, mesh_uris)
     if root == "world":
         urdf.robot.append(ET.Element("link", name="world"))
         urdf.frames["world"] = IDENTITY

@@ -13,6 +13,8 @@ from simbot.bus import messages
 from simbot.sim.system import Every, SystemConfigError, SystemContext, number_param, param
 
 MOVABLE = ("revolute", "continuous", "prismatic")
+DEFAULT_RATE_HZ = 30.0
+"""The joint-state rate (SPEC §1), at which the robot state publisher also sends the movable joints' tf."""
 
 
 class JointStatePublisher:
@@ -29,7 +31,7 @@ class JointStatePublisher:
         self._joints = list(names)
         self._physics = ctx.physics
         self._pub = ctx.bus.publisher(param(ctx.plugin, "topic", default="joint_states") or "joint_states", messages.JointState)
-        self._every = Every.hz(number_param(ctx.plugin, "update_rate", default=30.0, positive=True) or 30.0)
+        self._every = Every.hz(number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ)
 
     def post_update(self, now_ns: int) -> None:
         if not self._every.due(now_ns):

@@ -1,7 +1,11 @@
-"""`robot_description` (the URDF) and `tf_static` (its fixed joints and the sensor frames), for late joiners too.
+"""`robot_description` (the URDF), `tf_static` (its fixed joints and the sensor frames) and `tf` of its movable joints.
 
-What ROS's robot_state_publisher would do for the static part of the tree: every fixed joint of the
-URDF on `robot_description` becomes a transform, so the two always agree. A sensor whose frame
+What ROS's robot_state_publisher does: every fixed joint of the URDF on `robot_description`
+becomes a latched transform, so the two always agree; and every movable joint of the URDF
+(revolute, continuous, prismatic: the wheels and each castor's yaw, pitch and roll) a transform
+on `tf` at the joint-state rate, from the positions the physics knows. Not only the joints the
+SDF's JointStatePublisher names: RViz wants every link reachable from `odom` at all times.
+`robot_description` names meshes by `file://` URIs, which a ROS host on the same machine resolves. A sensor whose frame
 is not a link (the cameras) adds its link → frame transform at the sensor's SDF pose; a sensor
 whose frame is its link (the lidars) already has it, as the URDF puts that link's frame at the
 sensor. Each camera also gets its optical frame (z forward, x right, y down), which its images
@@ -10,20 +14,68 @@ are stamped in.
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.bus.frames import OPTICAL_RPY, optical_frame
 from simbot.description.model import Model
 from simbot.description.poses import Pose
-from simbot.description.urdf_writer import link_frame
-from simbot.sim.physics import pose_to_transform
-from simbot.sim.system import SystemContext, sensor_frame
+from simbot.description.urdf_writer import link_frame, model_to_urdf
+from simbot.sim.physics import Transform, compose, pose_to_transform
+from simbot.sim.system import Every, SystemContext, sensor_frame
+from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 
 
 def _numbers(text: str | None) -> tuple[float, float, float]:
     x, y, z = (float(v) for v in (text or "0 0 0").split())
     return x, y, z
+
+
+def _origin(joint: ET.Element) -> Pose:
+    origin = joint.find("origin")
+    return Pose(_numbers(origin.get("xyz")), _numbers(origin.get("rpy"))) if origin is not None else Pose()
+
+
+@dataclass(frozen=True)
+class MovableJoint:
+    """A URDF joint that moves: its links, its origin in the parent and its axis (URDF's default x)."""
+
+    name: str
+    parent: str
+    child: str
+    origin: Transform
+    axis: tuple[float, float, float]
+    prismatic: bool
+
+    def transform(self, position: float) -> Transform:
+        """The child's frame in the parent's at `position` (rad or m): the origin, then the motion along the axis."""
+        if self.prismatic:
+            x, y, z = self.axis
+            return compose(self.origin, ((x * position, y * position, z * position), (0.0, 0.0, 0.0, 1.0)))
+        s = math.sin(position / 2)
+        return compose(self.origin, ((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))))
+
+
+def movable_joints(urdf: str) -> list[MovableJoint]:
+    """The URDF's revolute, continuous and prismatic joints, in document order."""
+    found = []
+    for joint in ET.fromstring(urdf).iter("joint"):
+        if joint.get("type") not in MOVABLE:
+            continue
+        axis = joint.find("axis")
+        found.append(
+            MovableJoint(
+                joint.get("name", ""),
+                joint.find("parent").get("link", ""),  # type: ignore[union-attr]
+                joint.find("child").get("link", ""),  # type: ignore[union-attr]
+                pose_to_transform(_origin(joint)),
+                _numbers(axis.get("xyz")) if axis is not None else (1.0, 0.0, 0.0),
+                joint.get("type") == "prismatic",
+            )
+        )
+    return found
 
 
 def static_transforms(model: Model, urdf: str) -> list[tuple[str, str, Pose]]:
@@ -33,9 +85,7 @@ def static_transforms(model: Model, urdf: str) -> list[tuple[str, str, Pose]]:
     for joint in root.iter("joint"):
         if joint.get("type") != "fixed":
             continue
-        origin = joint.find("origin")
-        pose = Pose(_numbers(origin.get("xyz")), _numbers(origin.get("rpy"))) if origin is not None else Pose()
-        found.append((joint.find("parent").get("link", ""), joint.find("child").get("link", ""), pose))  # type: ignore[union-attr]
+        found.append((joint.find("parent").get("link", ""), joint.find("child").get("link", ""), _origin(joint)))  # type: ignore[union-attr]
     links = {link.get("name") for link in root.iter("link")}
     for link, sensor in model.sensors():
         frame = sensor_frame(sensor)
@@ -47,11 +97,27 @@ def static_transforms(model: Model, urdf: str) -> list[tuple[str, str, Pose]]:
 
 
 class RobotStatePublisher:
-    """Built into the server for the robot; publishes once, latched."""
+    """Built into the server for the robot: the description and static tree once, latched; the movable joints at their rate."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, name = ctx.require_model("RobotStatePublisher")
-        urdf = ctx.physics.body(name).urdf
-        ctx.bus.publisher("robot_description", messages.String, latched=True).put(messages.string(urdf))
+        model, self._name = ctx.require_model("RobotStatePublisher")
+        urdf = ctx.physics.body(self._name).urdf
+        ctx.bus.publisher("robot_description", messages.String, latched=True).put(messages.string(model_to_urdf(model, mesh_uris=True)))
         transforms = [messages.transform_stamped(0, parent, child, *pose_to_transform(pose)) for parent, child, pose in static_transforms(model, urdf)]
         ctx.bus.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
+        self._physics = ctx.physics
+        self._joints = movable_joints(urdf)
+        self._tf = ctx.bus.publisher("tf", messages.TFMessage) if self._joints else None
+        self._every = Every.hz(DEFAULT_RATE_HZ)
+
+    def post_update(self, now_ns: int) -> None:
+        if self._tf is None or not self._every.due(now_ns):
+            return
+        states = self._physics.joint_states(self._name, [joint.name for joint in self._joints])
+        transforms = [
+            messages.transform_stamped(now_ns, joint.parent, joint.child, *joint.transform(state[0])) for joint, state in zip(self._joints, states)
+        ]
+        self._tf.put(messages.tf_message(transforms))
+
+    def reset(self, now_ns: int) -> None:
+        self._every.restart()

@@ -1,0 +1,328 @@
+"""`simbot ros2` (clients/ros2.py): a real server, a real bridge, and a plain rclpy node on real DDS.
+
+DDS discovers by multicast and would announce itself on every interface, so every test that
+starts rclpy runs inside a private network namespace that holds only a loopback interface:
+`test_dds_stays_in_a_private_network_namespace` runs this module again, under pytest, inside
+`unshare -rn` (after `ip link set lo up`, `ip link set lo multicast on` and
+`ip route add 224.0.0.0/4 dev lo`); there the DDS tests run, and outside it they skip saying so.
+Where namespaces cannot be made, the wrapper skips saying why.
+
+The ROS side is a node written as a ROS user would: typed messages from the wheels of the `ros2`
+extra, default QoS (reliable, volatile, depth 10) and transient local for robot_description. It
+gets `/lidar_front` (720 ranges, 5 Hz of sim time), `/odom` (50 Hz), `/clock` and `/joint_states`,
+a late-joined `/robot_description`; its `/cmd_vel` of 0.5 m/s for 3 s of sim time moves the
+robot 1.5 m ± 0.2; what it receives raw equals what a Zenoh subscriber receives, byte for byte; a
+camera renders only while it subscribes. Garbage it publishes on `/cmd_vel` is dropped and counted
+by the server, and the bridge carries on. One real-time server (160×120 cameras) and one bridge
+serve the module.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from client_helpers import ClientProcess, client_process
+from conftest import REPO
+from server_helpers import Collector, SimServer, payload, raw_samples, running_server, wait_until
+from test_client_foxglove import camera_images, wait_camera_stopped
+
+INSIDE = os.environ.get("SIMBOT_TEST_NETNS") == "1"
+NAMESPACE_SETUP = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo"
+WRAPPER_TIMEOUT_S = 420
+WAIT_S = 30.0  # generous: two cores shared with other test runs
+CHEAP_CAMERAS = ("--camera-size", "160x120")
+
+dds = pytest.mark.skipif(not INSIDE, reason="starts rclpy: runs inside a private network namespace, through test_dds_stays_in_a_private_network_namespace")
+
+
+# --- the namespace --------------------------------------------------------------------------
+
+
+def _namespace_unavailable() -> str | None:
+    """Why a private network namespace cannot be made here, or None when it can."""
+    for tool in ("unshare", "ip"):
+        if shutil.which(tool) is None:
+            return f"no `{tool}` command"
+    probe = subprocess.run(["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP], capture_output=True, text=True, timeout=30, check=False)
+    if probe.returncode != 0:
+        return f"`unshare -rn` with multicast on loopback failed: {probe.stderr.strip()}"
+    return None
+
+
+@pytest.mark.skipif(INSIDE, reason="this is the run inside the namespace")
+def test_dds_stays_in_a_private_network_namespace() -> None:
+    """This module's DDS tests, run by pytest inside `unshare -rn` (loopback only, multicast routed to it)."""
+    pytest.importorskip("rclpy", reason="rclpy is not installed: pip install 'simbot[ros2]' (the test extra has it)")
+    reason = _namespace_unavailable()
+    if reason is not None:
+        pytest.skip(f"cannot make a private network namespace for DDS: {reason}")
+    command = f"{NAMESPACE_SETUP} && exec {sys.executable} -m pytest -q -p no:cacheprovider -rA tests/{Path(__file__).name}"
+    env = dict(os.environ, SIMBOT_TEST_NETNS="1")
+    result = subprocess.run(["unshare", "-rn", "sh", "-c", command], cwd=REPO, env=env, capture_output=True, text=True, timeout=WRAPPER_TIMEOUT_S, check=False)
+    print(result.stdout[-6000:])
+    assert result.returncode == 0, f"the DDS tests failed inside the namespace:\n{result.stdout[-12000:]}\n{result.stderr[-3000:]}"
+    assert " passed" in result.stdout and " failed" not in result.stdout
+
+
+@pytest.fixture(scope="module")
+def isolated() -> None:
+    """Inside the namespace: nothing but loopback, so DDS cannot leave the machine."""
+    interfaces = sorted(name for _, name in socket.if_nameindex())
+    assert interfaces == ["lo"], f"not in a private network namespace: interfaces {interfaces}"
+
+
+# --- the processes and the ROS user ---------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def sim(isolated: None) -> Iterator[SimServer]:
+    with running_server("empty", "realtime", extra=CHEAP_CAMERAS) as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def bridge(sim: SimServer) -> Iterator[ClientProcess]:
+    with client_process(sim, "ros2") as process:
+        yield process
+
+
+class RosUser:
+    """A plain rclpy node, spun on a thread of its own: what a ROS user's node does."""
+
+    def __init__(self, name: str = "ros_user") -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._executor.spin, daemon=True)
+        self._thread.start()
+
+    def subscribe(self, msgtype: type[Any], topic: str, qos: Any = 10, raw: bool = False) -> tuple[Collector[Any], Callable[[], None]]:
+        """Messages of `topic` collected; the second item ends the subscription."""
+        collector: Collector[Any] = Collector()
+        subscription = self.node.create_subscription(msgtype, topic, collector, qos, raw=raw)
+        return collector, lambda: self.node.destroy_subscription(subscription)
+
+    def close(self) -> None:
+        import rclpy
+
+        self._executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+        self._thread.join(timeout=5.0)
+
+
+@pytest.fixture(scope="module")
+def ros(bridge: ClientProcess) -> Iterator[RosUser]:
+    user = RosUser()
+    yield user
+    user.close()
+    assert bridge.alive(), f"the bridge died: {bridge.stderr()[-3000:]}"
+
+
+def topic(sim: SimServer, name: str) -> str:
+    """The ROS topic of a key: `/` and the key, namespace kept."""
+    return "/" + sim.key(name)
+
+
+def standing(sim: SimServer) -> bool:
+    """Whether the robot moves less than a millimetre in 0.1 s of sim time."""
+    first = sim.state()
+    wait_until(lambda: sim.state()["sim_time"] >= first["sim_time"] + 0.1, WAIT_S, "0.1 s of sim time")
+    a, b = sim.pose(state=first)[0], sim.pose()[0]
+    return ((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5 < 1e-3
+
+
+def stamp_ns(msg: Any) -> int:
+    """Sim time of an rclpy message: its header stamp, or a Clock's time."""
+    stamp = msg.header.stamp if hasattr(msg, "header") else msg.clock
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def rate_hz(messages: list[Any]) -> float:
+    """Messages per second of sim time, from their header stamps."""
+    stamps = sorted(stamp_ns(m) for m in messages)
+    return (len(stamps) - 1) / ((stamps[-1] - stamps[0]) / 1e9)
+
+
+# --- the tests ------------------------------------------------------------------------------
+
+
+@dds
+def test_a_ros_node_gets_the_sensors_odometry_clock_and_joint_states(sim: SimServer, ros: RosUser) -> None:
+    from nav_msgs.msg import Odometry
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState, LaserScan
+
+    scans, _ = ros.subscribe(LaserScan, topic(sim, "lidar_front"))
+    odom, _ = ros.subscribe(Odometry, topic(sim, "odom"))
+    clock, _ = ros.subscribe(Clock, topic(sim, "clock"))
+    joints, _ = ros.subscribe(JointState, topic(sim, "joint_states"))
+    scans.wait_count(11, WAIT_S, "scans")  # 2 s of sim time at 5 Hz
+    assert all(len(scan.ranges) == 720 and scan.header.frame_id == "base_scan_front" for scan in scans.messages())
+    assert rate_hz(scans.messages()) == pytest.approx(5.0, rel=0.05)
+    assert rate_hz(odom.wait_count(50, WAIT_S, "odometry")) == pytest.approx(50.0, rel=0.05)
+    assert rate_hz(joints.wait_count(30, WAIT_S, "joint states")) == pytest.approx(30.0, rel=0.05)
+    ticks = [stamp_ns(m) for m in clock.wait_count(100, WAIT_S, "clock ticks")]
+    assert ticks == sorted(ticks) and (ticks[-1] - ticks[0]) / 1e9 >= 0.9
+
+
+@dds
+def test_a_late_joiner_gets_the_robot_description(sim: SimServer, bridge: ClientProcess, ros: RosUser) -> None:
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_msgs.msg import String
+
+    wait_until(lambda: f"{topic(sim, 'robot_description')} → DDS" in bridge.stderr(), WAIT_S, "the bridge to publish /robot_description")
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    description, _ = ros.subscribe(String, topic(sim, "robot_description"), latched)
+    text = description.wait_count(1, WAIT_S, "robot_description")[0].data
+    assert '<robot name="flexley_tug">' in text and "file://" in text
+
+
+@dds
+def test_raw_payloads_are_byte_identical_to_the_zenoh_ones(sim: SimServer, ros: RosUser) -> None:
+    from sensor_msgs.msg import LaserScan
+
+    with raw_samples(sim.node.session, sim.key("lidar_front"), payload) as zenoh_scans:
+        dds_scans, unsubscribe = ros.subscribe(LaserScan, topic(sim, "lidar_front"), raw=True)
+        dds_scans.wait_count(3, WAIT_S, "raw scans")
+        unsubscribe()
+        carried = dds_scans.messages()
+        wait_until(lambda: all(scan in zenoh_scans.messages() for scan in carried), WAIT_S, "the Zenoh subscriber to see every scan")
+    assert len(carried[0]) > 720 * 4
+
+
+@dds
+def test_cmd_vel_from_ros_drives_the_robot_by_sim_time(sim: SimServer, ros: RosUser) -> None:
+    """0.5 m/s for 3 s of sim time (counted on /clock, as a node with use_sim_time does) → 1.5 m ± 0.2."""
+    from geometry_msgs.msg import Twist
+    from rosgraph_msgs.msg import Clock
+
+    clock, stop_clock = ros.subscribe(Clock, topic(sim, "clock"))
+    clock.wait_count(1, WAIT_S, "a clock tick")
+    cmd_vel = ros.node.create_publisher(Twist, topic(sim, "cmd_vel"), 10)
+    wait_until(lambda: cmd_vel.get_subscription_count() > 0, WAIT_S, "the bridge to match /cmd_vel")
+    start, _ = sim.pose()
+    forward = Twist()
+    forward.linear.x = 0.5
+    began = stamp_ns(clock.messages()[-1])
+    while stamp_ns(clock.messages()[-1]) - began < 3_000_000_000:
+        cmd_vel.publish(forward)
+        time.sleep(0.1)  # 10 Hz, as a teleop node sends
+    received = sim.state()["received"][sim.key("cmd_vel")]
+    cmd_vel.publish(Twist())
+    stop_clock()
+    wait_until(lambda: sim.state()["received"][sim.key("cmd_vel")] > received, WAIT_S, "the server to receive the stop")
+    wait_until(lambda: standing(sim), WAIT_S, "the robot to stand still", poll=0.0)
+    end, _ = sim.pose()
+    moved = ((end[0] - start[0]) ** 2 + (end[1] - start[1]) ** 2) ** 0.5
+    assert moved == pytest.approx(1.5, abs=0.2), f"moved {moved:.3f} m"
+    ros.node.destroy_publisher(cmd_vel)
+
+
+@dds
+def test_a_camera_renders_only_while_a_ros_node_subscribes(sim: SimServer, ros: RosUser) -> None:
+    from sensor_msgs.msg import Image
+
+    _, before = camera_images(sim)
+    assert before and not any(before.values()), f"cameras rendered with no ROS subscriber: {before}"
+    images, unsubscribe = ros.subscribe(Image, topic(sim, "camera_front"))
+    image = images.wait_count(3, 60.0, "images")[-1]  # the render worker starts on the first subscription
+    assert (image.width, image.height, image.encoding, len(image.data)) == (160, 120, "rgb8", 160 * 120 * 3)
+    _, during = camera_images(sim)
+    assert during["camera_front"] >= 3 and not any(n for name, n in during.items() if name != "camera_front"), during
+    unsubscribe()
+    wait_camera_stopped(sim, "camera_front")
+
+
+@dds
+def test_bad_input_from_dds_is_dropped_and_counted_and_the_bridge_carries_on(sim: SimServer, ros: RosUser, bridge: ClientProcess) -> None:
+    from geometry_msgs.msg import Twist
+    from std_msgs.msg import String
+
+    key = sim.key("cmd_vel")
+    cmd_vel = ros.node.create_publisher(Twist, topic(sim, "cmd_vel"), 10)
+    other = RosUser("wrong_type_user")  # a participant of its own: DDS refuses two types on one topic in one
+    wrong = other.node.create_publisher(String, topic(sim, "cmd_vel"), 10)  # DDS does not match it to the bridge
+    wait_until(lambda: cmd_vel.get_subscription_count() > 0, WAIT_S, "the bridge to match /cmd_vel")
+    dropped = sim.state()["dropped"].get(key, 0)
+    cmd_vel.publish(b"\x00\x01\x00\x00garbage, not a Twist")  # raw bytes through a Twist publisher
+    wrong.publish(String(data="forward"))
+    wait_until(lambda: sim.state()["dropped"].get(key, 0) > dropped, WAIT_S, "the server to count the malformed Twist")
+    received = sim.state()["received"][key]
+    cmd_vel.publish(Twist())
+    wait_until(lambda: sim.state()["received"][key] > received, WAIT_S, "a valid Twist after the garbage")
+    assert bridge.alive()
+    ros.node.destroy_publisher(cmd_vel)
+    other.close()
+
+
+@dds
+def test_a_key_carried_both_ways_is_not_echoed(sim: SimServer, ros: RosUser) -> None:
+    """cmd_vel also published on the bus (as `simbot teleop` does): a ROS node sees each command, and the
+    server receives each once, not again from the bridge's own DDS publisher through its own subscription."""
+    from geometry_msgs.msg import Twist
+
+    key = sim.key("cmd_vel")
+    commands, unsubscribe = ros.subscribe(Twist, topic(sim, "cmd_vel"))
+    wait_until(lambda: sim.drive(0.0) or len(commands), WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2)
+    seen, received = len(commands), sim.state()["received"][key]
+    for _ in range(5):
+        sim.drive(0.0)
+    commands.wait_count(seen + 5, WAIT_S, "the five commands on DDS")
+    wait_until(lambda: sim.state()["received"][key] >= received + 5, WAIT_S, "the server to receive the five")
+    time.sleep(0.5)  # an echo would take the path the ROS node's copy took, which has arrived: give it ample time
+    assert sim.state()["received"][key] == received + 5
+    unsubscribe()
+
+
+@dds
+def test_missing_type_support_is_one_warning_per_topic(sim: SimServer, bridge: ClientProcess, ros: RosUser) -> None:
+    """With the wheels, tf2_msgs has no type support: /tf and /tf_static are named once each, the rest carried."""
+    wait_until(lambda: f"{topic(sim, 'odom')} → DDS" in bridge.stderr(), WAIT_S, "the bridge to carry /odom")
+    log = bridge.stderr()
+    for name in ("tf", "tf_static"):
+        assert log.count(f"not carrying {topic(sim, name)} (tf2_msgs/msg/TFMessage)") == 1, log[-3000:]
+
+
+@dds
+def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(sim: SimServer, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A second bridge, in a DDS domain of its own: only /lidar_* and not /lidar_back; its status line every 5 s."""
+    import rclpy
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")  # the bridge process inherits it
+    with client_process(sim, "ros2", "--allow", "lidar_*", "--deny", "lidar_back") as second:
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=42)
+        node = rclpy.create_node("ros_user_42", context=context)
+        try:
+            wait_until(lambda: topic(sim, "lidar_front") in dict(node.get_topic_names_and_types()), WAIT_S, "/lidar_front in domain 42")
+            wait_until(lambda: "msg/s to DDS" in second.stderr(), WAIT_S, "a status line (every 5 s)")
+            names = {name for name, _ in node.get_topic_names_and_types() if name not in ("/rosout", "/parameter_events")}
+            assert names == {topic(sim, "lidar_front")}, names
+            assert "1 topics to DDS (0 subscribed), 0 from DDS" in second.stderr()
+        finally:
+            node.destroy_node()
+            rclpy.shutdown(context=context)
+
+
+def test_without_rclpy_it_says_where_to_get_it_and_exits_2() -> None:
+    """No DDS starts here: rclpy is hidden (an import of it fails), as on a machine without it."""
+    hide = "import sys; sys.modules['rclpy'] = None; from simbot.clients.ros2 import main; sys.exit(main(sys.argv[1:]))"
+    done = subprocess.run([sys.executable, "-c", hide, "--connect", "tcp/127.0.0.1:9"], cwd=REPO, capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2
+    assert done.stderr.strip() == "simbot ros2: error: needs rclpy: source a ROS 2 install (Humble, Jazzy, Kilted), or pip install 'simbot[ros2]'"
