@@ -44,7 +44,7 @@ from simbot.description.model import (
 )
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
-from simbot.description.xml import Element, Reader, parse_file
+from simbot.description.xml import Element, Reader, parse_file, sdf_tag
 from simbot.rotations import quaternion_to_matrix
 
 logger = logging.getLogger(__name__)
@@ -378,7 +378,7 @@ def _read_sensor(reader: Reader, frames: _Frames, link: str, element: Element) -
 
 def _read_param(element: Element) -> Param:
     return Param(
-        tag=element.tag,
+        tag=sdf_tag(element),
         text=(element.text or "").strip(),
         attrs=tuple(sorted((str(k), str(v)) for k, v in element.attrib.items())),
         children=tuple(_read_param(child) for child in element),
