@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -25,10 +26,14 @@ from simbot.description.missing_meshes import present_collisions, visuals_with_f
 from simbot.description.model import (
     Axis,
     Box,
+    Capsule,
     Collision,
+    Cone,
     Cylinder,
+    Ellipsoid,
     Friction,
     Geometry,
+    Heightmap,
     Inertial,
     Joint,
     Light,
@@ -40,6 +45,7 @@ from simbot.description.model import (
     Physics,
     Plane,
     Plugin,
+    Polyline,
     Scene,
     Sensor,
     Sphere,
@@ -295,27 +301,63 @@ def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
 
 
 def _read_geometry(reader: Reader, owner: Element) -> Geometry:
+    """The shape, with SDF's defaults for the sizes a file leaves out (as Gazebo reads them)."""
     geometry = reader.child(owner, "geometry")
     shape = next(iter(geometry), None)
     if shape is None:
-        raise reader.error(geometry, "empty <geometry>: expected box, cylinder, sphere, plane or mesh")
-    if shape.tag == "box":
-        return Box(reader.floats(reader.child(shape, "size"), 3))  # type: ignore[arg-type]
-    if shape.tag == "cylinder":
-        return Cylinder(reader.required_number(shape, "radius"), reader.required_number(shape, "length"))
-    if shape.tag == "sphere":
-        return Sphere(reader.required_number(shape, "radius"))
-    if shape.tag == "plane":
-        normal = reader.vector(shape, "normal", 3, (0.0, 0.0, 1.0))
-        size = reader.vector(shape, "size", 2, (100.0, 100.0))
-        return Plane(normal, size)  # type: ignore[arg-type]
-    if shape.tag == "mesh":
-        uri = reader.text(shape, "uri")
-        if not uri:
-            raise reader.error(shape, "missing required element <uri>")
-        scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
-        return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
-    raise reader.error(shape, f"unsupported geometry <{shape.tag}>")
+        raise reader.error(geometry, f"empty <geometry>: expected one of {', '.join(_SHAPES)}")
+    read = _SHAPES.get(str(shape.tag))
+    if read is None:
+        raise reader.error(shape, f"unsupported geometry <{sdf_tag(shape)}>")
+    return read(reader, shape)
+
+
+def _read_mesh(reader: Reader, shape: Element) -> Mesh:
+    uri = reader.text(shape, "uri")
+    if not uri:
+        raise reader.error(shape, "missing required element <uri>")
+    scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
+    return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
+
+
+def _read_polyline(reader: Reader, shape: Element) -> Polyline:
+    """Every <polyline> of the geometry: each its outline of <point>s and its <height>."""
+    outlines, heights = [], []
+    for polyline in shape.getparent().findall("polyline"):
+        points = tuple(reader.floats(p, 2) for p in polyline.findall("point"))
+        if len(points) < 3:
+            raise reader.error(polyline, f"a polyline needs at least 3 <point>s, got {len(points)}")
+        outlines.append(points)
+        heights.append(reader.number(polyline, "height", 1.0))
+    return Polyline(tuple(outlines), tuple(heights))  # type: ignore[arg-type]
+
+
+def _read_heightmap(reader: Reader, shape: Element) -> Heightmap:
+    uri = reader.text(shape, "uri")
+    if not uri:
+        raise reader.error(shape, "missing required element <uri>")
+    resolution = resolve(uri, reader.file.parent)
+    path = resolution.path
+    if path is None:
+        raise reader.error(shape, f"cannot find heightmap image {uri!r} (tried {resolution.describe_tried()})")
+    size = reader.vector(shape, "size", 3, (1.0, 1.0, 1.0))
+    pos = reader.vector(shape, "pos", 3, (0.0, 0.0, 0.0))
+    return Heightmap(uri, size, pos, path)  # type: ignore[arg-type]
+
+
+_SHAPES: dict[str, Callable[[Reader, Element], Geometry]] = {
+    "box": lambda r, e: Box(r.vector(e, "size", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
+    "cylinder": lambda r, e: Cylinder(r.number(e, "radius", 1.0), r.number(e, "length", 1.0)),
+    "sphere": lambda r, e: Sphere(r.number(e, "radius", 1.0)),
+    "capsule": lambda r, e: Capsule(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
+    "ellipsoid": lambda r, e: Ellipsoid(r.vector(e, "radii", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
+    "cone": lambda r, e: Cone(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
+    "plane": lambda r, e: Plane(r.vector(e, "normal", 3, (0.0, 0.0, 1.0)), r.vector(e, "size", 2, (100.0, 100.0))),  # type: ignore[arg-type]
+    "mesh": _read_mesh,
+    "polyline": _read_polyline,
+    "heightmap": _read_heightmap,
+}
+"""Each SDF shape and how to read it; sizes default as in SDF's own specification."""
 
 
 def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
