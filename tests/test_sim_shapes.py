@@ -13,6 +13,7 @@ import pytest
 from simbot.description import load_model, load_world
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
+from simbot.sim.render.shapes import mesh
 
 FIXTURES = Path(__file__).parent / "fixtures" / "gazebo"
 SETTLE_STEPS = 3000
@@ -76,14 +77,18 @@ def test_heightfield_surface_is_the_images_surface() -> None:
 
 
 def test_heightfield_visual_is_a_mesh_the_cameras_draw() -> None:
-    """The heightmap's visual reaches PyBullet as a mesh file, which both camera renderers draw."""
+    """The heightmap's visual reaches PyBullet as a mesh file, which the OpenGL renderer tessellates
+    into the grid's 32 triangles, 0.2 to 2.24 m up (TinyRenderer draws PyBullet's mesh itself)."""
     world = load_world(FIXTURES / "heightmap.sdf")
     physics = Physics(world)
     body = physics.add_model(world.model("terrain"))
     visuals = pb.getVisualShapeData(body.id, physicsClientId=physics.client)
     files = [Path(v[4].decode()) for v in visuals if v[2] == pb.GEOM_MESH]
-    assert len(files) == 1 and files[0].is_file() and files[0].read_text().count("\nf ") == 32  # 4 × 4 squares of 2
-    physics.close()
+    assert len(files) == 1
+    positions, _ = mesh(str(files[0]), (1.0, 1.0, 1.0))
+    physics.close()  # removes the generated files
+    assert positions.shape == (32 * 3, 3)
+    assert positions[:, 2].min() == pytest.approx(0.2) and positions[:, 2].max() == pytest.approx(0.2 + 2.04)
 
 
 def test_nested_links_and_joints_by_scoped_name() -> None:
