@@ -34,6 +34,46 @@ class Sphere:
 
 
 @dataclass(frozen=True)
+class Capsule:
+    """Axis along z; `length` is the cylinder between the two half spheres (SDF and PyBullet agree)."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    radii: Vec3
+
+
+@dataclass(frozen=True)
+class Cone:
+    """Axis along z: the base circle at z = -length/2, the apex at +length/2."""
+
+    radius: float
+    length: float
+
+
+@dataclass(frozen=True)
+class Polyline:
+    """Closed outlines in the xy plane, each extruded from z = 0 up to its height (one per SDF <polyline>)."""
+
+    outlines: tuple[tuple[tuple[float, float], ...], ...]
+    heights: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Heightmap:
+    """A grey image as terrain: `size` metres along x and y, and from black to white along z; `pos`
+    moves it (its centre in x and y, its zero height in z). `path` the image, None when not found."""
+
+    uri: str
+    size: Vec3 = (1.0, 1.0, 1.0)
+    pos: Vec3 = (0.0, 0.0, 0.0)
+    path: Path | None = None
+
+
+@dataclass(frozen=True)
 class Plane:
     normal: Vec3
     size: tuple[float, float]
@@ -48,7 +88,7 @@ class Mesh:
     path: Path | None = None
 
 
-Geometry = Box | Cylinder | Sphere | Plane | Mesh
+Geometry = Box | Cylinder | Sphere | Plane | Mesh | Capsule | Ellipsoid | Cone | Polyline | Heightmap
 
 
 @dataclass(frozen=True)

@@ -5,12 +5,17 @@ to its child link, a `<frame>`'s to what it is attached to, and `relative_to` (o
 `frame` attribute) may name any of these frames. What a link holds (inertial, collisions,
 visuals, sensors) is placed in the link frame. A link without `<inertial>` is massless here,
 as robot descriptions mean it (SDF's own default of 1 kg would be a surprise on `base_footprint`).
+
+A model nested in a model (inline or included, SDF 1.7+) is flattened into its parent: its
+links and joints become the parent's under scoped names (`nested::link`), placed by the frame
+graph, so a parent's joint may join `nested::link` (or `nested`, meaning its canonical link).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -21,10 +26,14 @@ from simbot.description.missing_meshes import present_collisions, visuals_with_f
 from simbot.description.model import (
     Axis,
     Box,
+    Capsule,
     Collision,
+    Cone,
     Cylinder,
+    Ellipsoid,
     Friction,
     Geometry,
+    Heightmap,
     Inertial,
     Joint,
     Light,
@@ -36,6 +45,7 @@ from simbot.description.model import (
     Physics,
     Plane,
     Plugin,
+    Polyline,
     Scene,
     Sensor,
     Sphere,
@@ -44,7 +54,7 @@ from simbot.description.model import (
 )
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
-from simbot.description.xml import Element, Reader, parse_file
+from simbot.description.xml import Element, Reader, parse_file, sdf_tag
 from simbot.rotations import quaternion_to_matrix
 
 logger = logging.getLogger(__name__)
@@ -167,22 +177,23 @@ def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> M
     name = reader.attr(element, "name")
     pose, _ = _pose(reader, element)
     link_elements = element.findall("link")
-    if not link_elements:
+    nested = _read_nested(reader, version, element)
+    if not link_elements and not nested:
         raise reader.error(element, f"model {name!r} has no <link>")
-    for nested in element.findall("model") + element.findall("include"):
-        logger.warning("%s:%s: nested <%s> in model %r is not supported; ignored", reader.file, nested.sourceline, nested.tag, name)
-    frames = _model_frames(reader, element, link_elements)
-    links = tuple(_read_link(reader, frames, e) for e in link_elements)
-    link_names = {link.name for link in links}
-    joints = tuple(_read_joint(reader, version, frames, e, link_names) for e in element.findall("joint"))
-    canonical = element.get("canonical_link") or links[0].name
-    if canonical not in link_names:
+    frames = _model_frames(reader, element, link_elements, nested)
+    own = tuple(_read_link(reader, frames, e) for e in link_elements)
+    links = own + tuple(link for n in nested for link in n.links(frames))
+    joint_ends = {link.name: link.name for link in links} | {n.name: n.scoped(n.model.canonical_link) for n in nested}
+    joints = tuple(_read_joint(reader, version, frames, e, joint_ends) for e in element.findall("joint"))
+    joints += tuple(joint for n in nested for joint in n.joints(frames))
+    canonical = element.get("canonical_link") or (own[0].name if own else nested[0].scoped(nested[0].model.canonical_link))
+    if canonical not in joint_ends:
         raise reader.error(element, f"canonical_link {canonical!r} is not a link of model {name!r}")
     return Model(
         name=name,
         pose=pose,
         static=reader.flag(element, "static", False),
-        canonical_link=canonical,
+        canonical_link=joint_ends[canonical],
         links=links,
         joints=joints,
         plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
@@ -190,11 +201,64 @@ def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> M
     )
 
 
-def _model_frames(reader: Reader, model: Element, links: list[Element]) -> _Frames:
+@dataclass(frozen=True)
+class _Nested:
+    """A model inside a model (SDF 1.7+), flattened into its parent: its links, joints and frames
+    take the scoped names `NAME::link`, as the parent's joints and plugins refer to them."""
+
+    model: Model
+    element: Element
+    relative_to: str | None
+
+    @property
+    def name(self) -> str:
+        return self.model.name
+
+    def scoped(self, inner: str) -> str:
+        return f"{self.name}::{inner}"
+
+    def add_frames(self, frames: _Frames) -> None:
+        """The nested model's frame, and its links and joints relative to it."""
+        frames.add(self.name, self.model.pose, self.relative_to or MODEL_FRAME, self.element)
+        for inner, pose in [(link.name, link.pose) for link in self.model.links] + [(j.name, j.pose) for j in self.model.joints]:
+            frames.add(self.scoped(inner), pose, self.name, self.element)
+
+    def links(self, frames: _Frames) -> list[Link]:
+        return [replace(link, name=self.scoped(link.name), pose=frames.in_model(self.scoped(link.name), self.element)) for link in self.model.links]
+
+    def joints(self, frames: _Frames) -> list[Joint]:
+        return [
+            replace(
+                joint,
+                name=self.scoped(joint.name),
+                parent=joint.parent if joint.parent == "world" else self.scoped(joint.parent),
+                child=self.scoped(joint.child),
+                pose=frames.in_model(self.scoped(joint.name), self.element),
+            )
+            for joint in self.model.joints
+        ]
+
+
+def _read_nested(reader: Reader, version: tuple[int, int], model: Element) -> list[_Nested]:
+    """The models nested in `model`, inline or included; their plugins are not run (a warning says so)."""
+    nested = []
+    for element in model:
+        if element.tag not in ("model", "include"):
+            continue
+        inner = _read_model(reader, version, element) if element.tag == "model" else _read_include(reader, element)
+        for plugin in inner.plugins:
+            logger.warning("%s:%s: plugin %r of nested model %r is not run (simbot flattens nested models)", reader.file, element.sourceline, plugin.name, inner.name)
+        nested.append(_Nested(replace(inner, plugins=()), element, _pose(reader, element)[1]))
+    return nested
+
+
+def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> _Frames:
     frames = _Frames(reader)
     for link in links:
         pose, relative_to = _pose(reader, link)
         frames.add(reader.attr(link, "name"), pose, relative_to or MODEL_FRAME, link)
+    for inner in nested:
+        inner.add_frames(frames)
     for joint in model.findall("joint"):
         pose, relative_to = _pose(reader, joint)
         child = reader.text(joint, "child")
@@ -237,27 +301,63 @@ def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
 
 
 def _read_geometry(reader: Reader, owner: Element) -> Geometry:
+    """The shape, with SDF's defaults for the sizes a file leaves out (as Gazebo reads them)."""
     geometry = reader.child(owner, "geometry")
     shape = next(iter(geometry), None)
     if shape is None:
-        raise reader.error(geometry, "empty <geometry>: expected box, cylinder, sphere, plane or mesh")
-    if shape.tag == "box":
-        return Box(reader.floats(reader.child(shape, "size"), 3))  # type: ignore[arg-type]
-    if shape.tag == "cylinder":
-        return Cylinder(reader.required_number(shape, "radius"), reader.required_number(shape, "length"))
-    if shape.tag == "sphere":
-        return Sphere(reader.required_number(shape, "radius"))
-    if shape.tag == "plane":
-        normal = reader.vector(shape, "normal", 3, (0.0, 0.0, 1.0))
-        size = reader.vector(shape, "size", 2, (100.0, 100.0))
-        return Plane(normal, size)  # type: ignore[arg-type]
-    if shape.tag == "mesh":
-        uri = reader.text(shape, "uri")
-        if not uri:
-            raise reader.error(shape, "missing required element <uri>")
-        scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
-        return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
-    raise reader.error(shape, f"unsupported geometry <{shape.tag}>")
+        raise reader.error(geometry, f"empty <geometry>: expected one of {', '.join(_SHAPES)}")
+    read = _SHAPES.get(str(shape.tag))
+    if read is None:
+        raise reader.error(shape, f"unsupported geometry <{sdf_tag(shape)}>")
+    return read(reader, shape)
+
+
+def _read_mesh(reader: Reader, shape: Element) -> Mesh:
+    uri = reader.text(shape, "uri")
+    if not uri:
+        raise reader.error(shape, "missing required element <uri>")
+    scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
+    return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
+
+
+def _read_polyline(reader: Reader, shape: Element) -> Polyline:
+    """Every <polyline> of the geometry: each its outline of <point>s and its <height>."""
+    outlines, heights = [], []
+    for polyline in shape.getparent().findall("polyline"):
+        points = tuple(reader.floats(p, 2) for p in polyline.findall("point"))
+        if len(points) < 3:
+            raise reader.error(polyline, f"a polyline needs at least 3 <point>s, got {len(points)}")
+        outlines.append(points)
+        heights.append(reader.number(polyline, "height", 1.0))
+    return Polyline(tuple(outlines), tuple(heights))  # type: ignore[arg-type]
+
+
+def _read_heightmap(reader: Reader, shape: Element) -> Heightmap:
+    uri = reader.text(shape, "uri")
+    if not uri:
+        raise reader.error(shape, "missing required element <uri>")
+    resolution = resolve(uri, reader.file.parent)
+    path = resolution.path
+    if path is None:
+        raise reader.error(shape, f"cannot find heightmap image {uri!r} (tried {resolution.describe_tried()})")
+    size = reader.vector(shape, "size", 3, (1.0, 1.0, 1.0))
+    pos = reader.vector(shape, "pos", 3, (0.0, 0.0, 0.0))
+    return Heightmap(uri, size, pos, path)  # type: ignore[arg-type]
+
+
+_SHAPES: dict[str, Callable[[Reader, Element], Geometry]] = {
+    "box": lambda r, e: Box(r.vector(e, "size", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
+    "cylinder": lambda r, e: Cylinder(r.number(e, "radius", 1.0), r.number(e, "length", 1.0)),
+    "sphere": lambda r, e: Sphere(r.number(e, "radius", 1.0)),
+    "capsule": lambda r, e: Capsule(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
+    "ellipsoid": lambda r, e: Ellipsoid(r.vector(e, "radii", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
+    "cone": lambda r, e: Cone(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
+    "plane": lambda r, e: Plane(r.vector(e, "normal", 3, (0.0, 0.0, 1.0)), r.vector(e, "size", 2, (100.0, 100.0))),  # type: ignore[arg-type]
+    "mesh": _read_mesh,
+    "polyline": _read_polyline,
+    "heightmap": _read_heightmap,
+}
+"""Each SDF shape and how to read it; sizes default as in SDF's own specification."""
 
 
 def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
@@ -306,7 +406,8 @@ def _read_material(reader: Reader, element: Element) -> Material:
 # ---------------------------------------------------------------- joints
 
 
-def _read_joint(reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, links: set[str]) -> Joint:
+def _read_joint(reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, ends: dict[str, str]) -> Joint:
+    """`ends` maps each name a joint may join (a link, or a nested model: its canonical link) to the link."""
     name = reader.attr(element, "name")
     kind = reader.attr(element, "type")
     if kind not in JOINT_TYPES:
@@ -314,8 +415,9 @@ def _read_joint(reader: Reader, version: tuple[int, int], frames: _Frames, eleme
     parent = reader.text(element, "parent") or ""
     child = reader.text(element, "child") or ""
     for role, link in (("parent", parent), ("child", child)):
-        if link not in links and not (role == "parent" and link == "world"):
+        if link not in ends and not (role == "parent" and link == "world"):
             raise reader.error(reader.child(element, role), f"joint {name!r}: {role} {link!r} is not a link of this model")
+    parent, child = ends.get(parent, parent), ends[child]
     pose = frames.in_model(name, element)
     axis = element.find("axis")
     needs_axis = kind in ("revolute", "continuous", "prismatic")
@@ -378,7 +480,7 @@ def _read_sensor(reader: Reader, frames: _Frames, link: str, element: Element) -
 
 def _read_param(element: Element) -> Param:
     return Param(
-        tag=element.tag,
+        tag=sdf_tag(element),
         text=(element.text or "").strip(),
         attrs=tuple(sorted((str(k), str(v)) for k, v in element.attrib.items())),
         children=tuple(_read_param(child) for child in element),

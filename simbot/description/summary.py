@@ -5,7 +5,24 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from simbot.description.model import Axis, Box, Cylinder, Geometry, Link, Model, Param, Plane, Plugin, Sphere, World
+from simbot.description.model import (
+    Axis,
+    Box,
+    Capsule,
+    Cone,
+    Cylinder,
+    Ellipsoid,
+    Geometry,
+    Heightmap,
+    Link,
+    Model,
+    Param,
+    Plane,
+    Plugin,
+    Polyline,
+    Sphere,
+    World,
+)
 from simbot.description.poses import Pose
 
 
@@ -31,14 +48,18 @@ def _pose(pose: Pose) -> str:
 
 
 def _geometry(geometry: Geometry) -> str:
-    if isinstance(geometry, Box):
-        return "box " + " x ".join(_num(v) for v in geometry.size)
-    if isinstance(geometry, Cylinder):
-        return f"cylinder r {_num(geometry.radius)} l {_num(geometry.length)}"
+    if isinstance(geometry, Box | Plane):
+        return f"{type(geometry).__name__.lower()} " + " x ".join(_num(v) for v in geometry.size)
+    if isinstance(geometry, Cylinder | Capsule | Cone):
+        return f"{type(geometry).__name__.lower()} r {_num(geometry.radius)} l {_num(geometry.length)}"
     if isinstance(geometry, Sphere):
         return f"sphere r {_num(geometry.radius)}"
-    if isinstance(geometry, Plane):
-        return "plane " + " x ".join(_num(v) for v in geometry.size)
+    if isinstance(geometry, Ellipsoid):
+        return "ellipsoid radii " + " ".join(_num(v) for v in geometry.radii)
+    if isinstance(geometry, Polyline):
+        return f"polyline {'+'.join(str(len(o)) for o in geometry.outlines)} points h {' '.join(_num(h) for h in geometry.heights)}"
+    if isinstance(geometry, Heightmap):
+        return f"heightmap {geometry.uri} " + " x ".join(_num(v) for v in geometry.size)
     return f"mesh {geometry.uri}"
 
 

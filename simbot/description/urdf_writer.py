@@ -10,7 +10,12 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   massless one as zero. PyBullet also pins a massless base link to the world, so a massless
   root (like base_footprint) gets a token mass of ROOT_TOKEN; on a robot of tens of
   kilograms it changes nothing.
-- A plane becomes a thin box whose top face is the plane.
+- A plane becomes a thin box whose top face is the plane. A capsule is PyBullet's own URDF
+  `<capsule>` (not in ROS's URDF). An ellipsoid, a cone, a polyline and a heightmap's visual
+  become OBJ meshes made by generated_meshes, written to `generated_dir`; a polyline's collision
+  in a static model is marked `concave="yes"`, so PyBullet collides with the outline itself and
+  not its convex hull. A heightmap's collision is left out: URDF has no heightfield, and the
+  simulator adds it as a PyBullet heightfield (sim/physics.py).
 - A link whose one sensor reports in the link's own frame (`<frame_name>` is the link's name)
   has its URDF frame at that sensor, so a message stamped with that frame is where the sensor
   is (the reference lidars sit 0.22 m above their link origin, turned by π). Everything the
@@ -22,7 +27,9 @@ Sensors, plugins and friction, which URDF has no place for, stay in the parsed m
 
 from __future__ import annotations
 
+import logging
 import os
+import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,18 +37,24 @@ from pathlib import Path
 import numpy as np
 
 from simbot.description.errors import DescriptionError
+from simbot.description.generated_meshes import Generated, mesh_file
 from simbot.description.model import (
     Axis,
     Box,
+    Capsule,
     Collision,
+    Cone,
     Cylinder,
+    Ellipsoid,
     Geometry,
+    Heightmap,
     Inertial,
     Joint,
     Link,
     Mesh,
     Model,
     Plane,
+    Polyline,
     Sphere,
     Visual,
 )
@@ -52,6 +65,9 @@ ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))
 UNLIMITED = 1e16
 PLANE_THICKNESS = 0.01
 BALL_AXES = (("yaw", (0.0, 0.0, 1.0)), ("pitch", (0.0, 1.0, 0.0)), ("roll", (1.0, 0.0, 0.0)))
+GENERATED = (Ellipsoid, Cone, Polyline, Heightmap)
+
+logger = logging.getLogger(__name__)
 
 
 def _fmt(value: float) -> str:
@@ -69,6 +85,7 @@ class _Urdf:
 
     model: Model
     mesh_dir: Path | None
+    generated_dir: Path
     mesh_uris: bool = False
     robot: ET.Element = field(init=False)
     frames: dict[str, Pose] = field(default_factory=dict)
@@ -104,7 +121,12 @@ class _Urdf:
         ET.SubElement(element, "inertia", {t: _fmt(v) for t, v in zip(tags, inertial.inertia)})
 
     def add_shape(self, link: ET.Element, kind: str, to_link: Pose, shape: Visual | Collision) -> None:
+        if kind == "collision" and isinstance(shape.geometry, Heightmap):
+            logger.debug("%s: heightmap collision %r left to the simulator's heightfield", link.get("name"), shape.name)
+            return
         element = ET.SubElement(link, kind, name=shape.name)
+        if kind == "collision" and self.model.static and isinstance(shape.geometry, Polyline):
+            element.set("concave", "yes")
         pose = to_link @ shape.pose
         if isinstance(shape.geometry, Plane):
             pose = pose @ _plane_offset(shape.geometry)
@@ -124,18 +146,29 @@ class _Urdf:
             ET.SubElement(parent, "sphere", radius=_fmt(geometry.radius))
         elif isinstance(geometry, Plane):
             ET.SubElement(parent, "box", size=_fmts((*geometry.size, PLANE_THICKNESS)))
+        elif isinstance(geometry, Capsule):
+            ET.SubElement(parent, "capsule", radius=_fmt(geometry.radius), length=_fmt(geometry.length))
         elif isinstance(geometry, Mesh):
             ET.SubElement(parent, "mesh", filename=self.mesh_filename(geometry), scale=_fmts(geometry.scale))
+        elif isinstance(geometry, GENERATED):
+            ET.SubElement(parent, "mesh", filename=self.generated_filename(geometry))
 
     def mesh_filename(self, mesh: Mesh) -> str:
-        """Relative to the URDF's folder when known, so a committed URDF holds no machine paths."""
         if mesh.path is None:
             raise DescriptionError(self.model.source, f"mesh {mesh.uri!r} was not resolved", "mesh")
+        return self.filename(mesh.path)
+
+    def generated_filename(self, shape: Generated) -> str:
+        return self.filename(mesh_file(shape, self.generated_dir, self.model.source))
+
+    def filename(self, path: Path) -> str:
+        """Relative to the URDF's folder when known, so a committed URDF holds no machine paths;
+        `file://` URIs when asked (what ROS tools resolve)."""
         if self.mesh_uris:
-            return mesh.path.resolve().as_uri()
+            return path.resolve().as_uri()
         if self.mesh_dir is None:
-            return str(mesh.path.resolve())
-        return Path(os.path.relpath(mesh.path.resolve(), self.mesh_dir.resolve())).as_posix()
+            return str(path.resolve())
+        return Path(os.path.relpath(path.resolve(), self.mesh_dir.resolve())).as_posix()
 
     def add_joint(self, name: str, kind: str, parent: str, child: str, axis: Axis | None = None, axis_xyz: tuple[float, ...] | None = None) -> None:
         """A URDF joint; the child's frame must already be registered."""
@@ -239,12 +272,15 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
         urdf.add_joint(f"{joint.name}__offset", "fixed", end, child.name)
 
 
-def model_to_urdf(model: Model, mesh_dir: Path | None = None, *, mesh_uris: bool = False) -> str:
+def model_to_urdf(model: Model, mesh_dir: Path | None = None, generated_dir: Path | None = None, *, mesh_uris: bool = False) -> str:
     """URDF text of `model`; mesh paths relative to `mesh_dir` (the URDF's folder) if given, absolute otherwise,
-    or `file://` URIs with `mesh_uris` (what ROS tools resolve: `robot_description`)."""
+    or `file://` URIs with `mesh_uris` (what ROS tools resolve: `robot_description`).
+
+    Meshes for shapes URDF lacks go to `generated_dir`: by default `mesh_dir`, beside the URDF,
+    or else a folder in the system's temporary directory."""
     root, children = _tree(model)
     links = {link.name: link for link in model.links}
-    urdf = _Urdf(model, mesh_dir, mesh_uris)
+    urdf = _Urdf(model, mesh_dir, generated_dir or mesh_dir or Path(tempfile.gettempdir()) / "simbot-meshes", mesh_uris)
     if root == "world":
         urdf.robot.append(ET.Element("link", name="world"))
         urdf.frames["world"] = IDENTITY

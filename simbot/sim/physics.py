@@ -7,6 +7,7 @@ body's centre of mass; the offset is undone here once).
 
 from __future__ import annotations
 
+import logging
 import math
 import tempfile
 from collections.abc import Sequence
@@ -17,11 +18,14 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description import model_to_urdf
-from simbot.description.model import Joint, Model, World
+from simbot.description.generated_meshes import heightmap_heights
+from simbot.description.model import Collision, Heightmap, Joint, Link, Model, World
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import link_frame, urdf_root
 from simbot.sim.bullet import pb
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
+
+logger = logging.getLogger(__name__)
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -114,7 +118,7 @@ class Physics:
         name = name or model.name
         if name in self.bodies:
             raise ValueError(f"a model named {name!r} is already in the world")
-        urdf_text = model_to_urdf(model)
+        urdf_text = model_to_urdf(model, generated_dir=Path(self._tmp.name))
         urdf = Path(self._tmp.name) / f"{name}.urdf"
         urdf.write_text(urdf_text)
         root = urdf_root(model)
@@ -126,7 +130,33 @@ class Physics:
         self.bodies[name] = body
         self._configure_joints(body)
         self._configure_friction(body)
+        for link in model.links:
+            for collision in link.collisions:
+                if isinstance(collision.geometry, Heightmap):
+                    self._add_heightfield(model, link, collision, collision.geometry, frame)
         return body
+
+    def _add_heightfield(self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform) -> None:
+        """A heightmap's collision as a PyBullet heightfield fixed in the world, URDF having none;
+        only in a static model, as Gazebo has it (the URDF carries the heightmap's visual)."""
+        if not model.static:
+            logger.warning("model %r: heightmap %r is in a model that moves; Gazebo collides only static ones, and so does simbot", model.name, collision.name)
+            return
+        heights = heightmap_heights(heightmap, model.source)
+        rows, cols = heights.shape
+        shape = pb.createCollisionShape(
+            pb.GEOM_HEIGHTFIELD,
+            meshScale=(heightmap.size[0] / (cols - 1), heightmap.size[1] / (rows - 1), 1.0),
+            heightfieldData=np.flipud(heights).ravel().tolist(),  # PyBullet's rows run along +x, from −y up
+            numHeightfieldRows=cols,
+            numHeightfieldColumns=rows,
+            physicsClientId=self.client,
+        )
+        centre = (heightmap.pos[0], heightmap.pos[1], heightmap.pos[2] + (heights.min() + heights.max()) / 2.0)  # Bullet centres its height range
+        pose = compose(frame, pose_to_transform(link.pose @ collision.pose @ Pose(centre, (0.0, 0.0, 0.0))))
+        body = pb.createMultiBody(0.0, shape, -1, *pose, physicsClientId=self.client)
+        mu = collision.friction.mu if collision.friction else SDF_DEFAULT_MU
+        pb.changeDynamics(body, -1, lateralFriction=mu, physicsClientId=self.client)
 
     def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str) -> Body:
         links = {root: -1}
