@@ -15,7 +15,8 @@ $(STAMP): pyproject.toml
 run: $(STAMP)
 	$(BIN)/simbot launch --world warehouse --clients merger,stitcher,monitor,foxglove
 
-test: $(STAMP)
+## The lint first (seconds), then every test.
+test: $(STAMP) lint
 	$(BIN)/python -m pytest
 
 ## ruff's checks and its format check over the tree, mypy over simbot/ and clients/ (rules and strictness in pyproject.toml).

@@ -102,9 +102,24 @@ def main() -> None:
     verdict = "PASS" if cached < TARGET_MS else "NOT REACHED"
     bare_text = f"bare numpy inline, same rays and bins: {baseline:.3f} ms"
     rows = [
-        ("merge a pair of 720-ray scans (rays cached)", f"{cached:.3f} ms = {cached / baseline:.2f}× bare ({verdict})", f"< {TARGET_MS:g} ms", bare_text),
-        ("merge a pair, rays worked out afresh (first scan, tf change)", f"{fresh:.3f} ms = {fresh / baseline:.2f}× bare", "—", bare_text),
-        ("per pair in the client: merge + 3 LaserScans built and encoded", f"{whole:.3f} ms = {whole / baseline:.2f}× bare", "—", bare_text),
+        (
+            "merge a pair of 720-ray scans (rays cached)",
+            f"{cached:.3f} ms = {cached / baseline:.2f}× bare ({verdict})",
+            f"< {TARGET_MS:g} ms",
+            bare_text,
+        ),
+        (
+            "merge a pair, rays worked out afresh (first scan, tf change)",
+            f"{fresh:.3f} ms = {fresh / baseline:.2f}× bare",
+            "—",
+            bare_text,
+        ),
+        (
+            "per pair in the client: merge + 3 LaserScans built and encoded",
+            f"{whole:.3f} ms = {whole / baseline:.2f}× bare",
+            "—",
+            bare_text,
+        ),
     ]
     print(f"\n{SAMPLES}-ray scans into {binning.bins} bins, median of {args.repeats} calls each\n")
     print("| measurement | result | target | baseline in the same run |")

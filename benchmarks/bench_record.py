@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 from timing import per_call_ms
 
-from simbot.clients import tap
 from simbot.bus import encode, messages
+from simbot.clients import tap
 from simbot.clients.record import Bag
 from simbot.clients.tap import RawSample
 from simbot.clients.topics import Topic
@@ -35,7 +35,9 @@ def samples() -> dict[str, RawSample]:
     """One payload of each kind, as it arrives on the bus."""
     rng = np.random.default_rng(0)
     imu = messages.imu(0, "imu_link", (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, 0.01), (0.0, 0.0, 9.81))
-    scan = messages.laser_scan(0, "base_scan_front", (-1.396, 1.396, 0.00389), (0.0, 0.2), (0.08, 10.0), rng.uniform(1, 9, 720))
+    scan = messages.laser_scan(
+        0, "base_scan_front", (-1.396, 1.396, 0.00389), (0.0, 0.2), (0.08, 10.0), rng.uniform(1, 9, 720)
+    )
     image = messages.image(0, "camera_front_optical", rng.integers(0, 255, (480, 640, 3), dtype=np.uint8))
     return {
         name: RawSample(name, msg.__msgtype__, encode(msg), 0)

@@ -33,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -72,7 +73,9 @@ time.sleep(0.5)
 def payloads() -> dict[str, bytes]:
     """One CDR payload of each kind, as the server writes them."""
     rng = np.random.default_rng(0)
-    scan = messages.laser_scan(0, "base_scan_front", (-1.396, 1.396, 0.00389), (0.0, 0.2), (0.08, 10.0), rng.uniform(1, 9, 720))
+    scan = messages.laser_scan(
+        0, "base_scan_front", (-1.396, 1.396, 0.00389), (0.0, 0.2), (0.08, 10.0), rng.uniform(1, 9, 720)
+    )
     image = messages.image(0, "camera_front_optical_frame", rng.integers(0, 255, (480, 640, 3), dtype=np.uint8))
     return {"lidar_front": encode(scan), "camera_front": encode(image)}
 
@@ -122,7 +125,13 @@ class RosSide:
 
         from simbot.clients.ros2 import ros_type
 
-        self.node.create_subscription(ros_type(typename), topic, callback or (lambda _: self.arrivals.put(time.perf_counter())), QoSProfile(depth=10), raw=True)
+        self.node.create_subscription(
+            ros_type(typename),
+            topic,
+            callback or (lambda _: self.arrivals.put(time.perf_counter())),
+            QoSProfile(depth=10),
+            raw=True,
+        )
 
     def ping_ms(self, send: Callable[[], None], count: int) -> float:
         """Median milliseconds from `send` to the arrival, one message at a time."""
@@ -163,7 +172,13 @@ def bare_cpu_per_message_ms(typename: str, topic: str, data: bytes, count: int, 
     """CPU of a bare rclpy publisher process publishing `count` messages at `rate`, per message."""
     package, _, name = typename.split("/")
     script = BARE_PUBLISHER.format(module=f"{package}.msg", name=name)
-    done = subprocess.run([sys.executable, "-c", script, topic, str(count), str(rate)], input=data, capture_output=True, timeout=120, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", script, topic, str(count), str(rate)],
+        input=data,
+        capture_output=True,
+        timeout=120,
+        check=True,
+    )
     return float(done.stdout.split()[0]) / count * 1e3
 
 
@@ -175,19 +190,24 @@ def drain(arrivals: queue.SimpleQueue[float]) -> None:
 def per_message(args: argparse.Namespace) -> None:
     """Latency and CPU per message, bridge against bare."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
-    with Node(BusOptions(listen=(endpoint,), namespace=NAMESPACE), "server") as bus, bridge(endpoint, NAMESPACE) as process:
+    with (
+        Node(BusOptions(listen=(endpoint,), namespace=NAMESPACE), "server") as bus,
+        bridge(endpoint, NAMESPACE) as process,
+    ):
         ros = RosSide()
-        print(f"{'message':<14}{'bytes':>9}{'bare ms':>10}{'bridge ms':>11}{'added':>8}{'ratio':>7}{'bare CPU ms':>13}{'bridge CPU ms':>15}{'ratio':>7}")
+        print(
+            f"{'message':<14}{'bytes':>9}{'bare ms':>10}{'bridge ms':>11}{'added':>8}{'ratio':>7}{'bare CPU ms':>13}{'bridge CPU ms':>15}{'ratio':>7}"
+        )
         for key, data in payloads().items():
             typename, rate = KINDS[key]
             publisher = bus.publisher(key, typename)
             ros.subscribe(typename, f"/{NAMESPACE}/{key}")
             ros.subscribe(typename, f"/{NAMESPACE}/bare_{key}")
-            wait_first(ros, lambda: publisher.put_raw(data))
-            bridged = ros.ping_ms(lambda: publisher.put_raw(data), args.count)
-            bare_publish = bare_ros_publisher(ros, typename, f"/{NAMESPACE}/bare_{key}")
-            bare = ros.ping_ms(lambda: bare_publish(data), args.count)
-            bridge_cpu = bridge_cpu_per_message_ms(process.pid, ros, lambda: publisher.put_raw(data), args.count, rate)
+            send = partial(publisher.put_raw, data)
+            wait_first(ros, send)
+            bridged = ros.ping_ms(send, args.count)
+            bare = ros.ping_ms(partial(bare_ros_publisher(ros, typename, f"/{NAMESPACE}/bare_{key}"), data), args.count)
+            bridge_cpu = bridge_cpu_per_message_ms(process.pid, ros, send, args.count, rate)
             ros.subscribe(typename, f"/{NAMESPACE}/cpu_{key}", lambda _: None)
             bare_cpu = bare_cpu_per_message_ms(typename, f"/{NAMESPACE}/cpu_{key}", data, args.count, rate)
             print(
@@ -237,7 +257,11 @@ def whole_bus(args: argparse.Namespace) -> None:
             ros = RosSide()
             counts: dict[str, int] = {}
             time.sleep(3.0)  # the bridge's first look at the graph
-            topics = [(name, types[0]) for name, types in ros.node.get_topic_names_and_types() if name.startswith("/bus/") and "camera" not in name]
+            topics = [
+                (name, types[0])
+                for name, types in ros.node.get_topic_names_and_types()
+                if name.startswith("/bus/") and "camera" not in name
+            ]
             for name, typename in topics:
                 ros.subscribe(typename, name, lambda _, name=name: counts.__setitem__(name, counts.get(name, 0) + 1))
             time.sleep(2.0)
@@ -245,7 +269,9 @@ def whole_bus(args: argparse.Namespace) -> None:
             time.sleep(args.seconds)
             share = (cpu_s(process.pid) - start) / args.seconds
             rate = (sum(counts.values()) - received) / args.seconds
-            print(f"whole bus without cameras: {len(topics)} topics, {rate:.0f} msg/s carried, bridge CPU {share * 100:.1f} % of a core")
+            print(
+                f"whole bus without cameras: {len(topics)} topics, {rate:.0f} msg/s carried, bridge CPU {share * 100:.1f} % of a core"
+            )
             ros.close()
     finally:
         server.terminate()

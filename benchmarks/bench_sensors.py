@@ -71,7 +71,14 @@ from simbot.sim.systems.lidar import Lidar, LidarParams, ray_directions
 log = logging.getLogger("bench_sensors")
 
 WORLD = "warehouse"
-CAMERAS = ("camera_front", "camera_back", "camera_front_right", "camera_back_right", "camera_front_left", "camera_back_left")
+CAMERAS = (
+    "camera_front",
+    "camera_back",
+    "camera_front_right",
+    "camera_back_right",
+    "camera_front_left",
+    "camera_back_left",
+)
 LIDARS = ("lidar_front", "lidar_back")
 IMU = "imu_scan"
 CAMERA_TARGET_HZ = 30.0
@@ -111,7 +118,9 @@ def robot_views(physics: Physics, size: tuple[int, int]) -> list[View]:
         rotation = np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
         target = np.asarray(position) + rotation[:, 0]  # the worker's convention: looks along +x, z up
         view = pb.computeViewMatrix(list(position), target.tolist(), rotation[:, 2].tolist())
-        projection = pb.computeProjectionMatrixFOV(fov=spec.vfov_deg, aspect=size[0] / size[1], nearVal=cam.near, farVal=cam.far)
+        projection = pb.computeProjectionMatrixFOV(
+            fov=spec.vfov_deg, aspect=size[0] / size[1], nearVal=cam.near, farVal=cam.far
+        )
         views.append(View(sensor.name, spec, view, projection))
     return views
 
@@ -149,7 +158,10 @@ def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: f
 def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float, str]:
     """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
     the same scene and views, one llvmpipe thread, pixels read back into an array."""
-    bodies = [SceneBody(name, body.urdf, body.model.static, physics.body_state(name)[0]) for name, body in physics.bodies.items()]
+    bodies = [
+        SceneBody(name, body.urdf, body.model.static, physics.body_state(name)[0])
+        for name, body in physics.bodies.items()
+    ]
     scene = BulletScene(pb, bodies)
     renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
     poses = [physics.frame_pose(*where) for where in camera_mounts(physics)]
@@ -168,7 +180,9 @@ def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: 
 
 def camera_mounts(physics: Physics) -> list[tuple[str, str, Any]]:
     """(model, link, pose) of each of the robot's cameras, in SDF order."""
-    return [(ROBOT_NAME, link.name, s.pose) for link, s in physics.body(ROBOT_NAME).model.sensors() if s.type == "camera"]
+    return [
+        (ROBOT_NAME, link.name, s.pose) for link, s in physics.body(ROBOT_NAME).model.sensors() if s.type == "camera"
+    ]
 
 
 class Counter:
@@ -229,7 +243,12 @@ def in_process_server() -> Iterator[tuple[Server, Node]]:
     """A `Server` built as simbot-server builds it (lockstep, so that starting the render pool
     waits), on its own loopback port, and a client node on it."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    config = ServerConfig(world_path(WORLD), asset("urdf/flexley_tug.sdf"), mode=Mode.LOCKSTEP, sensors=SensorSettings(camera_size=(640, 480)))
+    config = ServerConfig(
+        world_path(WORLD),
+        asset("urdf/flexley_tug.sdf"),
+        mode=Mode.LOCKSTEP,
+        sensors=SensorSettings(camera_size=(640, 480)),
+    )
     with Node(BusOptions(listen=(endpoint,), namespace=namespace), "server") as node:
         server = Server(config, node)
         try:
@@ -323,9 +342,13 @@ def measure_in_process(seconds: float) -> Costs:
         light = server.rendering.light
         for size in ((640, 480), (320, 240)):
             views = robot_views(server.physics, size)
-            costs.tiny_fps[size], costs.tiny_cpu_fps[size] = bare_render_fps(server.physics.client, views, light, seconds)
+            costs.tiny_fps[size], costs.tiny_cpu_fps[size] = bare_render_fps(
+                server.physics.client, views, light, seconds
+            )
             log.info("bare TinyRenderer %dx%d: %.1f frames/s on one core", *size, costs.tiny_fps[size])
-            costs.gl_fps[size], costs.gl_cpu_fps[size], costs.gl_device = bare_gl_fps(server.physics, views, light, seconds)
+            costs.gl_fps[size], costs.gl_cpu_fps[size], costs.gl_device = bare_gl_fps(
+                server.physics, views, light, seconds
+            )
             log.info("bare GL %dx%d: %.1f frames/s on one core (%s)", *size, costs.gl_fps[size], costs.gl_device)
         lidar_costs(server, costs, 100)
         imu_costs(server, costs, 2000)
@@ -473,7 +496,9 @@ def run_server(mode: str, topics: Sequence[str], seconds: float, extra: Sequence
     `seconds` of wall time once every subscribed topic has delivered and the loop has settled."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
     command = [sys.executable, "-m", "simbot.sim.server", "--world", WORLD, "--mode", mode, "--quiet"]
-    proc = subprocess.Popen([*command, *extra, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [*command, *extra, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL
+    )
     try:
         with _connect(endpoint, namespace, proc) as node:
             _wait_ready(node)
@@ -512,12 +537,22 @@ def _measure(node: Node, pid: int, counters: dict[str, Counter], seconds: float)
     workers = [p for p, role in children(pid).items() if role == "render worker"]
     before = _state(node)
     counts0 = {t: c.value() for t, c in counters.items()}
-    cpu0, wcpu0, me0, busy0 = cpu_seconds(pid), sum(cpu_seconds(w) for w in workers), time.process_time(), machine_busy()
+    cpu0, wcpu0, me0, busy0 = (
+        cpu_seconds(pid),
+        sum(cpu_seconds(w) for w in workers),
+        time.process_time(),
+        machine_busy(),
+    )
     loop0, wsched0 = schedstat(pid), _sched(workers)
     wall0 = time.perf_counter()
     after, intervals = _sample(node, seconds)
     wall = time.perf_counter() - wall0
-    cpu1, wcpu1, me1, busy1 = cpu_seconds(pid), sum(cpu_seconds(w) for w in workers), time.process_time(), machine_busy()
+    cpu1, wcpu1, me1, busy1 = (
+        cpu_seconds(pid),
+        sum(cpu_seconds(w) for w in workers),
+        time.process_time(),
+        machine_busy(),
+    )
     loop1, wsched1 = schedstat(pid), _sched(workers)
     counts = {t: c.value() - counts0[t] for t, c in counters.items()}
     sensors = {}
@@ -611,7 +646,9 @@ def _rtf_row(label: str, run: Run, idle: Run) -> tuple[str, str, str, str]:
     )
 
 
-def _camera_rows(label: str, run: Run, costs: Costs, size: tuple[int, int], workers: int) -> list[tuple[str, str, str, str]]:
+def _camera_rows(
+    label: str, run: Run, costs: Costs, size: tuple[int, int], workers: int
+) -> list[tuple[str, str, str, str]]:
     capacity, fps = costs.capacity_fps[size] * workers, camera_fps(run)
     wanted = min(capacity, CAMERA_TARGET_HZ * len(CAMERAS))  # beyond 30 Hz a camera has nothing more to render
     per_cpu = fps / run.worker_cpu if run.worker_cpu > 0 else math.nan
@@ -642,7 +679,9 @@ def _per_camera(label: str, run: Run, target: float) -> tuple[str, str, str, str
     )
 
 
-def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, big_tiny: Run, fast: Run, bare: BareLoop) -> list[str]:
+def table(
+    costs: Costs, workers: int, idle: Run, big: Run, small: Run, big_tiny: Run, fast: Run, bare: BareLoop
+) -> list[str]:
     """One markdown table, ready for the README."""
     gl_over_tiny = costs.gl_cpu_fps[(640, 480)] / costs.tiny_cpu_fps[(640, 480)]
     image_ms = costs.request_ms + costs.render_ms + costs.publish_ms
@@ -701,7 +740,9 @@ def table(costs: Costs, workers: int, idle: Run, big: Run, small: Run, big_tiny:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=10.0, help="wall seconds per camera measurement (others take half)")
+    parser.add_argument(
+        "--seconds", type=float, default=10.0, help="wall seconds per camera measurement (others take half)"
+    )
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     short = args.seconds / 2
@@ -725,11 +766,17 @@ def main() -> None:
     print()
     print("\n".join(table(costs, workers, idle, big, small, big_tiny, fast, bare)))
     fallback = f", fell back: {costs.fallback}" if costs.fallback else ", no fallback"
-    print(f"\nraw: {workers} render worker(s) on {len(os.sched_getaffinity(0))} cores; renderer {costs.renderer}{fallback}")
+    print(
+        f"\nraw: {workers} render worker(s) on {len(os.sched_getaffinity(0))} cores; renderer {costs.renderer}{fallback}"
+    )
     print(f"  camera round trip (request to collected, in-process, worker alone): {costs.round_trip_ms:.1f} ms")
     for size in costs.tiny_fps:
-        print(f"  bare TinyRenderer {size[0]}x{size[1]}: {costs.tiny_fps[size]:.1f}/s wall, {costs.tiny_cpu_fps[size]:.1f}/s CPU")
-        print(f"  bare GL {size[0]}x{size[1]}: {costs.gl_fps[size]:.1f}/s wall, {costs.gl_cpu_fps[size]:.1f}/s CPU ({costs.gl_device})")
+        print(
+            f"  bare TinyRenderer {size[0]}x{size[1]}: {costs.tiny_fps[size]:.1f}/s wall, {costs.tiny_cpu_fps[size]:.1f}/s CPU"
+        )
+        print(
+            f"  bare GL {size[0]}x{size[1]}: {costs.gl_fps[size]:.1f}/s wall, {costs.gl_cpu_fps[size]:.1f}/s CPU ({costs.gl_device})"
+        )
     print(f"  bare PyBullet loop, wheels driven: {bare.rtf:.2f}× real time with {bare.cpu:.2f} of a core")
     runs = {
         "real time, nothing subscribed": idle,

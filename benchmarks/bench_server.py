@@ -71,7 +71,18 @@ def server(seconds: float) -> tuple[float, float]:
     first_odom = threading.Event()
     launched = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "simbot.sim.server", "--mode", "fast", "--quiet", "--listen", endpoint, "--namespace", namespace],
+        [
+            sys.executable,
+            "-m",
+            "simbot.sim.server",
+            "--mode",
+            "fast",
+            "--quiet",
+            "--listen",
+            endpoint,
+            "--namespace",
+            namespace,
+        ],
         stderr=subprocess.DEVNULL,
     )
     try:

@@ -181,7 +181,9 @@ def main() -> None:
     for row in rows:
         print("| " + " | ".join(row) + " |")
     cores = len(os.sched_getaffinity(0))
-    print(f"\nmedians of {args.calls} calls; OpenCV {cv2.__version__} with {cv2.getNumThreads()} threads on {cores} cores")
+    print(
+        f"\nmedians of {args.calls} calls; OpenCV {cv2.__version__} with {cv2.getNumThreads()} threads on {cores} cores"
+    )
 
 
 if __name__ == "__main__":

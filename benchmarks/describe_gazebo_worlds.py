@@ -25,11 +25,15 @@ def main(folder: Path) -> int:
     with tempfile.TemporaryDirectory() as empty_cache:
         env = os.environ | {"GZ_FUEL_CACHE_PATH": empty_cache}
         for world in worlds:
-            result = subprocess.run([sys.executable, "-m", "simbot.cli", "describe", str(world)], capture_output=True, text=True, env=env)
+            result = subprocess.run(
+                [sys.executable, "-m", "simbot.cli", "describe", str(world)], capture_output=True, text=True, env=env
+            )
             if result.returncode != 0:
                 refused.append(f"{world.name}: {(result.stderr.strip().splitlines() or ['?'])[-1]}")
     accepted = len(worlds) - len(refused)
-    print(f"simbot describe accepts {accepted} of {len(worlds)} worlds that need no download ({100 * accepted / max(len(worlds), 1):.0f} %)")
+    print(
+        f"simbot describe accepts {accepted} of {len(worlds)} worlds that need no download ({100 * accepted / max(len(worlds), 1):.0f} %)"
+    )
     print("\n".join(refused))
     return 0
 

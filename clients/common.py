@@ -69,12 +69,17 @@ def number(kind: Callable[[str], Number], *, at_least_zero: bool = False) -> Cal
 
 
 def run_client(
-    parser: argparse.ArgumentParser, argv: Sequence[str] | None, body: ClientBody, check: Callable[[], object] | None = None
+    parser: argparse.ArgumentParser,
+    argv: Sequence[str] | None,
+    body: ClientBody,
+    check: Callable[[], object] | None = None,
 ) -> int:
     """Parse, run `check` (a precondition that raises ClientError), open the bus, run `body` until it
     returns or a signal asks to stop; the exit code."""
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s"
+    )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -232,10 +237,14 @@ class StaticTransforms:
 class StampedSets:
     """Messages of several topics grouped by header stamp (StampSync) on Zenoh's threads, taken by the loop as sets."""
 
-    def __init__(self, node: Node, topics: Sequence[str], typename: str, slop_ns: int, max_wait_ns: int, queue: int) -> None:
+    def __init__(
+        self, node: Node, topics: Sequence[str], typename: str, slop_ns: int, max_wait_ns: int, queue: int
+    ) -> None:
         self.sync: StampSync[Any] = StampSync(topics, slop_ns, max_wait_ns)
         self._sets: Mailbox[dict[str, Any]] = Mailbox(size=queue)
-        self._inputs: list[Subscription[Any]] = [node.subscribe(topic, typename, functools.partial(self._receive, topic)) for topic in topics]
+        self._inputs: list[Subscription[Any]] = [
+            node.subscribe(topic, typename, functools.partial(self._receive, topic)) for topic in topics
+        ]
 
     def _receive(self, topic: str, msg: Any) -> None:
         for ready in self.sync.add(topic, messages.stamp_ns(msg.header), msg):

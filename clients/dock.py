@@ -117,7 +117,9 @@ class Docking:
             return
         if not verdict.near:
             self.passed = None
-            logger.warning("not attaching: trolley %s; the robot must stand under it (within %.2f m)", verdict.text, self.distance)
+            logger.warning(
+                "not attaching: trolley %s; the robot must stand under it (within %.2f m)", verdict.text, self.distance
+            )
             return
         self.passed += 1
         if self.passed == CHECKS:
@@ -136,7 +138,12 @@ def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: thread
     robot, trolley = PoseWatch(node, args.robot), PoseWatch(node, args.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)
-    docking = Docking(args, node.publisher("attach", messages.Empty, drop=False), node.publisher("detach", messages.Empty, drop=False), terminal)
+    docking = Docking(
+        args,
+        node.publisher("attach", messages.Empty, drop=False),
+        node.publisher("detach", messages.Empty, drop=False),
+        terminal,
+    )
     near: bool | None = None
     checks = SimTicker(args.check_period)
     while not stop.is_set():
@@ -167,13 +174,36 @@ def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = client_parser("simbot-dock", "Attach the trolley to the robot standing under it, or detach it, from the keyboard.")
+    parser = client_parser(
+        "simbot-dock", "Attach the trolley to the robot standing under it, or detach it, from the keyboard."
+    )
     positive = number(float)
-    parser.add_argument("--robot", default="flexley_tug", metavar="MODEL", help="the robot's model name (default flexley_tug)")
-    parser.add_argument("--trolley", default="trolley", metavar="MODEL", help="the trolley's model name (default trolley)")
-    parser.add_argument("--distance", type=positive, default=0.55, metavar="M", help="attach only within this XY distance (default 0.55)")
-    parser.add_argument("--yaw-tolerance", type=positive, metavar="RAD", help="attach only with headings this close (default: any heading)")
-    parser.add_argument("--check-period", type=positive, default=0.2, metavar="S", help="seconds of sim time between the checks (default 0.2)")
+    parser.add_argument(
+        "--robot", default="flexley_tug", metavar="MODEL", help="the robot's model name (default flexley_tug)"
+    )
+    parser.add_argument(
+        "--trolley", default="trolley", metavar="MODEL", help="the trolley's model name (default trolley)"
+    )
+    parser.add_argument(
+        "--distance",
+        type=positive,
+        default=0.55,
+        metavar="M",
+        help="attach only within this XY distance (default 0.55)",
+    )
+    parser.add_argument(
+        "--yaw-tolerance",
+        type=positive,
+        metavar="RAD",
+        help="attach only with headings this close (default: any heading)",
+    )
+    parser.add_argument(
+        "--check-period",
+        type=positive,
+        default=0.2,
+        metavar="S",
+        help="seconds of sim time between the checks (default 0.2)",
+    )
     return parser
 
 

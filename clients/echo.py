@@ -85,7 +85,11 @@ def summarise(array: npt.NDArray[Any]) -> Summary:
 def to_plain(value: Any, full: bool = False) -> Any:
     """A decoded message as dicts, lists, numbers and strings; long arrays and strings summarised unless `full`."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: to_plain(getattr(value, f.name), full) for f in dataclasses.fields(value) if not f.name.startswith("__")}
+        return {
+            f.name: to_plain(getattr(value, f.name), full)
+            for f in dataclasses.fields(value)
+            if not f.name.startswith("__")
+        }
     if isinstance(value, np.ndarray):
         if full or value.size <= ARRAY_LIMIT:
             return [_number(v) for v in value.reshape(-1)]
@@ -115,7 +119,9 @@ def _scalar(value: Any) -> str:
     if isinstance(value, str):
         return value if value and set(value) <= YAML_PLAIN else json.dumps(value, ensure_ascii=False)
     if isinstance(value, Summary):
-        extremes = f"min {_scalar(value.min)}, max {_scalar(value.max)}" if value.min is not None else "no finite values"
+        extremes = (
+            f"min {_scalar(value.min)}, max {_scalar(value.max)}" if value.min is not None else "no finite values"
+        )
         counts = f", {value.inf} inf, {value.nan} nan" if value.inf is not None else ""
         return f"<{value.length} × {value.dtype}: {extremes}{counts}>"
     if isinstance(value, list):
@@ -264,7 +270,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("key", help="topic name, e.g. odom or camera_front/camera_info (the namespace is applied)")
     parser.add_argument("--once", action="store_true", help="exit after the first message")
     parser.add_argument("--json", action="store_true", help="one JSON object per line (inf and NaN as strings)")
-    parser.add_argument("--full", action="store_true", help=f"print arrays over {ARRAY_LIMIT} elements and strings over {STRING_LIMIT} characters whole")
+    parser.add_argument(
+        "--full",
+        action="store_true",
+        help=f"print arrays over {ARRAY_LIMIT} elements and strings over {STRING_LIMIT} characters whole",
+    )
     parser.add_argument(
         "--wait",
         type=number(float, at_least_zero=True),

@@ -302,7 +302,9 @@ def _bind_front(args: argparse.Namespace) -> SubprotocolFront:
         front.bind()
     except OSError as exc:
         front.stop()
-        raise ClientError(f"cannot serve on {args.host} port {args.port} (--host, --port): {exc.strerror or exc}") from None
+        raise ClientError(
+            f"cannot serve on {args.host} port {args.port} (--host, --port): {exc.strerror or exc}"
+        ) from None
     return front
 
 
@@ -319,7 +321,9 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
         raise
     front.serve(server.port)
     bridge = Bridge(node, server, context, listener)
-    logger.info("serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, front.port))
+    logger.info(
+        "serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, front.port)
+    )
     next_graph = 0.0
     try:
         while not stop.is_set():
@@ -349,14 +353,19 @@ def port_number(text: str) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot foxglove [--host H] [--port P]`."""
-    parser = client_parser("simbot foxglove", "Serve the live bus to the Foxglove app over Foxglove's WebSocket protocol.")
+    parser = client_parser(
+        "simbot foxglove", "Serve the live bus to the Foxglove app over Foxglove's WebSocket protocol."
+    )
     parser.add_argument(
         "--host",
         default=DEFAULT_HOST,
         help=f"address to serve on (default {DEFAULT_HOST}, this machine only; 0.0.0.0 serves every interface)",
     )
     parser.add_argument(
-        "--port", type=port_number, default=DEFAULT_PORT, help=f"TCP port to serve on (default {DEFAULT_PORT}; 0 picks a free one)"
+        "--port",
+        type=port_number,
+        default=DEFAULT_PORT,
+        help=f"TCP port to serve on (default {DEFAULT_PORT}; 0 picks a free one)",
     )
     return run_client(parser, argv, _run, check=_require_sdk)
 

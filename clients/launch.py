@@ -176,7 +176,9 @@ class Child:
         )
         emit("launch", f"started {name} (pid {self.process.pid})")
         assert self.process.stdout is not None  # stdout=PIPE
-        self._reader = threading.Thread(target=self._pump, args=(self.process.stdout,), name=f"launch-{name}", daemon=True)
+        self._reader = threading.Thread(
+            target=self._pump, args=(self.process.stdout,), name=f"launch-{name}", daemon=True
+        )
         self._reader.start()
 
     def _pump(self, pipe: IO[bytes]) -> None:

@@ -134,7 +134,13 @@ class ScanMerger:
 
     def _geometry(self, scan: Any, pose: Matrix) -> _Geometry:
         """The scan's rays in the target plane, worked out again only when its angles or pose change."""
-        key = (scan.header.frame_id, float(scan.angle_min), float(scan.angle_max), float(scan.angle_increment), len(scan.ranges))
+        key = (
+            scan.header.frame_id,
+            float(scan.angle_min),
+            float(scan.angle_max),
+            float(scan.angle_increment),
+            len(scan.ranges),
+        )
         cached = self._geometries.get(key)
         if cached is not None and np.array_equal(cached.pose, pose):
             return cached
@@ -143,7 +149,9 @@ class ScanMerger:
         angles = ray_angles(scan)
         in_sensor = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
         origin = np.array(pose[:2, 3], dtype=np.float64)
-        geometry = _Geometry(np.array(pose, dtype=np.float64), origin, pose[:2, :3] @ in_sensor, float(np.hypot(*origin)))
+        geometry = _Geometry(
+            np.array(pose, dtype=np.float64), origin, pose[:2, :3] @ in_sensor, float(np.hypot(*origin))
+        )
         self._geometries[key] = geometry
         return geometry
 
@@ -205,9 +213,16 @@ class MergerNode:
         self._tf = StaticTransforms(node, TARGET_FRAME)
         period_ns = round(period_s * 1e9)
         self._scans = StampedSets(
-            node, list(FIXED_TOPICS), LASER_SCAN, round(SLOP_PERIODS * period_ns), round(MAX_WAIT_PERIODS * period_ns), queue=8
+            node,
+            list(FIXED_TOPICS),
+            LASER_SCAN,
+            round(SLOP_PERIODS * period_ns),
+            round(MAX_WAIT_PERIODS * period_ns),
+            queue=8,
         )
-        self._publishers = {topic: node.publisher(topic, messages.LaserScan) for topic in [*FIXED_TOPICS.values(), MERGED_TOPIC]}
+        self._publishers = {
+            topic: node.publisher(topic, messages.LaserScan) for topic in [*FIXED_TOPICS.values(), MERGED_TOPIC]
+        }
 
     @property
     def undecodable(self) -> int:
@@ -270,7 +285,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     """`simbot merger`: lidar_front + lidar_back → scan (and *_fixed) in base_link."""
     parser = client_parser("simbot merger", "Merge the front and back lidar scans into one 360° scan in base_link.")
     parser.add_argument(
-        "--bins", type=number(int), default=DEFAULT_BINS, help=f"bins over the full circle (default {DEFAULT_BINS}, 0.25° each)"
+        "--bins",
+        type=number(int),
+        default=DEFAULT_BINS,
+        help=f"bins over the full circle (default {DEFAULT_BINS}, 0.25° each)",
     )
     parser.add_argument(
         "--scan-period",

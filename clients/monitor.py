@@ -74,12 +74,17 @@ def odometry_text(msg: Any) -> str:
 def pose_text(msg: Any) -> str:
     """A ground-truth pose, planar, in its frame."""
     x, y, yaw = planar_pose(msg.pose)
-    return f"x {x:+.2f} y {y:+.2f} z {msg.pose.position.z:+.2f} m, yaw {math.degrees(yaw):+.1f}° ({msg.header.frame_id})"
+    return (
+        f"x {x:+.2f} y {y:+.2f} z {msg.pose.position.z:+.2f} m, yaw {math.degrees(yaw):+.1f}° ({msg.header.frame_id})"
+    )
 
 
 def joints_text(msg: Any) -> str:
     """Each joint's speed."""
-    return "; ".join(f"{name} {float(v):+.2f} rad/s" for name, v in zip(msg.name, msg.velocity)) or f"{len(msg.name)} joints"
+    return (
+        "; ".join(f"{name} {float(v):+.2f} rad/s" for name, v in zip(msg.name, msg.velocity))
+        or f"{len(msg.name)} joints"
+    )
 
 
 def camera_info_text(msg: Any) -> str:
@@ -157,7 +162,9 @@ class Monitor:
         topics = live_topics(self.node)
         if self.world is None:
             self.world = next(iter(world_names(topics.values())), None)
-        new = [t for name, t in topics.items() if name not in self.types and "pub" in t.kinds and t.typename in SUMMARIES]
+        new = [
+            t for name, t in topics.items() if name not in self.types and "pub" in t.kinds and t.typename in SUMMARIES
+        ]
         held = latched(self.node.session, [topic.key for topic in new])
         for topic in new:
             inbox: Mailbox[Any] = Mailbox(1)
@@ -203,7 +210,9 @@ class Monitor:
         rows = self.rows(state)
         widths = [max(len(row[i]) for row in (COLUMNS, *rows)) for i in range(2)]
         lines = [state_line(self.world, state)]
-        lines += [f"{key.ljust(widths[0])}  {rate.rjust(widths[1])}  {latest}" for key, rate, latest in (COLUMNS, *rows)]
+        lines += [
+            f"{key.ljust(widths[0])}  {rate.rjust(widths[1])}  {latest}" for key, rate, latest in (COLUMNS, *rows)
+        ]
         return "\n".join(lines)
 
 
@@ -220,9 +229,17 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot monitor [--world NAME] [--period S]`."""
-    parser = client_parser("simbot monitor", "A live table of every sensor: rates, latest values, sim time and real-time factor.")
+    parser = client_parser(
+        "simbot monitor", "A live table of every sensor: rates, latest values, sim time and real-time factor."
+    )
     parser.add_argument("--world", metavar="NAME", help="the world whose state to show (default: the one on the bus)")
-    parser.add_argument("--period", type=number(float), default=REFRESH_S, metavar="SECONDS", help=f"refresh period (default {REFRESH_S:g})")
+    parser.add_argument(
+        "--period",
+        type=number(float),
+        default=REFRESH_S,
+        metavar="SECONDS",
+        help=f"refresh period (default {REFRESH_S:g})",
+    )
     return run_client(parser, argv, _run)
 
 

@@ -100,7 +100,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """`simbot play BAG [--rate R]`."""
     parser = client_parser("simbot play", "Publish a recorded rosbag2 bag back onto the bus at its recorded rate.")
     parser.add_argument("bag", help="bag directory (or its .mcap / .db3 file)")
-    parser.add_argument("--rate", type=number(float), default=1.0, help="speed factor: 2 plays twice as fast (default 1)")
+    parser.add_argument(
+        "--rate", type=number(float), default=1.0, help="speed factor: 2 plays twice as fast (default 1)"
+    )
     return run_client(parser, argv, _run)
 
 

@@ -57,7 +57,15 @@ def offered_qos(transient_local: bool) -> Qos:
     """The QoS a topic is recorded with: reliable, keep-last 1, transient-local for latched keys."""
     durability = QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE
     return Qos(
-        QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, durability, NO_TIME, NO_TIME, QosLiveliness.AUTOMATIC, NO_TIME, False
+        QosHistory.KEEP_LAST,
+        1,
+        QosReliability.RELIABLE,
+        durability,
+        NO_TIME,
+        NO_TIME,
+        QosLiveliness.AUTOMATIC,
+        NO_TIME,
+        False,
     )
 
 
@@ -109,7 +117,10 @@ class Bag:
     def add(self, topic: Topic, transient_local: bool) -> None:
         """A connection for `topic` with its type, message definition and QoS."""
         self.connections[topic.name] = self.writer.add_connection(
-            ros_topic(topic.name), topic.typename, typestore=TYPESTORE, offered_qos_profiles=[offered_qos(transient_local)]
+            ros_topic(topic.name),
+            topic.typename,
+            typestore=TYPESTORE,
+            offered_qos_profiles=[offered_qos(transient_local)],
         )
 
     def write(self, sample: RawSample) -> None:
@@ -147,12 +158,19 @@ class Recorder:
             return
         self._next_graph = now + GRAPH_PERIOD_S
         topics = published(self.node)
-        new = [topic for name, topic in topics.items() if self.selection.chosen(name) and name not in self.bag.connections]
+        new = [
+            topic for name, topic in topics.items() if self.selection.chosen(name) and name not in self.bag.connections
+        ]
         latched_keys = latched(self.node.session, [topic.key for topic in new]) if new else set()
         for topic in new:
             self.bag.add(topic, topic.key in latched_keys)
             self.tap.listen(topic)
-            logger.info("recording %s (%s%s)", ros_topic(topic.name), topic.typename, ", latched" if topic.key in latched_keys else "")
+            logger.info(
+                "recording %s (%s%s)",
+                ros_topic(topic.name),
+                topic.typename,
+                ", latched" if topic.key in latched_keys else "",
+            )
         self._warn_missing(now, list(topics))
 
     def _warn_missing(self, now: float, seen: list[str]) -> None:
@@ -206,7 +224,9 @@ class Recorder:
             print(file=sys.stderr)
         dropped = sum(self.tap.dropped.values())
         note = f"; dropped {dropped} malformed samples" if dropped else ""
-        print(f"wrote {self.bag.path}: {len(self.bag.connections)} topics, {self.bag.progress()}{note}", file=sys.stderr)
+        print(
+            f"wrote {self.bag.path}: {len(self.bag.connections)} topics, {self.bag.progress()}{note}", file=sys.stderr
+        )
 
 
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
@@ -220,11 +240,24 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot record [-o BAG] [KEYS…] [--exclude GLOB] [--duration S]`."""
-    parser = client_parser("simbot record", "Record keys of the bus into a rosbag2 bag in MCAP storage; Ctrl-C closes it.")
-    parser.add_argument("keys", nargs="*", metavar="KEY", help="topic names or globs, e.g. scan 'camera_*/image' (default: every published key)")
-    parser.add_argument("-o", "--output", metavar="BAG", help="bag directory to create (default: rosbag2_<date>-<time>)")
-    parser.add_argument("--exclude", action="append", default=[], metavar="GLOB", help="leave out matching topic names, repeatable")
-    parser.add_argument("--duration", type=number(float), metavar="SECONDS", help="stop after this many seconds (default: until Ctrl-C)")
+    parser = client_parser(
+        "simbot record", "Record keys of the bus into a rosbag2 bag in MCAP storage; Ctrl-C closes it."
+    )
+    parser.add_argument(
+        "keys",
+        nargs="*",
+        metavar="KEY",
+        help="topic names or globs, e.g. scan 'camera_*/image' (default: every published key)",
+    )
+    parser.add_argument(
+        "-o", "--output", metavar="BAG", help="bag directory to create (default: rosbag2_<date>-<time>)"
+    )
+    parser.add_argument(
+        "--exclude", action="append", default=[], metavar="GLOB", help="leave out matching topic names, repeatable"
+    )
+    parser.add_argument(
+        "--duration", type=number(float), metavar="SECONDS", help="stop after this many seconds (default: until Ctrl-C)"
+    )
     return run_client(parser, argv, _run)
 
 

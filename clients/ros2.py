@@ -78,7 +78,7 @@ def ros_type(typename: str) -> type[Any]:
     """The rclpy message class of `pkg/msg/Name`, from wherever it is importable (a sourced install, the wheels)."""
     package, kind, name = typename.split("/")
     try:
-        return getattr(importlib.import_module(f"{package}.{kind}"), name)  # type: ignore[no-any-return]
+        return getattr(importlib.import_module(f"{package}.{kind}"), name)
     except (ImportError, AttributeError) as exc:
         raise MissingTypeSupport(f"no type support for {typename} ({exc})") from None
 
@@ -89,7 +89,10 @@ def qos(latched_key: bool) -> QoSProfile:
 
     durability = DurabilityPolicy.TRANSIENT_LOCAL if latched_key else DurabilityPolicy.VOLATILE
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=1 if latched_key else DEPTH, reliability=ReliabilityPolicy.RELIABLE, durability=durability
+        history=HistoryPolicy.KEEP_LAST,
+        depth=1 if latched_key else DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=durability,
     )
 
 
@@ -116,7 +119,9 @@ class Counter:
 class Outbound:
     """One published key carried to DDS: an rclpy publisher fed Zenoh's payloads as they are."""
 
-    def __init__(self, session: zenoh.Session, topic: Topic, publisher: RosPublisher[Any], latched_key: bool, counter: Counter) -> None:
+    def __init__(
+        self, session: zenoh.Session, topic: Topic, publisher: RosPublisher[Any], latched_key: bool, counter: Counter
+    ) -> None:
         self.topic = topic
         self.latched = latched_key
         self.publisher = publisher
@@ -135,9 +140,13 @@ class Outbound:
             return
         if self.latched:
             history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
-            self._subscriber = zenoh.ext.declare_advanced_subscriber(self._session, self.topic.key, self._on_sample, history=history)
+            self._subscriber = zenoh.ext.declare_advanced_subscriber(
+                self._session, self.topic.key, self._on_sample, history=history
+            )
         else:
-            self._subscriber = self._session.declare_subscriber(self.topic.key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
+            self._subscriber = self._session.declare_subscriber(
+                self.topic.key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE
+            )
 
     def unsubscribe(self) -> None:
         subscriber, self._subscriber = self._subscriber, None
@@ -150,7 +159,9 @@ class Outbound:
             return
         try:
             self.publisher.publish(sample.payload.to_bytes())
-        except RuntimeError as exc:  # rclpy's InvalidHandle: the publisher was destroyed while this sample was on its way
+        except (
+            RuntimeError
+        ) as exc:  # rclpy's InvalidHandle: the publisher was destroyed while this sample was on its way
             logger.debug("/%s: not published: %s", self.topic.key, exc)
             return
         self._counter.add()
@@ -159,7 +170,9 @@ class Outbound:
 class Inbound:
     """One input key carried from DDS: a raw rclpy subscription whose payloads go onto Zenoh unchanged."""
 
-    def __init__(self, session: zenoh.Session, ros: RosNode, topic: Topic, msgtype: type[Any], counter: Counter) -> None:
+    def __init__(
+        self, session: zenoh.Session, ros: RosNode, topic: Topic, msgtype: type[Any], counter: Counter
+    ) -> None:
         self.topic = topic
         self._ros = ros
         self._counter = counter
@@ -171,7 +184,9 @@ class Inbound:
             congestion_control=zenoh.CongestionControl.BLOCK,
             allowed_destination=zenoh.Locality.REMOTE,
         )
-        self.subscription: RosSubscription[Any] = ros.create_subscription(msgtype, "/" + topic.key, self._on_message, qos(False), raw=True)
+        self.subscription: RosSubscription[Any] = ros.create_subscription(
+            msgtype, "/" + topic.key, self._on_message, qos(False), raw=True
+        )
 
     def _on_message(self, data: bytes, info: MessageInfo) -> None:
         """Executor (the loop): put the bytes on Zenoh, unless the bridge's own DDS publisher sent them."""
@@ -244,7 +259,13 @@ class Bridge:
             names.update(topic_name(key, self._node.namespace) for key in received)
         return names
 
-    def _update(self, routes: dict[str, Any], live: dict[str, Topic], open_route: Callable[[list[Topic]], None], close: Callable[[Any], None]) -> None:
+    def _update(
+        self,
+        routes: dict[str, Any],
+        live: dict[str, Topic],
+        open_route: Callable[[list[Topic]], None],
+        close: Callable[[Any], None],
+    ) -> None:
         gone = [name for name, route in routes.items() if _identity(live.get(name)) != _identity(route.topic)]
         for name in gone:
             route = routes.pop(name)
@@ -270,7 +291,9 @@ class Bridge:
         for topic in topics:
             latched_key = topic.key in held
             publisher = self._ros.create_publisher(ros_type(topic.typename), "/" + topic.key, qos(latched_key))
-            route = self.routes.outbound[topic.name] = Outbound(self._node.session, topic, publisher, latched_key, self.to_dds)
+            route = self.routes.outbound[topic.name] = Outbound(
+                self._node.session, topic, publisher, latched_key, self.to_dds
+            )
             if latched_key:
                 route.subscribe()
             logger.info("/%s → DDS (%s%s)", topic.key, topic.typename, ", transient local" if latched_key else "")
@@ -281,7 +304,9 @@ class Bridge:
 
     def _open_inbound(self, topics: list[Topic]) -> None:
         for topic in topics:
-            self.routes.inbound[topic.name] = Inbound(self._node.session, self._ros, topic, ros_type(topic.typename), self.from_dds)
+            self.routes.inbound[topic.name] = Inbound(
+                self._node.session, self._ros, topic, ros_type(topic.typename), self.from_dds
+            )
             logger.info("/%s ← DDS (%s)", topic.key, topic.typename)
 
     # --- watchers -------------------------------------------------------------------------
@@ -374,8 +399,16 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot ros2 [--allow GLOB]… [--deny GLOB]…`."""
     parser = client_parser("simbot ros2", "Carry the bus to ROS 2 (DDS) and back through rclpy, CDR bytes unchanged.")
-    parser.add_argument("--allow", action="append", default=[], metavar="GLOB", help="carry only keys matching (repeatable; default all)")
-    parser.add_argument("--deny", action="append", default=[], metavar="GLOB", help="never carry keys matching (repeatable)")
+    parser.add_argument(
+        "--allow",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="carry only keys matching (repeatable; default all)",
+    )
+    parser.add_argument(
+        "--deny", action="append", default=[], metavar="GLOB", help="never carry keys matching (repeatable)"
+    )
     return run_client(parser, argv, _run, check=_require_rclpy)
 
 

@@ -306,7 +306,9 @@ def snapshot(args: argparse.Namespace, node: Node, stop: threading.Event) -> int
     if stop.is_set():
         return 0
     waited = time.monotonic() - start
-    notes = [f"no {key} within {round(waited, 1):g} s: {HINTS[key]}" for key in sorted(needs | details) if key not in got]
+    notes = [
+        f"no {key} within {round(waited, 1):g} s: {HINTS[key]}" for key in sorted(needs | details) if key not in got
+    ]
     written = []
     if "panorama" in images and PANORAMA in got:
         try:
@@ -328,7 +330,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = client_parser(PROG, "write the panorama and a top-down map of the merged scan as PNGs")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder for panorama.png and map.png")
     parser.add_argument(
-        "--timeout", type=number(float), default=DEFAULT_TIMEOUT_S, metavar="S", help=f"wait for the data (default {DEFAULT_TIMEOUT_S:g} s)"
+        "--timeout",
+        type=number(float),
+        default=DEFAULT_TIMEOUT_S,
+        metavar="S",
+        help=f"wait for the data (default {DEFAULT_TIMEOUT_S:g} s)",
     )
     parser.add_argument("--panorama", action="store_true", help="write the panorama (default: both images)")
     parser.add_argument("--map", action="store_true", help="write the map (default: both images)")

@@ -269,7 +269,10 @@ class CylinderStitcher:
         present = frozenset(name for name in images if name in self.cameras)
         map1, map2 = self.tables(present)
         source = self.tiles.fill(images)
-        return np.asarray(cv2.remap(source, map1, map2, cv2.INTER_LINEAR, dst=self._out, borderMode=cv2.BORDER_CONSTANT), dtype=np.uint8)
+        return np.asarray(
+            cv2.remap(source, map1, map2, cv2.INTER_LINEAR, dst=self._out, borderMode=cv2.BORDER_CONSTANT),
+            dtype=np.uint8,
+        )
 
     def tables(self, present: frozenset[str]) -> tuple[npt.NDArray[Any], npt.NDArray[Any]]:
         """The fixed-point remap tables for this set of cameras, computed on its first use."""

@@ -112,7 +112,9 @@ class SubprotocolFront:
         try:
             request = await client_reader.readuntil(HEAD_END)
             legacy = legacy_only(request)
-            backend_reader, backend_writer = await asyncio.open_connection(LOOPBACK, self._backend_port, limit=HEAD_LIMIT)
+            backend_reader, backend_writer = await asyncio.open_connection(
+                LOOPBACK, self._backend_port, limit=HEAD_LIMIT
+            )
             backend_writer.write(rename(request, LEGACY_SUBPROTOCOL, SDK_SUBPROTOCOL) if legacy else request)
             response = await backend_reader.readuntil(HEAD_END)
             client_writer.write(rename(response, SDK_SUBPROTOCOL, LEGACY_SUBPROTOCOL) if legacy else response)

@@ -203,14 +203,43 @@ def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = client_parser("simbot-teleop", "Drive the robot from the keyboard; stops short of obstacles in its path.")
     positive = number(float)
-    parser.add_argument("--speed", type=positive, default=0.5, metavar="M/S", help="forward and backward speed (default 0.5)")
-    parser.add_argument("--turn-rate", type=positive, default=0.5, metavar="RAD/S", help="turn rate in place (default 0.5)")
-    parser.add_argument("--stop-distance", type=positive, default=0.5, metavar="M", help="refuse to drive towards an obstacle closer than this to the lidar (default 0.5)")
-    parser.add_argument("--width", type=positive, default=0.5, metavar="M", help="the robot's width, for its path (default 0.5)")
-    parser.add_argument("--margin", type=number(float, at_least_zero=True), default=0.1, metavar="M", help="added to each side of the path (default 0.1)")
-    parser.add_argument("--scan-timeout", type=positive, default=1.0, metavar="S", help="a lidar silent this long counts as blocked (default 1.0)")
+    parser.add_argument(
+        "--speed", type=positive, default=0.5, metavar="M/S", help="forward and backward speed (default 0.5)"
+    )
+    parser.add_argument(
+        "--turn-rate", type=positive, default=0.5, metavar="RAD/S", help="turn rate in place (default 0.5)"
+    )
+    parser.add_argument(
+        "--stop-distance",
+        type=positive,
+        default=0.5,
+        metavar="M",
+        help="refuse to drive towards an obstacle closer than this to the lidar (default 0.5)",
+    )
+    parser.add_argument(
+        "--width", type=positive, default=0.5, metavar="M", help="the robot's width, for its path (default 0.5)"
+    )
+    parser.add_argument(
+        "--margin",
+        type=number(float, at_least_zero=True),
+        default=0.1,
+        metavar="M",
+        help="added to each side of the path (default 0.1)",
+    )
+    parser.add_argument(
+        "--scan-timeout",
+        type=positive,
+        default=1.0,
+        metavar="S",
+        help="a lidar silent this long counts as blocked (default 1.0)",
+    )
     parser.add_argument("--rate", type=positive, default=10.0, metavar="HZ", help="commands per second (default 10)")
-    parser.add_argument("--base-frame", default="base_link", metavar="FRAME", help="the frame the path is measured in (default base_link)")
+    parser.add_argument(
+        "--base-frame",
+        default="base_link",
+        metavar="FRAME",
+        help="the frame the path is measured in (default base_link)",
+    )
     return parser
 
 

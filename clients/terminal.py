@@ -136,7 +136,9 @@ def terminal_input(stream: TextIO | None = None) -> int:
     except (AttributeError, ValueError, OSError):
         fd = -1
     if fd < 0 or not os.isatty(fd):
-        raise ClientError("standard input is not a terminal: run it in an interactive terminal (no pipes or redirection)")
+        raise ClientError(
+            "standard input is not a terminal: run it in an interactive terminal (no pipes or redirection)"
+        )
     return fd
 
 

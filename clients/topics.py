@@ -210,7 +210,11 @@ def table_rows(node: Node, measurement: Measurement | None) -> list[tuple[str, .
             name = topic_name(key, node.namespace)
             if name not in topics:
                 topics[name] = Topic(name, key, schema_type(measurement.encodings.get(key, "")) or "?", ())
-    silent = [t.key for t in topics.values() if "pub" in t.kinds and (measurement is None or not measurement.figures(t.key).count)]
+    silent = [
+        t.key
+        for t in topics.values()
+        if "pub" in t.kinds and (measurement is None or not measurement.figures(t.key).count)
+    ]
     held = latched(node.session, silent)
     rows: list[tuple[str, ...]] = []
     for name in sorted(topics):
@@ -229,7 +233,9 @@ def table_rows(node: Node, measurement: Measurement | None) -> list[tuple[str, .
 def format_table(rows: Sequence[tuple[str, ...]]) -> str:
     """Left-aligned columns, two spaces apart (no cell holds two spaces, so the table splits back)."""
     widths = [max(len(row[i]) for row in (COLUMNS, *rows)) for i in range(len(COLUMNS))]
-    return "\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip() for row in (COLUMNS, *rows))
+    return "\n".join(
+        "  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip() for row in (COLUMNS, *rows)
+    )
 
 
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:

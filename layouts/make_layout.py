@@ -37,7 +37,9 @@ SCAN_VIEW_M = 14.0
 
 def robot_model(opacity: float) -> fl.BaseRendererUrdfTopicSettings:
     """The robot from `robot_description`, drawn by its collision shapes."""
-    return fl.BaseRendererUrdfTopicSettings(visible=True, display_mode="collision", fallback_color="#e8a33d", opacity=opacity)
+    return fl.BaseRendererUrdfTopicSettings(
+        visible=True, display_mode="collision", fallback_color="#e8a33d", opacity=opacity
+    )
 
 
 def panorama_panel() -> fl.ImagePanel:
@@ -49,7 +51,12 @@ def following_panel(
 ) -> fl.ThreeDeePanel:
     """A 3D panel whose fixed frame is odom and whose view follows base_link's position and heading."""
     config = fl.ThreeDeeConfig(
-        fixed_frame=FIXED_FRAME, follow_tf=TARGET_FRAME, follow_mode="follow-pose", camera_state=camera, scene=scene, **settings
+        fixed_frame=FIXED_FRAME,
+        follow_tf=TARGET_FRAME,
+        follow_mode="follow-pose",
+        camera_state=camera,
+        scene=scene,
+        **settings,
     )
     return fl.ThreeDeePanel(title=title, config=config)
 
@@ -62,7 +69,9 @@ def scan_panel() -> fl.ThreeDeePanel:
         fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
         layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
         topics={
-            SCAN: fl.BaseRendererLaserScanTopicSettings(visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"),
+            SCAN: fl.BaseRendererLaserScanTopicSettings(
+                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"
+            ),
             ROBOT_DESCRIPTION: robot_model(opacity=0.8),
         },
     )
@@ -73,7 +82,9 @@ def frames_panel() -> fl.ThreeDeePanel:
     return following_panel(
         "Frames",
         fl.ThreeDeeCameraState(perspective=True, distance=4.0, phi=55.0, theta_offset=45.0),
-        fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=True, show_label=True, label_size=0.08, axis_size=0.15)),
+        fl.BaseRendererSceneSettings(
+            transforms=fl.BaseRendererTransforms(visible=True, show_label=True, label_size=0.08, axis_size=0.15)
+        ),
         topics={ROBOT_DESCRIPTION: robot_model(opacity=0.3)},
     )
 
@@ -86,10 +97,15 @@ def layout() -> fl.Layout:
     )
     right = fl.SplitContainer(
         direction="column",
-        items=[fl.SplitItem(proportion=2, content=frames_panel()), fl.SplitItem(proportion=1, content=fl.TransformTreePanel())],
+        items=[
+            fl.SplitItem(proportion=2, content=frames_panel()),
+            fl.SplitItem(proportion=1, content=fl.TransformTreePanel()),
+        ],
     )
     return fl.Layout(
-        content=fl.SplitContainer(direction="row", items=[fl.SplitItem(proportion=3, content=left), fl.SplitItem(proportion=2, content=right)])
+        content=fl.SplitContainer(
+            direction="row", items=[fl.SplitItem(proportion=3, content=left), fl.SplitItem(proportion=2, content=right)]
+        )
     )
 
 

@@ -11,6 +11,7 @@ The robot's SDF scales these meshes by 0.001, so 1 unit here is 1 mm.
 
     python3 meshes/make_meshes.py [--out DIR]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,8 +39,9 @@ def circle(radius: float, n: int = SEGMENTS) -> NDArray[np.float64]:
 def chamfered_rect(lx: float, ly: float, c: float) -> NDArray[np.float64]:
     """Counter-clockwise octagon: an lx x ly rectangle with its corners cut by c."""
     x, y = lx / 2.0, ly / 2.0
-    return np.array([[x, -y + c], [x, y - c], [x - c, y], [-x + c, y],
-                     [-x, y - c], [-x, -y + c], [-x + c, -y], [x - c, -y]])
+    return np.array(
+        [[x, -y + c], [x, y - c], [x - c, y], [-x + c, y], [-x, y - c], [-x, -y + c], [-x + c, -y], [x - c, -y]]
+    )
 
 
 def loft(rings: list[NDArray[np.float64]]) -> Triangles:

@@ -66,7 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("input", help="SDF model file")
     convert.add_argument("-o", "--output", help="URDF file to write (default: standard output)")
     convert.set_defaults(run=_sdf2urdf)
-    describe = commands.add_parser("describe", help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file")
+    describe = commands.add_parser(
+        "describe", help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file"
+    )
     describe.add_argument("file", help="SDF world or model, URDF, or xacro file")
     describe.set_defaults(run=_describe)
     for name, summary in CLIENTS.items():

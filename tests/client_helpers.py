@@ -104,7 +104,9 @@ class ClientProcess:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-            raise AssertionError(f"client did not exit within {timeout} s of {signal.Signals(sig).name}: {self.stderr()[-2000:]}") from None
+            raise AssertionError(
+                f"client did not exit within {timeout} s of {signal.Signals(sig).name}: {self.stderr()[-2000:]}"
+            ) from None
 
 
 @contextmanager
@@ -114,7 +116,12 @@ def client_process(sim: OnBus, name: str, *args: str) -> Iterator[ClientProcess]
         out_path, err_path = Path(tmp) / "stdout.txt", Path(tmp) / "stderr.txt"
         with out_path.open("wb") as out, err_path.open("wb") as err:
             process = subprocess.Popen(
-                client_command(name, *bus_args(sim), *args), stdin=subprocess.DEVNULL, stdout=out, stderr=err, cwd=REPO, env=_env()
+                client_command(name, *bus_args(sim), *args),
+                stdin=subprocess.DEVNULL,
+                stdout=out,
+                stderr=err,
+                cwd=REPO,
+                env=_env(),
             )
         client = ClientProcess(process, out_path, err_path)
         try:
@@ -175,9 +182,13 @@ class PtyClient:
             if found:
                 return found
             if time.monotonic() > deadline:
-                raise AssertionError(f"timed out after {timeout} s waiting for {pattern!r}; screen ends with:\n{self.screen()[-1500:]}")
+                raise AssertionError(
+                    f"timed out after {timeout} s waiting for {pattern!r}; screen ends with:\n{self.screen()[-1500:]}"
+                )
             if self.process.poll() is not None:
-                raise AssertionError(f"process exited (code {self.process.returncode}) before {pattern!r}:\n{self.screen()[-1500:]}")
+                raise AssertionError(
+                    f"process exited (code {self.process.returncode}) before {pattern!r}:\n{self.screen()[-1500:]}"
+                )
             time.sleep(0.02)
 
     def attributes(self) -> list[object]:
@@ -190,7 +201,9 @@ class PtyClient:
         except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-            raise AssertionError(f"process did not exit within {timeout} s; screen ends with:\n{self.screen()[-1500:]}") from None
+            raise AssertionError(
+                f"process did not exit within {timeout} s; screen ends with:\n{self.screen()[-1500:]}"
+            ) from None
 
 
 @contextmanager

@@ -19,7 +19,9 @@ REFERENCE = REPO.parent / "shared" / "reference" / "simbot-gazebo"
 def reference() -> Path:
     """The original Gazebo description; CI has it beside the repository, a fresh clone may not."""
     if not REFERENCE.is_dir():
-        pytest.skip(f"reference description not found at {REFERENCE} (it sits in ../shared beside the repository in CI)")
+        pytest.skip(
+            f"reference description not found at {REFERENCE} (it sits in ../shared beside the repository in CI)"
+        )
     return REFERENCE
 
 
@@ -32,4 +34,6 @@ def clean_resource_path(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     """`simbot ARGS` in a subprocess, as a user runs it."""
-    return subprocess.run([sys.executable, "-m", "simbot.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "simbot.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=120
+    )

@@ -145,7 +145,9 @@ class Collector(Generic[T]):
 
     def wait_stamp(self, ns: int, timeout: float = 5.0, what: str = "message") -> T:
         """The message stamped exactly `ns` (waits for it)."""
-        found = self.wait_for(lambda items: any(stamp_ns(m) == ns for m in items), timeout, f"{what} stamped {ns / 1e9:.3f} s")
+        found = self.wait_for(
+            lambda items: any(stamp_ns(m) == ns for m in items), timeout, f"{what} stamped {ns / 1e9:.3f} s"
+        )
         return next(m for m in found if stamp_ns(m) == ns)
 
 
@@ -170,7 +172,9 @@ def raw_samples(session: zenoh.Session, key_expr: str, keep: Callable[[zenoh.Sam
         subscriber.undeclare()
 
 
-def wait_until(condition: Callable[[], object], timeout: float = 5.0, what: str = "condition", poll: float = 0.01) -> None:
+def wait_until(
+    condition: Callable[[], object], timeout: float = 5.0, what: str = "condition", poll: float = 0.01
+) -> None:
     """Poll `condition` until it is true; AssertionError naming `what` after `timeout` seconds."""
     deadline = time.monotonic() + timeout
     while not condition():
@@ -239,7 +243,12 @@ class SimServer:
         received = self.state()["received"]
         assert key in received, f"{topic!r} is not an input of the server ({', '.join(received)})"
         self.publisher(topic).put(msg)
-        wait_until(lambda: self.state()["received"][key] > received[key], SEND_TIMEOUT_S, f"the server to receive {topic}", poll=0.002)
+        wait_until(
+            lambda: self.state()["received"][key] > received[key],
+            SEND_TIMEOUT_S,
+            f"the server to receive {topic}",
+            poll=0.002,
+        )
 
     def send_raw(self, topic: str, data: bytes) -> None:
         self.publisher(topic).put_raw(data)
@@ -310,7 +319,9 @@ class SimServer:
         self.node.close()
         self.stopped = True
         if self.process.poll() is not None:
-            raise AssertionError(f"server died before it was stopped (code {self.process.returncode}): {self.stderr()[-2000:]}")
+            raise AssertionError(
+                f"server died before it was stopped (code {self.process.returncode}): {self.stderr()[-2000:]}"
+            )
         start = time.monotonic()
         self.process.send_signal(sig)
         try:
@@ -327,7 +338,9 @@ class SimServer:
 def _spawn(args: Sequence[str], stderr_path: Path) -> subprocess.Popen[bytes]:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     with stderr_path.open("wb") as err:
-        return subprocess.Popen(server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=REPO, env=env)
+        return subprocess.Popen(
+            server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=REPO, env=env
+        )
 
 
 def _connect(process: subprocess.Popen[bytes], port: int, namespace: str, stderr_path: Path) -> Node:
@@ -335,7 +348,9 @@ def _connect(process: subprocess.Popen[bytes], port: int, namespace: str, stderr
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
     while True:
         if process.poll() is not None:
-            raise AssertionError(f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}")
+            raise AssertionError(
+                f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}"
+            )
         try:
             return Node(BusOptions(connect=(endpoint(port),), namespace=namespace, connect_timeout=1.0), "client")
         except BusOpenError:
@@ -347,7 +362,9 @@ def _wait_ready(process: subprocess.Popen[bytes], node: Node, world: str, stderr
     deadline = time.monotonic() + STARTUP_TIMEOUT_S
     while True:
         if process.poll() is not None:
-            raise AssertionError(f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}")
+            raise AssertionError(
+                f"server exited with code {process.returncode} at start: {stderr_path.read_text()[-2000:]}"
+            )
         try:
             state = node.call(f"world/{world}/state", {}, timeout=0.5)
         except (TimeoutError, ServiceError):
@@ -355,7 +372,9 @@ def _wait_ready(process: subprocess.Popen[bytes], node: Node, world: str, stderr
         if state is not None and state.get("ok"):
             return
         if time.monotonic() > deadline:
-            raise AssertionError(f"server's world control did not answer within {STARTUP_TIMEOUT_S} s: {stderr_path.read_text()[-2000:]}")
+            raise AssertionError(
+                f"server's world control did not answer within {STARTUP_TIMEOUT_S} s: {stderr_path.read_text()[-2000:]}"
+            )
         time.sleep(0.05)
 
 
@@ -373,7 +392,20 @@ def running_server(
     name = world_name or Path(world).stem
     tmp = tempfile.TemporaryDirectory(prefix="simbot-server-")
     stderr_path = Path(tmp.name) / "stderr.txt"
-    args = ["--world", world, "--mode", mode, "--seed", str(seed), "--listen", endpoint(port), "--namespace", namespace, "--quiet", *extra]
+    args = [
+        "--world",
+        world,
+        "--mode",
+        mode,
+        "--seed",
+        str(seed),
+        "--listen",
+        endpoint(port),
+        "--namespace",
+        namespace,
+        "--quiet",
+        *extra,
+    ]
     process = _spawn(args, stderr_path)
     node: Node | None = None
     try:

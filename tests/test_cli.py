@@ -26,7 +26,9 @@ def test_sdf2urdf_writes_a_valid_urdf(tmp_path: Path) -> None:
 def test_sdf2urdf_to_stdout() -> None:
     """Without -o the URDF goes to standard output."""
     result = run_cli("sdf2urdf", str(ROBOT_SDF))
-    assert result.returncode == 0 and result.stdout.startswith("<?xml") and "<robot name=\"flexley_tug\">" in result.stdout
+    assert (
+        result.returncode == 0 and result.stdout.startswith("<?xml") and '<robot name="flexley_tug">' in result.stdout
+    )
 
 
 def test_describe_tables() -> None:
@@ -47,13 +49,41 @@ def test_describe_world() -> None:
 
 BAD_INPUTS = {
     "malformed_xml": ("<sdf version='1.9'><model name='m'>\n<link name='a'>\n</model></sdf>", "malformed XML", 3),
-    "missing_element": ("<sdf version='1.9'><model name='m'>\n<link name='a'><collision name='c'>\n<geometry><mesh/></geometry>\n</collision></link></model></sdf>", "missing required element <uri>", 3),
-    "missing_attribute": ("<sdf version='1.9'>\n<model>" + GOOD_LINK + "</model></sdf>", "missing required attribute 'name'", 2),
-    "unsupported_version": ("<sdf version='2.0'><model name='m'>" + GOOD_LINK + "</model></sdf>", "unsupported SDF version 2.0", 1),
-    "unresolvable_include": ("<sdf version='1.9'><world name='w'>\n<include>\n<uri>model://no_such_model</uri></include></world></sdf>", "cannot resolve 'model://no_such_model'", 3),
-    "bad_number": ("<sdf version='1.9'><model name='m'><link name='a'><inertial>\n<mass>heavy</mass></inertial></link></model></sdf>", "expected numbers, got 'heavy'", 2),
-    "malformed_after_gazebo_comment": ("<sdf version='1.9'><!-- gz sim --verbose -->\n<model name='m'>\n<link name='a'>\n</model></sdf>", "malformed XML", 4),
-    "unknown_frame": ("<sdf version='1.9'><model name='m'>\n<link name='a'><pose relative_to='nowhere'>0 0 0 0 0 0</pose></link></model></sdf>", "unknown frame 'nowhere'", 2),
+    "missing_element": (
+        "<sdf version='1.9'><model name='m'>\n<link name='a'><collision name='c'>\n<geometry><mesh/></geometry>\n</collision></link></model></sdf>",
+        "missing required element <uri>",
+        3,
+    ),
+    "missing_attribute": (
+        "<sdf version='1.9'>\n<model>" + GOOD_LINK + "</model></sdf>",
+        "missing required attribute 'name'",
+        2,
+    ),
+    "unsupported_version": (
+        "<sdf version='2.0'><model name='m'>" + GOOD_LINK + "</model></sdf>",
+        "unsupported SDF version 2.0",
+        1,
+    ),
+    "unresolvable_include": (
+        "<sdf version='1.9'><world name='w'>\n<include>\n<uri>model://no_such_model</uri></include></world></sdf>",
+        "cannot resolve 'model://no_such_model'",
+        3,
+    ),
+    "bad_number": (
+        "<sdf version='1.9'><model name='m'><link name='a'><inertial>\n<mass>heavy</mass></inertial></link></model></sdf>",
+        "expected numbers, got 'heavy'",
+        2,
+    ),
+    "malformed_after_gazebo_comment": (
+        "<sdf version='1.9'><!-- gz sim --verbose -->\n<model name='m'>\n<link name='a'>\n</model></sdf>",
+        "malformed XML",
+        4,
+    ),
+    "unknown_frame": (
+        "<sdf version='1.9'><model name='m'>\n<link name='a'><pose relative_to='nowhere'>0 0 0 0 0 0</pose></link></model></sdf>",
+        "unknown frame 'nowhere'",
+        2,
+    ),
 }
 
 
@@ -81,7 +111,9 @@ def test_missing_file_and_usage(tmp_path: Path) -> None:
     assert run_cli("frobnicate").returncode == 2
 
 
-@pytest.mark.parametrize("command", ["teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch"])
+@pytest.mark.parametrize(
+    "command", ["teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch"]
+)
 def test_simbot_runs_each_client_with_the_rest_of_the_line(command: str) -> None:
     """`simbot CLIENT ARGS` is the client's own command line: its --help, and its one-line usage errors."""
     helped = run_cli(command, "--help")

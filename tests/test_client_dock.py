@@ -77,7 +77,9 @@ def drive_for(sim: SimServer, speed: float, seconds: float) -> None:
     """Drive at `speed` for `seconds` of sim time, stop, and wait until the robot stands."""
     start = sim_time(sim)
     sim.drive(speed)
-    wait_until(lambda: sim_time(sim) - start >= seconds, timeout=10 * seconds + 5.0, what=f"{seconds} s of sim time", poll=0.05)
+    wait_until(
+        lambda: sim_time(sim) - start >= seconds, timeout=10 * seconds + 5.0, what=f"{seconds} s of sim time", poll=0.05
+    )
     sim.drive(0.0)
     before = sim.pose()[0]
     for _ in range(50):
@@ -114,7 +116,14 @@ def test_yaw_tolerance_refuses_a_skewed_robot(sim: SimServer) -> None:
     """Centred under the trolley but turned 0.15 rad: near by distance, far by a 0.1 rad heading tolerance."""
     yaw = 0.15
     orientation = {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
-    sim.call("set_pose", {"name": "flexley_tug", "position": {"x": TROLLEY_XY[0], "y": TROLLEY_XY[1], "z": 0.1}, "orientation": orientation})
+    sim.call(
+        "set_pose",
+        {
+            "name": "flexley_tug",
+            "position": {"x": TROLLEY_XY[0], "y": TROLLEY_XY[1], "z": 0.1},
+            "orientation": orientation,
+        },
+    )
     collector = joint_states(sim)
     with dock(sim, "--yaw-tolerance", "0.1") as client:
         client.wait_for(r"trolley far \(0\.0\d m apart, headings 0\.1[45] rad apart\)")
@@ -123,7 +132,9 @@ def test_yaw_tolerance_refuses_a_skewed_robot(sim: SimServer) -> None:
 
 def test_under_the_trolley_attach_pull_detach(sim: SimServer) -> None:
     (trolley0, _), (robot0, _) = sim.pose("trolley"), sim.pose()
-    assert planar_distance(trolley0, TROLLEY_XY) < 0.01, f"the robot spawned under the trolley pushed it to {trolley0[:2]}"
+    assert planar_distance(trolley0, TROLLEY_XY) < 0.01, (
+        f"the robot spawned under the trolley pushed it to {trolley0[:2]}"
+    )
     collector = joint_states(sim)
     with dock(sim) as client:
         client.wait_for(r"trolley near \(0\.20 m apart\)")
@@ -150,20 +161,34 @@ def test_under_the_trolley_attach_pull_detach(sim: SimServer) -> None:
         drive_for(sim, 0.5, 2.0)
         (trolley2, _), (robot2, _) = sim.pose("trolley"), sim.pose()
         left, stayed = planar_distance(robot1, robot2), planar_distance(trolley1, trolley2)
-        assert left > 0.9 and stayed < 0.03, f"detached, the robot drove {left:.3f} m and the trolley moved {stayed:.4f} m"
+        assert left > 0.9 and stayed < 0.03, (
+            f"detached, the robot drove {left:.3f} m and the trolley moved {stayed:.4f} m"
+        )
         client.wait_for(r"trolley far \(\d+\.\d+ m apart\)", since=mark)
     assert states(collector) == ["detached", "attached", "detached"]
-    print(f"\nmeasured docking: attached, trolley {pulled:.4f} m with the robot's {drove:.4f} m; detached, robot {left:.4f} m, trolley {stayed:.4f} m")
+    print(
+        f"\nmeasured docking: attached, trolley {pulled:.4f} m with the robot's {drove:.4f} m; detached, robot {left:.4f} m, trolley {stayed:.4f} m"
+    )
 
 
 @pytest.mark.parametrize(
     ("args", "expected"),
-    [((), "standard input is not a terminal"), (("--distance", "0"), "--distance"), (("--yaw-tolerance", "inf"), "--yaw-tolerance")],
+    [
+        ((), "standard input is not a terminal"),
+        (("--distance", "0"), "--distance"),
+        (("--yaw-tolerance", "inf"), "--yaw-tolerance"),
+    ],
     ids=["not-a-terminal", "zero-distance", "infinite-yaw-tolerance"],
 )
 def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...], expected: str) -> None:
     done = subprocess.run(
-        client_command("dock", *bus_args(sim), *args), check=False, stdin=subprocess.DEVNULL, capture_output=True, text=True, cwd=REPO, timeout=60
+        client_command("dock", *bus_args(sim), *args),
+        check=False,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
     )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr
@@ -174,7 +199,12 @@ def test_checks_count_sim_time_not_wall_time() -> None:
     with running_server("warehouse", "lockstep", extra=SPAWN_UNDER_TROLLEY) as sim:
         collector = joint_states(sim)
         with dock(sim) as client:
-            wait_until(lambda: sim.step(20) and "trolley near" in client.screen(), 20.0, "near once the poses and the clock come", poll=0.05)
+            wait_until(
+                lambda: sim.step(20) and "trolley near" in client.screen(),
+                20.0,
+                "near once the poses and the clock come",
+                poll=0.05,
+            )
             mark = client.mark()
             client.type("t")
             client.wait_for(r"checking 1/3", since=mark)

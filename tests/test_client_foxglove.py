@@ -57,7 +57,9 @@ NODE_CLIENT = Path(__file__).resolve().parent / "node"
 MESSAGE_DATA, TIME = 0x01, 0x02
 CHEAP_CAMERAS = ("--camera-size", "160x120")
 CLOCK_PERIOD_NS = 10_000_000  # the server's clock, 100 Hz of sim time
-CLOCK_LAG_NS = 100_000_000  # how far the bridge's latest clock may trail the server's sim time (transport, a loaded CPU)
+CLOCK_LAG_NS = (
+    100_000_000  # how far the bridge's latest clock may trail the server's sim time (transport, a loaded CPU)
+)
 WAIT_S = 30.0  # generous: two cores shared with other test runs
 SERVER_KEYS = {  # SPEC §4: what the server alone publishes in the empty world
     "clock", "odom", "tf", "tf_static", "robot_description", "joint_states", "imu_scan", "lidar_front", "lidar_back",
@@ -120,7 +122,9 @@ class Viewer:
                     channels.pop(channel_id, None)
         return {channel["topic"]: channel for channel in channels.values()}
 
-    def wait_channels(self, condition: Callable[[dict[str, dict[str, Any]]], object], what: str) -> dict[str, dict[str, Any]]:
+    def wait_channels(
+        self, condition: Callable[[dict[str, dict[str, Any]]], object], what: str
+    ) -> dict[str, dict[str, Any]]:
         wait_until(lambda: condition(self.channels()), WAIT_S, what, poll=0.05)
         return self.channels()
 
@@ -128,7 +132,9 @@ class Viewer:
         """Subscribe to the channel of `topic` (waiting for its advertisement); the subscription id."""
         channel = self.wait_channels(lambda channels: topic in channels, f"{topic} advertised")[topic]
         subscription = next(self._ids)
-        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": subscription, "channelId": channel["id"]}]}))
+        self.ws.send(
+            json.dumps({"op": "subscribe", "subscriptions": [{"id": subscription, "channelId": channel["id"]}]})
+        )
         return subscription
 
     def unsubscribe(self, subscription: int) -> None:
@@ -183,7 +189,9 @@ def on_bus(sim: SimServer, *topics: str) -> Iterator[dict[str, Collector[bytes]]
 def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:
     """Sim time and the images each camera has published, from the world state."""
     state = sim.state()
-    return state["sim_time"], {name: figures["messages"] for name, figures in state["sensors"].items() if name.startswith("camera_")}
+    return state["sim_time"], {
+        name: figures["messages"] for name, figures in state["sensors"].items() if name.startswith("camera_")
+    }
 
 
 def wait_camera_stopped(sim: SimServer, camera: str) -> None:
@@ -258,11 +266,18 @@ def test_advertises_every_published_key_with_its_ros2_schema(sim: SimServer, app
     assert set(channels) == topics  # inputs nobody publishes (cmd_vel, attach) and services have none
     for name, topic in expected.items():
         channel = channels["/" + name]
-        assert (channel["encoding"], channel["schemaEncoding"], channel["schemaName"]) == ("cdr", "ros2msg", topic.typename)
+        assert (channel["encoding"], channel["schemaEncoding"], channel["schemaName"]) == (
+            "cdr",
+            "ros2msg",
+            topic.typename,
+        )
         parsed = get_types_from_msg(channel["schema"], topic.typename)
         assert topic.typename in parsed and all(parsed[t] == TYPESTORE.fielddefs[t] for t in parsed), name
     scan_schema = channels["/lidar_front"]["schema"]
-    assert scan_schema.startswith("std_msgs/Header header\nfloat32 angle_min\n") and "\nMSG: builtin_interfaces/Time\n" in scan_schema
+    assert (
+        scan_schema.startswith("std_msgs/Header header\nfloat32 angle_min\n")
+        and "\nMSG: builtin_interfaces/Time\n" in scan_schema
+    )
 
 
 def test_forwards_bus_payloads_unchanged_at_sim_time(sim: SimServer, app: Viewer) -> None:
@@ -277,7 +292,9 @@ def test_forwards_bus_payloads_unchanged_at_sim_time(sim: SimServer, app: Viewer
         for frames, topic in ((scans, "lidar_front"), (samples, "imu_scan")):
             sent = {frame.payload for frame in frames}
             bus[topic].wait_for(sent.issubset, 5.0, f"the {topic} payloads the viewer got, on the bus")
-        clock_ns = {messages.stamp_ns(decode(data, "rosgraph_msgs/msg/Clock").clock) for data in bus["clock"].messages()}
+        clock_ns = {
+            messages.stamp_ns(decode(data, "rosgraph_msgs/msg/Clock").clock) for data in bus["clock"].messages()
+        }
 
     scan = decode_with(app.channels()["/lidar_front"], scans[0].payload)
     assert scan.header.frame_id == "base_scan_front" and len(scan.ranges) == 720
@@ -286,10 +303,14 @@ def test_forwards_bus_payloads_unchanged_at_sim_time(sim: SimServer, app: Viewer
     for frames, typename in ((scans, "sensor_msgs/msg/LaserScan"), (samples, "sensor_msgs/msg/Imu")):
         for frame in frames:
             stamp = stamp_ns(decode(frame.payload, typename))
-            assert frame.timestamp in clock_ns | {stamp}, f"timestamp {frame.timestamp} is neither a clock tick nor the stamp {stamp}"
+            assert frame.timestamp in clock_ns | {stamp}, (
+                f"timestamp {frame.timestamp} is neither a clock tick nor the stamp {stamp}"
+            )
             lags.append(frame.timestamp - stamp)
     at_stamp = sum(lag == 0 for lag in lags)
-    print(f"{len(scans)} scans, {len(samples)} IMU samples; timestamp − stamp {min(lags) / 1e6:.0f}…{max(lags) / 1e6:.0f} ms, {at_stamp} at the stamp")
+    print(
+        f"{len(scans)} scans, {len(samples)} IMU samples; timestamp − stamp {min(lags) / 1e6:.0f}…{max(lags) / 1e6:.0f} ms, {at_stamp} at the stamp"
+    )
     assert min(lags) >= 0 and max(lags) <= CLOCK_PERIOD_NS  # never before the data was taken, within a clock tick of it
     broadcast = [t for t in times if t >= min(clock_ns)]  # from when the test's own clock subscriber was live
     assert len(broadcast) >= 10 and set(broadcast) <= clock_ns and times == sorted(times)
@@ -311,7 +332,9 @@ def test_cameras_render_only_while_watched(sim: SimServer, app: Viewer) -> None:
     print(f"camera_front: {during['camera_front']} images while watched, other cameras 0")
 
 
-def test_malformed_payloads_are_dropped_and_the_next_scan_forwarded(sim: SimServer, bridge: Bridge, app: Viewer) -> None:
+def test_malformed_payloads_are_dropped_and_the_next_scan_forwarded(
+    sim: SimServer, bridge: Bridge, app: Viewer
+) -> None:
     """Garbage and a truncated scan on a watched key never reach the viewer; the scans after them do."""
     with on_bus(sim, "lidar_back") as bus:
         subscription = app.subscribe("/lidar_back")
@@ -323,11 +346,15 @@ def test_malformed_payloads_are_dropped_and_the_next_scan_forwarded(sim: SimServ
         after = len(bus["lidar_back"])
         bus["lidar_back"].wait_count(after + 2, WAIT_S, "two scans after the garbage")
         valid = bus["lidar_back"].messages()[after:]
-        frames = app.frames.wait_for(lambda frames: any(f.payload in valid for f in frames), WAIT_S, "a scan after the garbage")
+        frames = app.frames.wait_for(
+            lambda frames: any(f.payload in valid for f in frames), WAIT_S, "a scan after the garbage"
+        )
         app.unsubscribe(subscription)
     payloads = [f.payload for f in frames if f.subscription == subscription]
     assert not any(g in payloads for g in garbage)
-    wait_until(lambda: f"{sim.key('lidar_back')}: dropped a sample" in bridge.process.stderr(), 5.0, "the bridge's warning")
+    wait_until(
+        lambda: f"{sim.key('lidar_back')}: dropped a sample" in bridge.process.stderr(), 5.0, "the bridge's warning"
+    )
 
 
 def test_channels_follow_the_graph(sim: SimServer, app: Viewer) -> None:
@@ -335,7 +362,9 @@ def test_channels_follow_the_graph(sim: SimServer, app: Viewer) -> None:
     note = messages.string("hello from the bus")
     with sim.client() as node:
         publisher = node.publisher("fox_test/note", "std_msgs/msg/String")
-        channel = app.wait_channels(lambda channels: "/fox_test/note" in channels, "/fox_test/note advertised")["/fox_test/note"]
+        channel = app.wait_channels(lambda channels: "/fox_test/note" in channels, "/fox_test/note advertised")[
+            "/fox_test/note"
+        ]
         assert (channel["schemaName"], channel["schema"]) == ("std_msgs/msg/String", "string data\n")
         subscription = app.subscribe("/fox_test/note")
 
@@ -352,7 +381,9 @@ def test_channels_follow_the_graph(sim: SimServer, app: Viewer) -> None:
 def test_a_second_viewer_also_gets_the_latched_keys(sim: SimServer, bridge: Bridge) -> None:
     """A viewer that subscribes to tf_static after another still gets it, the bytes the server latched,
     logged (it has no header) at a clock tick of the sim time meanwhile."""
-    latched = [reply.ok.payload.to_bytes() for reply in sim.node.session.get(sim.key("tf_static"), timeout=5.0) if reply.ok]
+    latched = [
+        reply.ok.payload.to_bytes() for reply in sim.node.session.get(sim.key("tf_static"), timeout=5.0) if reply.ok
+    ]
     assert len(latched) == 1
     begun = round(sim.state()["sim_time"] * 1e9)
     with viewer(bridge.port) as first, viewer(bridge.port) as second:
@@ -415,7 +446,12 @@ def test_the_official_client_decodes_a_scan(sim: SimServer, bridge: Bridge, node
 
 def test_a_port_in_use_is_one_line(sim: SimServer, bridge: Bridge) -> None:
     result = subprocess.run(
-        client_command("foxglove", *bus_args(sim), "--port", str(bridge.port)), check=False, capture_output=True, text=True, cwd=REPO, timeout=60
+        client_command("foxglove", *bus_args(sim), "--port", str(bridge.port)),
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
     )
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
@@ -434,7 +470,9 @@ def test_sigint_stops_the_server(sim: SimServer) -> None:
 def test_committed_layout_is_what_make_layout_writes(tmp_path: Path) -> None:
     """layouts/simbot.json is up to date (`make layout`) and shows the panorama, the merged scan and the frames."""
     out = tmp_path / "simbot.json"
-    subprocess.run([sys.executable, str(REPO / "layouts" / "make_layout.py"), "--out", str(out)], check=True, timeout=60)
+    subprocess.run(
+        [sys.executable, str(REPO / "layouts" / "make_layout.py"), "--out", str(out)], check=True, timeout=60
+    )
     assert out.read_text() == LAYOUT.read_text(), "layouts/simbot.json is stale: run `make layout`"
     panels = list(_panels(json.loads(LAYOUT.read_text())["content"]))
     by_type = {panel["panelType"]: panel for panel in panels}
@@ -442,7 +480,11 @@ def test_committed_layout_is_what_make_layout_writes(tmp_path: Path) -> None:
     scan = next(p for p in panels if p["panelType"] == "ThreeDee" and "/scan" in p["config"]["topics"])
     assert scan["config"]["fixedFrame"] == "odom" and scan["config"]["followTf"] == "base_link"
     assert scan["config"]["topics"]["/scan"]["visible"] is True
-    frames = [p for p in panels if p["panelType"] == "ThreeDee" and p["config"].get("scene", {}).get("transforms", {}).get("visible")]
+    frames = [
+        p
+        for p in panels
+        if p["panelType"] == "ThreeDee" and p["config"].get("scene", {}).get("transforms", {}).get("visible")
+    ]
     assert frames and "TransformTree" in by_type
 
 

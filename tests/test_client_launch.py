@@ -51,7 +51,13 @@ class Launch:
         command = [*LAUNCH, "--listen", endpoint(self.port), "--namespace", self.namespace, *args]
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.process = subprocess.Popen(
-            command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO, env=env
+            command,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO,
+            env=env,
         )
         self.lines: Collector[str] = Collector()
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -68,7 +74,9 @@ class Launch:
     def wait_line(self, pattern: str, timeout: float = START_TIMEOUT_S) -> re.Match[str]:
         """The first output line matching `pattern` (waits for it)."""
         regex = re.compile(pattern)
-        found = self.lines.wait_for(lambda lines: any(map(regex.search, lines)), timeout, f"a line matching {pattern!r}")
+        found = self.lines.wait_for(
+            lambda lines: any(map(regex.search, lines)), timeout, f"a line matching {pattern!r}"
+        )
         return next(m for m in map(regex.search, found) if m)
 
     def pids(self) -> dict[str, int]:
@@ -81,7 +89,9 @@ class Launch:
         return code
 
     def client(self) -> Node:
-        return Node(BusOptions(connect=(endpoint(self.port),), namespace=self.namespace, connect_timeout=10.0), "client")
+        return Node(
+            BusOptions(connect=(endpoint(self.port),), namespace=self.namespace, connect_timeout=10.0), "client"
+        )
 
     def close(self) -> None:
         """Whatever is still running after a failed test: launch, then each child it started, killed by pid."""
@@ -177,7 +187,9 @@ def test_a_server_that_cannot_start_is_its_exit_code() -> None:
     port = free_port()
     result = run_launch("--world", "no_such_world", "--clients", "", "--listen", endpoint(port))
     assert result.returncode == 2
-    assert re.search(r"^\[server\] simbot-server: error: no_such_world: no such world", result.stdout, re.MULTILINE), result.stdout
+    assert re.search(r"^\[server\] simbot-server: error: no_such_world: no such world", result.stdout, re.MULTILINE), (
+        result.stdout
+    )
     assert "[launch] server exited with code 2" in result.stdout
 
 
@@ -200,4 +212,7 @@ def test_a_client_that_cannot_be_launched_is_one_line_and_exit_2(clients: str, e
 def test_server_args_may_not_take_launchs_own_options() -> None:
     result = run_launch("--server-args=--mode fast --namespace other")
     assert result.returncode == 2 and result.stdout == ""
-    assert result.stderr == "simbot launch: error: --server-args: --namespace is launch's own option; give it to launch itself\n"
+    assert (
+        result.stderr
+        == "simbot launch: error: --server-args: --namespace is launch's own option; give it to launch itself\n"
+    )

@@ -211,7 +211,9 @@ def test_merged_scan_reads_the_boxes(sim: SimServer) -> None:
     r, f, b = ranges_of(merged), ranges_of(front), ranges_of(back)
     # every finite bin is a box, at the right distance (edge bins aside, whose verdict depends on a cm)
     finite = np.isfinite(r) & clear
-    assert not np.any(finite & ~np.isfinite(truth)), f"readings where no box stands: {np.degrees(BEARINGS[finite & ~np.isfinite(truth)])}"
+    assert not np.any(finite & ~np.isfinite(truth)), (
+        f"readings where no box stands: {np.degrees(BEARINGS[finite & ~np.isfinite(truth)])}"
+    )
     error = np.abs(r[finite] - truth[finite])
     worst = BEARINGS[finite][error.argmax()]
     assert error.max() <= TOLERANCE, f"worst bin {math.degrees(worst):+.2f}° off by {error.max():.4f} m"
@@ -257,7 +259,9 @@ def test_garbage_on_lidar_front_is_dropped_and_counted(sim: SimServer) -> None:
     assert "lidar_front: dropped a payload that is not a valid sensor_msgs/msg/LaserScan" in log, log
     assert "dropped 2 undecodable payloads" in log, log
     assert "Traceback" not in log
-    print(f"\nmeasured: after 2 garbage payloads, scan at {t / 1e9:.1f} s reads {r[bin_of(0.0)]:.3f} ahead, {r[bin_of(180.0)]:.3f} behind")
+    print(
+        f"\nmeasured: after 2 garbage payloads, scan at {t / 1e9:.1f} s reads {r[bin_of(0.0)]:.3f} ahead, {r[bin_of(180.0)]:.3f} behind"
+    )
 
 
 # --- a missing partner, on a bus of the test's own -------------------------------------------
@@ -319,16 +323,22 @@ def test_front_alone_still_makes_a_scan() -> None:
             log = merger.stderr()
         scans, fixed = merged.messages(), {stamp_ns(m): m for m in front.messages()}
     assert len(back) == 0
-    sent = decode(encode(synthetic_scan(0, "base_scan_front", ranges)), LASER_SCAN)  # its angles as float32, as on the wire
+    sent = decode(
+        encode(synthetic_scan(0, "base_scan_front", ranges)), LASER_SCAN
+    )  # its angles as float32, as on the wire
     expected = ScanMerger(Binning(BINS)).rebin(sent, sensor_pose("base_scan_front"))
     for scan in scans:
-        assert stamp_ns(scan) % SCAN_NS == 0 and stamp_ns(scan) < k * SCAN_NS, "each comes out when the next front scan is in"
+        assert stamp_ns(scan) % SCAN_NS == 0 and stamp_ns(scan) < k * SCAN_NS, (
+            "each comes out when the next front scan is in"
+        )
         assert np.array_equal(ranges_of(scan), ranges_of(fixed[stamp_ns(scan)]))
         assert np.array_equal(ranges_of(scan), expected.ranges.astype(np.float32))
     r = ranges_of(scans[-1])
     assert r[bin_of(0.0)] == pytest.approx(0.99 + 2.0, abs=NEAR_AXIS)
     # the circle's nearest points to base_link are its ends, ±80° off the lidar's axis: nothing of the 0.05 m ray
-    assert np.nanmin(r) == pytest.approx(math.sqrt(0.99**2 + 2.0**2 + 2 * 0.99 * 2.0 * math.cos(ANGLE_MAX)), abs=NEAR_AXIS)
+    assert np.nanmin(r) == pytest.approx(
+        math.sqrt(0.99**2 + 2.0**2 + 2 * 0.99 * 2.0 * math.cos(ANGLE_MAX)), abs=NEAR_AXIS
+    )
     assert np.isfinite(r).sum() > 440  # the circle spans ±55.8° about base_link: 446 bins, less the 3 rays left out
     summary = re.search(r"published (\d+) merged scans \((\d+) from one lidar alone\)", log)
     assert summary and int(summary[1]) == int(summary[2]) >= len(scans), log
@@ -391,7 +401,9 @@ def test_a_moved_sensor_or_new_angles_are_not_served_stale_rays() -> None:
     out = merger.rebin(narrow, sensor_pose("base_scan_front")).ranges
     bearings = BEARINGS[np.isfinite(out)]
     # 2 m from a lidar 0.99 m ahead, ±0.5 rad about it is ±0.33 rad about base_link
-    assert bearings.max() == pytest.approx(math.atan2(2 * math.sin(0.5), 0.99 + 2 * math.cos(0.5)), abs=2 * math.pi / BINS)
+    assert bearings.max() == pytest.approx(
+        math.atan2(2 * math.sin(0.5), 0.99 + 2 * math.cos(0.5)), abs=2 * math.pi / BINS
+    )
 
 
 def test_bins_wrap_at_pi() -> None:
@@ -409,7 +421,9 @@ def test_bins_wrap_at_pi() -> None:
 
 @pytest.mark.parametrize(("option", "value"), [("--bins", "0"), ("--scan-period", "nan")])
 def test_bad_option_is_one_line_and_exit_2(option: str, value: str) -> None:
-    done = subprocess.run(client_command("merger", option, value), check=False, capture_output=True, text=True, cwd=REPO, timeout=60)
+    done = subprocess.run(
+        client_command("merger", option, value), check=False, capture_output=True, text=True, cwd=REPO, timeout=60
+    )
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert option in lines[-1] and "Traceback" not in done.stderr, done.stderr

@@ -28,7 +28,14 @@ from client_helpers import bus_args, client_command, client_process, pty_client
 from server_helpers import REPO, SimServer, running_server, wait_until
 
 WORLD_EXTRA = ("--camera-size", "160x120", "--camera-rate", "5")
-CAMERAS = ("camera_front", "camera_back", "camera_front_right", "camera_front_left", "camera_back_right", "camera_back_left")
+CAMERAS = (
+    "camera_front",
+    "camera_back",
+    "camera_front_right",
+    "camera_front_left",
+    "camera_back_right",
+    "camera_back_left",
+)
 LASER_SCAN, CAMERA_INFO = "sensor_msgs/msg/LaserScan", "sensor_msgs/msg/CameraInfo"
 TIMEOUT_S = 60.0
 HORIZON_S, JITTER_S, CLOCK_HZ, LIDAR_HZ = 3.0, 0.1, 100.0, 5.0
@@ -43,7 +50,11 @@ BLOCKS = 5
 @pytest.fixture(scope="module", name="sim")
 def sim_fixture() -> Iterator[SimServer]:
     """The warehouse in real time, with the merger and the stitcher."""
-    with running_server("warehouse", mode="realtime", extra=WORLD_EXTRA) as server, client_process(server, "merger"), client_process(server, "stitcher"):
+    with (
+        running_server("warehouse", mode="realtime", extra=WORLD_EXTRA) as server,
+        client_process(server, "merger"),
+        client_process(server, "stitcher"),
+    ):
         yield server
 
 
@@ -68,7 +79,9 @@ def table_fixture(sim: SimServer) -> tuple[str, dict[str, tuple[str, str]], dict
         wait_until(lambda: monitor.stdout().count("\n\n") >= BLOCKS, timeout=TIMEOUT_S, what=f"{BLOCKS} tables")
         assert monitor.alive(), monitor.stderr()
         text = monitor.stdout()
-    own: dict[str, Any] = {key: collector.wait_count(1, timeout=TIMEOUT_S, what=f"{key} scans")[-1] for key, collector in scans.items()}
+    own: dict[str, Any] = {
+        key: collector.wait_count(1, timeout=TIMEOUT_S, what=f"{key} scans")[-1] for key, collector in scans.items()
+    }
     own["camera_360/camera_info"] = info.wait_count(1, timeout=TIMEOUT_S, what="panorama camera_info")[-1]
     sim.unsubscribe_all()
     heading, rows = parse_block(text.split("\n\n")[BLOCKS - 1])
@@ -85,7 +98,9 @@ def hertz(cell: str) -> float:
     return float(found[1])
 
 
-def test_the_heading_names_the_world_its_sim_time_and_real_time_factor(table: tuple[str, Any, Any], sim: SimServer) -> None:
+def test_the_heading_names_the_world_its_sim_time_and_real_time_factor(
+    table: tuple[str, Any, Any], sim: SimServer
+) -> None:
     heading = table[0]
     found = re.fullmatch(r"world (\S+)  sim time ([0-9.]+) s  real-time factor ([0-9.]+)  \(realtime\)", heading)
     assert found, heading
@@ -102,7 +117,10 @@ def test_the_imu_reads_gravity_up_and_no_turn(table: tuple[str, Any, Any]) -> No
     assert all(abs(w) <= 0.001 + 0.0005 for w in gyro)  # σ 2e-4 rad/s, shown to 0.001
 
 
-@pytest.mark.parametrize(("key", "nominal"), [("lidar_front", LIDAR_HZ), ("lidar_back", LIDAR_HZ), ("odom", 50.0), ("imu_scan", 200.0), ("joint_states", 30.0)])
+@pytest.mark.parametrize(
+    ("key", "nominal"),
+    [("lidar_front", LIDAR_HZ), ("lidar_back", LIDAR_HZ), ("odom", 50.0), ("imu_scan", 200.0), ("joint_states", 30.0)],
+)
 def test_rates_match_the_nominal_ones_against_the_clock(table: tuple[str, Any, Any], key: str, nominal: float) -> None:
     rows = table[1]
     tolerance = 2 * JITTER_S / (HORIZON_S - 1 / nominal) + 2 * JITTER_S / (HORIZON_S - 1 / CLOCK_HZ)
@@ -160,6 +178,17 @@ def test_on_a_terminal_it_redraws_in_place_and_sigterm_ends_it_with_0(sim: SimSe
 
 
 def test_a_period_of_zero_is_one_line_and_exit_2(sim: SimServer) -> None:
-    result = subprocess.run(client_command("monitor", *bus_args(sim), "--period", "0"), check=False, capture_output=True, text=True, cwd=REPO, timeout=TIMEOUT_S)
+    result = subprocess.run(
+        client_command("monitor", *bus_args(sim), "--period", "0"),
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=TIMEOUT_S,
+    )
     last = result.stderr.strip().splitlines()[-1]  # argparse's usage, then the one line that says what is wrong
-    assert result.returncode == 2 and last.startswith("simbot monitor: error: argument --period") and "Traceback" not in result.stderr, result.stderr
+    assert (
+        result.returncode == 2
+        and last.startswith("simbot monitor: error: argument --period")
+        and "Traceback" not in result.stderr
+    ), result.stderr

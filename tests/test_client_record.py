@@ -30,7 +30,14 @@ from server_helpers import REPO, SimServer, keyed_payload, payload, raw_samples,
 from simbot.bus import decode
 
 RECORD_S = 5.0
-RATES_HZ = {"clock": 100.0, "imu_scan": 200.0, "odom": 50.0, "joint_states": 30.0, "lidar_front": 5.0, "lidar_back": 5.0}
+RATES_HZ = {
+    "clock": 100.0,
+    "imu_scan": 200.0,
+    "odom": 50.0,
+    "joint_states": 30.0,
+    "lidar_front": 5.0,
+    "lidar_back": 5.0,
+}
 LATCHED = ("tf_static", "robot_description")
 TYPES = {
     "clock": "rosgraph_msgs/msg/Clock",
@@ -75,7 +82,11 @@ def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterat
         raw_samples(sim.node.session, sim.key("lidar_front"), payload) as seen,
         client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder,
     ):
-        wait_until(lambda: "recording 8 topics" in recorder.stderr() or not recorder.alive(), 20.0, "the recorder to tap every key")
+        wait_until(
+            lambda: "recording 8 topics" in recorder.stderr() or not recorder.alive(),
+            20.0,
+            "the recorder to tap every key",
+        )
         time.sleep(RECORD_S / 2)
         sim.send_raw("lidar_front", GARBAGE)
         code = recorder.process.wait(timeout=RUN_TIMEOUT_S)
@@ -94,7 +105,9 @@ def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tupl
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert reader.message_count == sum(counts.values())
     assert types == {f"/{key}": typename for key, typename in TYPES.items()}
-    assert {topic for topic, d in durability.items() if d == QosDurability.TRANSIENT_LOCAL} == {f"/{key}" for key in LATCHED}
+    assert {topic for topic, d in durability.items() if d == QosDurability.TRANSIENT_LOCAL} == {
+        f"/{key}" for key in LATCHED
+    }
     assert all(counts[f"/{key}"] == 1 for key in LATCHED), counts
 
     messages = bag_messages(bag)
@@ -103,11 +116,15 @@ def test_the_bag_holds_every_chosen_key_with_its_type_at_its_rate(recorded: tupl
     assert span_s > RECORD_S / 2, f"the bag spans only {span_s:.2f} s of sim time"
     for key, rate in RATES_HZ.items():
         expected = rate * span_s
-        assert abs(counts[f"/{key}"] - expected) <= COUNT_TOLERANCE * expected, f"{key}: {counts[f'/{key}']} messages, {expected:.1f} expected"
+        assert abs(counts[f"/{key}"] - expected) <= COUNT_TOLERANCE * expected, (
+            f"{key}: {counts[f'/{key}']} messages, {expected:.1f} expected"
+        )
     imu = [decode(data, TYPES["imu_scan"]).header.stamp for topic, _, _, data in messages if topic == "/imu_scan"]
     steps = np.diff([s.sec * 10**9 + s.nanosec for s in imu])
     assert np.all(steps == IMU_PERIOD_NS), f"IMU stamps skip: {sorted(set(steps.tolist()))}"
-    assert re.search(rf"wrote {re.escape(str(bag))}: 8 topics, {len(messages)} messages, .*dropped 1 malformed", stderr), stderr[-800:]
+    assert re.search(
+        rf"wrote {re.escape(str(bag))}: 8 topics, {len(messages)} messages, .*dropped 1 malformed", stderr
+    ), stderr[-800:]
 
 
 def test_a_laserscan_read_back_is_the_one_published(recorded: tuple[Path, list[bytes], str]) -> None:
@@ -122,7 +139,11 @@ def test_a_laserscan_read_back_is_the_one_published(recorded: tuple[Path, list[b
         assert published.get(stamp_ns(scan)) == data, f"the scan stamped {stamp_ns(scan)} ns differs from the bus's"
     bus_scan, bag_scan = decode(published[stamp_ns(scan)], TYPES["lidar_front"]), scan
     assert bag_scan.ranges.shape == (720,) and np.array_equal(bus_scan.ranges, bag_scan.ranges)
-    assert (bag_scan.angle_min, bag_scan.angle_increment, bag_scan.header.frame_id) == (bus_scan.angle_min, bus_scan.angle_increment, bus_scan.header.frame_id)
+    assert (bag_scan.angle_min, bag_scan.angle_increment, bag_scan.header.frame_id) == (
+        bus_scan.angle_min,
+        bus_scan.angle_increment,
+        bus_scan.header.frame_id,
+    )
 
 
 def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: SimServer, tmp_path: Path) -> None:
@@ -141,7 +162,9 @@ def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: Sim
     assert all(decode(data, typename) is not None for _, typename, _, data in messages)
 
 
-def test_play_publishes_the_same_messages_in_the_same_order(sim: SimServer, recorded: tuple[Path, list[bytes], str]) -> None:
+def test_play_publishes_the_same_messages_in_the_same_order(
+    sim: SimServer, recorded: tuple[Path, list[bytes], str]
+) -> None:
     """`simbot play` into a fresh namespace: a subscriber gets every message of the bag, byte for byte, in the bag's order."""
     bag, _, _ = recorded
     namespace = unique_namespace()

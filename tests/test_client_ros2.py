@@ -42,7 +42,10 @@ WRAPPER_TIMEOUT_S = 420
 WAIT_S = 30.0  # generous: two cores shared with other test runs
 CHEAP_CAMERAS = ("--camera-size", "160x120")
 
-dds = pytest.mark.skipif(not INSIDE, reason="starts rclpy: runs inside a private network namespace, through test_dds_stays_in_a_private_network_namespace")
+dds = pytest.mark.skipif(
+    not INSIDE,
+    reason="starts rclpy: runs inside a private network namespace, through test_dds_stays_in_a_private_network_namespace",
+)
 
 
 # --- the namespace --------------------------------------------------------------------------
@@ -53,7 +56,9 @@ def _namespace_unavailable() -> str | None:
     for tool in ("unshare", "ip"):
         if shutil.which(tool) is None:
             return f"no `{tool}` command"
-    probe = subprocess.run(["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP], capture_output=True, text=True, timeout=30, check=False)
+    probe = subprocess.run(
+        ["unshare", "-rn", "sh", "-c", NAMESPACE_SETUP], capture_output=True, text=True, timeout=30, check=False
+    )
     if probe.returncode != 0:
         return f"`unshare -rn` with multicast on loopback failed: {probe.stderr.strip()}"
     return None
@@ -66,11 +71,23 @@ def test_dds_stays_in_a_private_network_namespace() -> None:
     reason = _namespace_unavailable()
     if reason is not None:
         pytest.skip(f"cannot make a private network namespace for DDS: {reason}")
-    command = f"{NAMESPACE_SETUP} && exec {sys.executable} -m pytest -q -p no:cacheprovider -rA tests/{Path(__file__).name}"
+    command = (
+        f"{NAMESPACE_SETUP} && exec {sys.executable} -m pytest -q -p no:cacheprovider -rA tests/{Path(__file__).name}"
+    )
     env = dict(os.environ, SIMBOT_TEST_NETNS="1")
-    result = subprocess.run(["unshare", "-rn", "sh", "-c", command], cwd=REPO, env=env, capture_output=True, text=True, timeout=WRAPPER_TIMEOUT_S, check=False)
+    result = subprocess.run(
+        ["unshare", "-rn", "sh", "-c", command],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=WRAPPER_TIMEOUT_S,
+        check=False,
+    )
     print(result.stdout[-6000:])
-    assert result.returncode == 0, f"the DDS tests failed inside the namespace:\n{result.stdout[-12000:]}\n{result.stderr[-3000:]}"
+    assert result.returncode == 0, (
+        f"the DDS tests failed inside the namespace:\n{result.stdout[-12000:]}\n{result.stderr[-3000:]}"
+    )
     assert " passed" in result.stdout and " failed" not in result.stdout
 
 
@@ -111,7 +128,9 @@ class RosUser:
         self._thread = threading.Thread(target=self._executor.spin, daemon=True)
         self._thread.start()
 
-    def subscribe(self, msgtype: type[Any], topic: str, qos: Any = 10, raw: bool = False) -> tuple[Collector[Any], Callable[[], None]]:
+    def subscribe(
+        self, msgtype: type[Any], topic: str, qos: Any = 10, raw: bool = False
+    ) -> tuple[Collector[Any], Callable[[], None]]:
         """Messages of `topic` collected; the second item ends the subscription."""
         collector: Collector[Any] = Collector()
         subscription = self.node.create_subscription(msgtype, topic, collector, qos, raw=raw)
@@ -186,7 +205,11 @@ def test_a_late_joiner_gets_the_robot_description(sim: SimServer, bridge: Client
     from rclpy.qos import DurabilityPolicy, QoSProfile
     from std_msgs.msg import String
 
-    wait_until(lambda: f"{topic(sim, 'robot_description')} → DDS" in bridge.stderr(), WAIT_S, "the bridge to publish /robot_description")
+    wait_until(
+        lambda: f"{topic(sim, 'robot_description')} → DDS" in bridge.stderr(),
+        WAIT_S,
+        "the bridge to publish /robot_description",
+    )
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     description, _ = ros.subscribe(String, topic(sim, "robot_description"), latched)
     text = description.wait_count(1, WAIT_S, "robot_description")[0].data
@@ -202,7 +225,11 @@ def test_raw_payloads_are_byte_identical_to_the_zenoh_ones(sim: SimServer, ros: 
         dds_scans.wait_count(3, WAIT_S, "raw scans")
         unsubscribe()
         carried = dds_scans.messages()
-        wait_until(lambda: all(scan in zenoh_scans.messages() for scan in carried), WAIT_S, "the Zenoh subscriber to see every scan")
+        wait_until(
+            lambda: all(scan in zenoh_scans.messages() for scan in carried),
+            WAIT_S,
+            "the Zenoh subscriber to see every scan",
+        )
     assert len(carried[0]) > 720 * 4
 
 
@@ -250,7 +277,9 @@ def test_a_camera_renders_only_while_a_ros_node_subscribes(sim: SimServer, ros: 
 
 
 @dds
-def test_bad_input_from_dds_is_dropped_and_counted_and_the_bridge_carries_on(sim: SimServer, ros: RosUser, bridge: ClientProcess) -> None:
+def test_bad_input_from_dds_is_dropped_and_counted_and_the_bridge_carries_on(
+    sim: SimServer, ros: RosUser, bridge: ClientProcess
+) -> None:
     from geometry_msgs.msg import Twist
     from std_msgs.msg import String
 
@@ -279,7 +308,9 @@ def test_a_key_carried_both_ways_is_not_echoed(sim: SimServer, ros: RosUser) -> 
 
     key = sim.key("cmd_vel")
     commands, unsubscribe = ros.subscribe(Twist, topic(sim, "cmd_vel"))
-    wait_until(lambda: sim.drive(0.0) or len(commands), WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2)
+    wait_until(
+        lambda: sim.drive(0.0) or len(commands), WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2
+    )
     seen, received = len(commands), sim.state()["received"][key]
     for _ in range(5):
         sim.drive(0.0)
@@ -300,7 +331,9 @@ def test_missing_type_support_is_one_warning_per_topic(sim: SimServer, bridge: C
 
 
 @dds
-def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(sim: SimServer, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(
+    sim: SimServer, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A second bridge, in a DDS domain of its own: only /lidar_* and not /lidar_back; its status line every 5 s."""
     import rclpy
 
@@ -310,9 +343,15 @@ def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(sim
         rclpy.init(context=context, domain_id=42)
         node = rclpy.create_node("ros_user_42", context=context)
         try:
-            wait_until(lambda: topic(sim, "lidar_front") in dict(node.get_topic_names_and_types()), WAIT_S, "/lidar_front in domain 42")
+            wait_until(
+                lambda: topic(sim, "lidar_front") in dict(node.get_topic_names_and_types()),
+                WAIT_S,
+                "/lidar_front in domain 42",
+            )
             wait_until(lambda: "msg/s to DDS" in second.stderr(), WAIT_S, "a status line (every 5 s)")
-            names = {name for name, _ in node.get_topic_names_and_types() if name not in ("/rosout", "/parameter_events")}
+            names = {
+                name for name, _ in node.get_topic_names_and_types() if name not in ("/rosout", "/parameter_events")
+            }
             assert names == {topic(sim, "lidar_front")}, names
             assert "1 topics to DDS (0 subscribed), 0 from DDS" in second.stderr()
         finally:
@@ -323,6 +362,16 @@ def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(sim
 def test_without_rclpy_it_says_where_to_get_it_and_exits_2() -> None:
     """No DDS starts here: rclpy is hidden (an import of it fails), as on a machine without it."""
     hide = "import sys; sys.modules['rclpy'] = None; from simbot.clients.ros2 import main; sys.exit(main(sys.argv[1:]))"
-    done = subprocess.run([sys.executable, "-c", hide, "--connect", "tcp/127.0.0.1:9"], cwd=REPO, capture_output=True, text=True, timeout=60, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", hide, "--connect", "tcp/127.0.0.1:9"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert done.returncode == 2
-    assert done.stderr.strip() == "simbot ros2: error: needs rclpy: source a ROS 2 install (Humble, Jazzy, Kilted), or pip install 'simbot[ros2]'"
+    assert (
+        done.stderr.strip()
+        == "simbot ros2: error: needs rclpy: source a ROS 2 install (Humble, Jazzy, Kilted), or pip install 'simbot[ros2]'"
+    )

@@ -26,8 +26,8 @@ from bus_helpers import endpoint, free_port, unique_namespace
 from client_helpers import client_process
 from server_helpers import REPO, running_server
 
-from simbot.clients import snapshot as snap
 from simbot.bus import BusOptions, Node, messages
+from simbot.clients import snapshot as snap
 
 RES = snap.RESOLUTION_M
 CENTRE = snap.MapView().size // 2
@@ -209,7 +209,9 @@ def test_nothing_on_the_bus_is_exit_2_naming_the_silent_keys(tmp_path: Path) -> 
     silent = r"simbot snapshot: no camera_360/image_raw within [\d.]+ s: is the stitcher running\?\n"
     assert re.fullmatch(silent, result.stderr), result.stderr
     assert not any((tmp_path / "out").iterdir())
-    assert bad_out.returncode == 2 and len(bad_out.stderr.splitlines()) == 1 and "--out" in bad_out.stderr, bad_out.stderr
+    assert bad_out.returncode == 2 and len(bad_out.stderr.splitlines()) == 1 and "--out" in bad_out.stderr, (
+        bad_out.stderr
+    )
 
 
 def test_snapshot_of_the_real_merger_and_stitcher(tmp_path: Path) -> None:
@@ -220,7 +222,17 @@ def test_snapshot_of_the_real_merger_and_stitcher(tmp_path: Path) -> None:
         client_process(sim, "stitcher"),
     ):
         panoramas = sim.subscribe(snap.PANORAMA, snap.TYPES[snap.PANORAMA])
-        command = [*SNAPSHOT, "--connect", sim.endpoint, "--namespace", sim.namespace, "--out", str(tmp_path), "--timeout", "40"]
+        command = [
+            *SNAPSHOT,
+            "--connect",
+            sim.endpoint,
+            "--namespace",
+            sim.namespace,
+            "--out",
+            str(tmp_path),
+            "--timeout",
+            "40",
+        ]
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
         deadline = time.monotonic() + 50
         while process.poll() is None and time.monotonic() < deadline:
@@ -233,14 +245,23 @@ def test_snapshot_of_the_real_merger_and_stitcher(tmp_path: Path) -> None:
     assert stderr == "", stderr
     panorama = cv2.imread(str(tmp_path / "panorama.png"))
     published = [m for m in panoramas.messages() if (m.height, m.width) == panorama.shape[:2]]
-    assert any(np.array_equal(panorama, snap.panorama_pixels(m)) for m in published), "not one of the stitcher's panoramas"
+    assert any(np.array_equal(panorama, snap.panorama_pixels(m)) for m in published), (
+        "not one of the stitcher's panoramas"
+    )
 
     image = cv2.imread(str(tmp_path / "map.png"))
     assert_footprint(image, 2.1, 0.5)  # from the real robot_description
     rel_x, rel_y = trolley[0] - robot[0], trolley[1] - robot[1]  # both unturned at spawn
     top, bottom, left, right = bbox(mask(image, snap.TROLLEY))
-    assert abs((top + bottom) / 2 - (CENTRE - rel_x / RES)) <= 1 and abs((left + right) / 2 - (CENTRE - rel_y / RES)) <= 1
+    assert (
+        abs((top + bottom) / 2 - (CENTRE - rel_x / RES)) <= 1 and abs((left + right) / 2 - (CENTRE - rel_y / RES)) <= 1
+    )
     scan = mask(image, snap.SCAN_POINTS)
-    for leg_y in (0.65, -0.65):  # the rear legs (4 cm square at x −0.65) face the robot 0.67 m before the trolley's centre
+    for leg_y in (
+        0.65,
+        -0.65,
+    ):  # the rear legs (4 cm square at x −0.65) face the robot 0.67 m before the trolley's centre
         row, col = round(CENTRE - (rel_x - 0.67) / RES), round(CENTRE - (rel_y + leg_y) / RES)
-        assert scan[row - 3 : row + 4, col - 3 : col + 4].any(), f"no return within 6 cm of the leg at y {rel_y + leg_y:+.2f}"
+        assert scan[row - 3 : row + 4, col - 3 : col + 4].any(), (
+            f"no return within 6 cm of the leg at y {rel_y + leg_y:+.2f}"
+        )

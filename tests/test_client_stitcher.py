@@ -130,7 +130,9 @@ def _run(
             while len(images) < count or len(infos) < count:
                 assert stitcher.alive(), f"the stitcher exited: {stitcher.stderr()[-2000:]}"
                 if time.monotonic() > deadline:
-                    raise AssertionError(f"{len(images)} panoramas in {OUTPUT_TIMEOUT_S} s: {stitcher.stderr()[-2000:]}")
+                    raise AssertionError(
+                        f"{len(images)} panoramas in {OUTPUT_TIMEOUT_S} s: {stitcher.stderr()[-2000:]}"
+                    )
                 sim_time = sim.step(FRAME_STEPS)["sim_time"]
                 if each_chunk is not None:
                     each_chunk(sim_time)
@@ -166,11 +168,15 @@ def test_strip_is_the_six_images_side_by_side(sim: SimServer) -> None:
     pixels = messages.image_pixels(panorama)
     tiles = {name: pixels[:, i * WIDTH : (i + 1) * WIDTH] for i, name in enumerate(CAMERAS)}
     for name, tile in tiles.items():
-        assert np.array_equal(tile, messages.image_pixels(raw[name].messages()[-1])), f"the {name} tile is not its image"
+        assert np.array_equal(tile, messages.image_pixels(raw[name].messages()[-1])), (
+            f"the {name} tile is not its image"
+        )
     for name in ("camera_front", "camera_front_left"):
         expected = _pinhole_column(name, *POLE)
         found = _pole_column(tiles[name])
-        assert abs(found - expected) <= 1.5, f"{name}: pole at column {found:.2f}, the pinhole model says {expected:.2f}"
+        assert abs(found - expected) <= 1.5, (
+            f"{name}: pole at column {found:.2f}, the pinhole model says {expected:.2f}"
+        )
     for name in set(CAMERAS) - {"camera_front", "camera_front_left"}:
         assert not _pole(tiles[name]).any(), f"{name} cannot see the pole"
 
@@ -207,7 +213,9 @@ def test_cylinder_lines_the_pole_up_from_both_cameras(sim: SimServer) -> None:
         alone = cylinder.stitch({name: image_pixels(raw[name].messages()[-1])})
         columns[name] = _pole_column(alone)
         found = columns[name]
-        assert abs(found - expected_column) <= 1.5, f"{name} puts the pole at {found:.2f}, its azimuth at {expected_column:.2f}"
+        assert abs(found - expected_column) <= 1.5, (
+            f"{name} puts the pole at {found:.2f}, its azimuth at {expected_column:.2f}"
+        )
     gap = abs(columns["camera_front"] - columns["camera_front_left"])
     assert gap <= 0.02 * width, f"the two cameras put the pole {gap:.2f} px apart"
 
@@ -218,7 +226,9 @@ def test_cylinder_lines_the_pole_up_from_both_cameras(sim: SimServer) -> None:
     for row in rows:
         run = np.flatnonzero(pole[row])
         assert run[-1] - run[0] <= 4, f"row {row}: the pole spreads over columns {run.tolist()} (shown twice?)"
-        assert abs(run.mean() - expected_column) <= 1.5, f"row {row}: pole at {run.mean():.2f}, expected {expected_column:.2f}"
+        assert abs(run.mean() - expected_column) <= 1.5, (
+            f"row {row}: pole at {run.mean():.2f}, expected {expected_column:.2f}"
+        )
     top, foot = (info.k[5] - f * (z - BASE_LINK_Z) / RADIUS for z in (POLE_HEIGHT, 0.0))
     spans = f"the pole spans rows {rows[0]}..{rows[-1]}, expected {top:.1f}..{foot:.1f}"
     assert abs(rows[0] - top) <= 2 and abs(rows[-1] - foot) <= 2, spans

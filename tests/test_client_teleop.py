@@ -65,7 +65,9 @@ def started(begin: Sample, now: Sample) -> bool:
 def place(sim: SimServer, x: float, y: float, yaw: float = 0.0) -> None:
     """Teleport the robot (standing, 0.1 m up: it settles on its tyres in a few ms)."""
     orientation = {"z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
-    reply = sim.call("set_pose", {"name": "flexley_tug", "position": {"x": x, "y": y, "z": 0.1}, "orientation": orientation})
+    reply = sim.call(
+        "set_pose", {"name": "flexley_tug", "position": {"x": x, "y": y, "z": 0.1}, "orientation": orientation}
+    )
     assert reply.get("ok") is True, f"set_pose refused: {reply}"
 
 
@@ -90,7 +92,9 @@ def assert_still(sim: SimServer, what: str) -> Sample:
     """The robot does not move over 0.5 s of sim time; the last sample."""
     start = sample(sim)
     end = after_sim_seconds(sim, start, 0.5)
-    assert moved(start, end) < STILL_M and abs(turned(start, end)) < 0.01, f"{what}: the robot moved {moved(start, end):.4f} m"
+    assert moved(start, end) < STILL_M and abs(turned(start, end)) < 0.01, (
+        f"{what}: the robot moved {moved(start, end):.4f} m"
+    )
     return end
 
 
@@ -167,7 +171,9 @@ def test_obstacle_in_the_path_blocks_driving_towards_it_not_turning(sim: SimServ
         turn_from = sample(sim)
         client.type("a")
         turn_to = after_sim_seconds(sim, turn_from, 0.8)
-        assert turned(turn_from, turn_to) > 0.2, f"turning in place was refused: yaw {turned(turn_from, turn_to):+.3f} rad"
+        assert turned(turn_from, turn_to) > 0.2, (
+            f"turning in place was refused: yaw {turned(turn_from, turn_to):+.3f} rad"
+        )
         client.type("x")
         at_rest(sim)
 
@@ -196,7 +202,9 @@ def test_wall_beside_the_path_does_not_stop_it(sim: SimServer) -> None:
     scans = sim.subscribe("lidar_front", LASER_SCAN)
     wait_until(lambda: len(scans) >= 2, timeout=10.0, what="front scans")
     nearest = min(r for r in scans.messages()[-1].ranges if math.isfinite(r))
-    assert nearest < STOP_DISTANCE, f"the wall should be in the lidar's view within {STOP_DISTANCE} m, nearest return {nearest:.3f} m"
+    assert nearest < STOP_DISTANCE, (
+        f"the wall should be in the lidar's view within {STOP_DISTANCE} m, nearest return {nearest:.3f} m"
+    )
     with teleop(sim) as client:
         client.wait_for(r"ahead clear")
         mark = client.mark()
@@ -230,7 +238,13 @@ def test_a_signal_ends_it_with_a_stop_and_the_terminal_restored(sim: SimServer, 
 )
 def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...], expected: str) -> None:
     done = subprocess.run(
-        client_command("teleop", *bus_args(sim), *args), check=False, stdin=subprocess.DEVNULL, capture_output=True, text=True, cwd=REPO, timeout=60
+        client_command("teleop", *bus_args(sim), *args),
+        check=False,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
     )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr

@@ -46,8 +46,19 @@ RANGE_MAX, FRONT_LIDAR_X = 10.0, 0.99
 CLOCK, TWIST, ODOMETRY = "rosgraph_msgs/msg/Clock", "geometry_msgs/msg/Twist", "nav_msgs/msg/Odometry"
 TF, STRING, EMPTY = "tf2_msgs/msg/TFMessage", "std_msgs/msg/String", "std_msgs/msg/Empty"
 JOINT_STATE, IMU, LASER_SCAN = "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "sensor_msgs/msg/LaserScan"
-IMAGE, CAMERA_INFO, POSE_STAMPED = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "geometry_msgs/msg/PoseStamped"
-CAMERAS = ("camera_front", "camera_back", "camera_front_right", "camera_front_left", "camera_back_right", "camera_back_left")
+IMAGE, CAMERA_INFO, POSE_STAMPED = (
+    "sensor_msgs/msg/Image",
+    "sensor_msgs/msg/CameraInfo",
+    "geometry_msgs/msg/PoseStamped",
+)
+CAMERAS = (
+    "camera_front",
+    "camera_back",
+    "camera_front_right",
+    "camera_front_left",
+    "camera_back_right",
+    "camera_back_left",
+)
 
 # SPEC §4: key → (type, kind, the client that provides it; None for the server)
 KEYS: dict[str, tuple[str, str]] = {
@@ -75,20 +86,39 @@ KEYS: dict[str, tuple[str, str]] = {
     "camera_360/camera_info": (CAMERA_INFO, "pub"),
 }
 OUTPUTS = [key for key, (_, kind) in KEYS.items() if kind == "pub"]
-NOMINAL_HZ = {"odom": 50.0, "tf": 80.0, "imu_scan": 200.0, "lidar_front": 5.0, "lidar_back": 5.0, "joint_states": 30.0, "model/trolley/pose": 50.0}
+NOMINAL_HZ = {
+    "odom": 50.0,
+    "tf": 80.0,
+    "imu_scan": 200.0,
+    "lidar_front": 5.0,
+    "lidar_back": 5.0,
+    "joint_states": 30.0,
+    "model/trolley/pose": 50.0,
+}
 CLOCK_HZ = 100.0
 
 
 @pytest.fixture(scope="module", name="sim")
 def sim_fixture() -> Iterator[SimServer]:
     """The warehouse in real time, with the merger and the stitcher."""
-    with running_server("warehouse", mode="realtime", extra=WORLD_EXTRA) as server, client_process(server, "merger"), client_process(server, "stitcher"):
+    with (
+        running_server("warehouse", mode="realtime", extra=WORLD_EXTRA) as server,
+        client_process(server, "merger"),
+        client_process(server, "stitcher"),
+    ):
         yield server
 
 
 def run(sim: SimServer, name: str, *args: str) -> subprocess.CompletedProcess[str]:
     """`clients.<name> ARGS` on the server's bus, to its end."""
-    return subprocess.run(client_command(name, *bus_args(sim), *args), check=False, capture_output=True, text=True, cwd=REPO, timeout=RUN_TIMEOUT_S)
+    return subprocess.run(
+        client_command(name, *bus_args(sim), *args),
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=RUN_TIMEOUT_S,
+    )
 
 
 # --- topics ---------------------------------------------------------------------------------
@@ -143,7 +173,9 @@ def test_topics_lists_each_key_with_its_type_and_role(table: dict[str, dict[str,
     assert kind in table[key]["WHO"].split()
 
 
-def test_topics_lists_world_control_as_services_and_latched_keys_as_latched(table: dict[str, dict[str, str]], sim: SimServer) -> None:
+def test_topics_lists_world_control_as_services_and_latched_keys_as_latched(
+    table: dict[str, dict[str, str]], sim: SimServer
+) -> None:
     for service in ("control", "set_pose", "state"):
         row = table[f"world/{sim.world}/{service}"]
         assert (row["TYPE"], row["WHO"], row["RATE"]) == ("json", "srv", "-")
@@ -157,14 +189,18 @@ def test_topics_measures_each_rate_against_the_clock(table: dict[str, dict[str, 
     nominal = NOMINAL_HZ[key]
     tolerance = 2 * JITTER_S / (WINDOW_S - 1 / nominal) + 2 * JITTER_S / (WINDOW_S - 1 / CLOCK_HZ)
     ratio = hertz(table[key]["RATE"]) / clock_rate
-    assert ratio == pytest.approx(nominal / CLOCK_HZ, rel=tolerance), f"{key}: {table[key]['RATE']} against clock {clock_rate} Hz"
+    assert ratio == pytest.approx(nominal / CLOCK_HZ, rel=tolerance), (
+        f"{key}: {table[key]['RATE']} against clock {clock_rate} Hz"
+    )
 
 
 def test_topics_bandwidth_is_the_rate_times_the_message_size(table: dict[str, dict[str, str]]) -> None:
     """Bandwidth (n messages' bytes over the window W) / rate ((n − 1) / span) = one message's bytes × n/(n − 1) ×
     span/W; span/W is within 2δ + one period of 1 (≥ 0.9 for a 5 Hz lidar), n/(n − 1) ≤ 1.06 for ≥ 18 scans."""
     zeros = (0.0, 0.0, 0.0)
-    scan = messages.laser_scan(0, "base_scan_front", (-ANGLE_MAX, ANGLE_MAX, 2 * ANGLE_MAX / 719), (0.0, 0.2), (0.08, 10.0), [math.inf] * 720)
+    scan = messages.laser_scan(
+        0, "base_scan_front", (-ANGLE_MAX, ANGLE_MAX, 2 * ANGLE_MAX / 719), (0.0, 0.2), (0.08, 10.0), [math.inf] * 720
+    )
     imu = messages.imu(0, "imu_link", (0.0, 0.0, 0.0, 1.0), zeros, zeros)
     for key, msg in (("lidar_front", scan), ("imu_scan", imu)):
         size = bytes_per_second(table[key]["BANDWIDTH"]) / hertz(table[key]["RATE"])
@@ -215,7 +251,9 @@ def check_tf(msg: dict[str, Any], key: str) -> None:
         assert ("odom", "base_footprint") in pairs or ("base_link", "front_left_wheel") in pairs
     else:  # SPEC §1: base_link 0.09 m above base_footprint, the optical frames under the cameras
         assert pairs[("base_footprint", "base_link")]["z"] == pytest.approx(0.09)
-        assert {("base_link", camera) for camera in CAMERAS} | {(c, f"{c}_optical_frame") for c in CAMERAS} <= set(pairs)
+        assert {("base_link", camera) for camera in CAMERAS} | {(c, f"{c}_optical_frame") for c in CAMERAS} <= set(
+            pairs
+        )
 
 
 def check_string(msg: dict[str, Any], key: str) -> None:
@@ -244,7 +282,9 @@ def check_scan(msg: dict[str, Any], key: str) -> None:
     else:  # the merger's, in base_link; `scan` all round (SPEC §5)
         assert msg["header"]["frame_id"] == "base_link"
         if key == "scan":
-            assert msg["angle_min"] == pytest.approx(-math.pi, abs=0.02) and msg["angle_max"] == pytest.approx(math.pi, abs=0.02)
+            assert msg["angle_min"] == pytest.approx(-math.pi, abs=0.02) and msg["angle_max"] == pytest.approx(
+                math.pi, abs=0.02
+            )
     # in base_link a return lies up to the front lidar's offset (0.99 m, SPEC §1) beyond its 10 m
     reach = RANGE_MAX if key in ("lidar_front", "lidar_back") else RANGE_MAX + FRONT_LIDAR_X
     assert ranges["inf"] < ranges["length"] and 0 < ranges["min"] <= ranges["max"] <= reach
@@ -319,12 +359,21 @@ def test_echo_decodes_one_message_of_each_output(echoes: dict[str, subprocess.Co
 def test_echo_decodes_what_is_sent_to_the_inputs(sim: SimServer) -> None:
     """cmd_vel, attach and detach have no publisher until someone sends: echo waits for it, then decodes it.
     Attach then detach (the trolley is fixed where it stands, then freed): the latched state follows."""
-    sent = {"cmd_vel": messages.twist((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)), "attach": messages.empty(), "detach": messages.empty()}
+    sent = {
+        "cmd_vel": messages.twist((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+        "attach": messages.empty(),
+        "detach": messages.empty(),
+    }
     with client_process(sim, "echo", "detachable_joint/state", "--json") as states:
         wait_until(lambda: states.stdout().count("\n") >= 1, timeout=RUN_TIMEOUT_S, what="the latched state")
         for key, msg in sent.items():
             with client_process(sim, "echo", key, "--once", "--json") as echo:
-                wait_until(lambda key=key, msg=msg, echo=echo: sim.send(key, msg) or not echo.alive(), timeout=RUN_TIMEOUT_S, what=f"echo of {key}", poll=0.2)
+                wait_until(
+                    lambda key=key, msg=msg, echo=echo: sim.send(key, msg) or not echo.alive(),
+                    timeout=RUN_TIMEOUT_S,
+                    what=f"echo of {key}",
+                    poll=0.2,
+                )
                 assert echo.process.wait() == 0, echo.stderr()
                 decoded = json.loads(echo.stdout())
             if key == "cmd_vel":
@@ -332,7 +381,11 @@ def test_echo_decodes_what_is_sent_to_the_inputs(sim: SimServer) -> None:
             else:
                 assert decoded == {"structure_needs_at_least_one_member": 0}
         wait_until(lambda: states.stdout().count("\n") >= 3, timeout=RUN_TIMEOUT_S, what="the state's changes")
-        assert [json.loads(line)["data"] for line in states.stdout().splitlines()] == ["detached", "attached", "detached"]
+        assert [json.loads(line)["data"] for line in states.stdout().splitlines()] == [
+            "detached",
+            "attached",
+            "detached",
+        ]
 
 
 # --- echo: text, late joiners, streams, mistakes --------------------------------------------
@@ -343,7 +396,9 @@ def test_echo_summarises_the_720_ranges_of_a_scan(sim: SimServer) -> None:
     assert result.returncode == 0, result.stderr
     assert result.stdout.splitlines()[-1] == "---"
     assert "frame_id: base_scan_front" in result.stdout
-    found = re.search(r"^ranges: <720 × float32: min ([0-9.]+), max ([0-9.]+), (\d+) inf, 0 nan>$", result.stdout, re.MULTILINE)
+    found = re.search(
+        r"^ranges: <720 × float32: min ([0-9.]+), max ([0-9.]+), (\d+) inf, 0 nan>$", result.stdout, re.MULTILINE
+    )
     assert found, result.stdout
     assert 0.08 <= float(found[1]) <= float(found[2]) <= 10.0 and int(found[3]) < 720
 
@@ -360,11 +415,15 @@ def test_echo_full_json_writes_every_range_with_inf_as_a_string(sim: SimServer) 
 def test_echo_gives_a_late_joiner_the_whole_robot_description(sim: SimServer) -> None:
     result = run(sim, "echo", "robot_description", "--once")
     assert result.returncode == 0, result.stderr
-    assert re.match(r'data: "<\?xml .*\.\.\. \(\d+ characters; --full prints all\)"\n---\n$', result.stdout), result.stdout[:300]
+    assert re.match(r'data: "<\?xml .*\.\.\. \(\d+ characters; --full prints all\)"\n---\n$', result.stdout), (
+        result.stdout[:300]
+    )
     full = run(sim, "echo", "robot_description", "--once", "--json", "--full")
     urdf = ET.fromstring(json.loads(full.stdout)["data"])
     assert urdf.tag == "robot" and urdf.get("name") == "flexley_tug"
-    assert {"base_footprint", "base_link", "imu_link", "base_scan_front", "base_scan_back"} <= {link.get("name") for link in urdf.iter("link")}
+    assert {"base_footprint", "base_link", "imu_link", "base_scan_front", "base_scan_back"} <= {
+        link.get("name") for link in urdf.iter("link")
+    }
 
 
 def test_echo_streams_until_sigterm_and_exits_0(sim: SimServer) -> None:
@@ -381,7 +440,10 @@ def test_echo_streams_until_sigterm_and_exits_0(sim: SimServer) -> None:
 
 @pytest.mark.parametrize(
     ("key", "expected"),
-    [("no_such_key", r"key 'no_such_key': nothing publishes or subscribes to it"), ("lidar", r"similar: .*lidar_front")],
+    [
+        ("no_such_key", r"key 'no_such_key': nothing publishes or subscribes to it"),
+        ("lidar", r"similar: .*lidar_front"),
+    ],
 )
 def test_echo_of_an_unknown_key_is_one_line_and_exit_2(sim: SimServer, key: str, expected: str) -> None:
     result = run(sim, "echo", key, "--wait", "1")

@@ -154,15 +154,28 @@ class Case:
 
 RECOGNISED = ("Physics", "Sensors", "Imu", "SceneBroadcaster", "UserCommands", "Contact")
 CASES: dict[tuple[str, str], Case] = {
-    (GROUP, "DiffDrive"): Case(plugins=DIFF_DRIVE, key="odom", command=("cmd_vel", messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.5)))),
+    (GROUP, "DiffDrive"): Case(
+        plugins=DIFF_DRIVE, key="odom", command=("cmd_vel", messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.5)))
+    ),
     (GROUP, "JointStatePublisher"): Case(plugins=JOINT_STATES, key="joint_states"),
-    (GROUP, "DetachableJoint"): Case(plugins=DETACHABLE, key="detachable_joint/state", command=("attach", messages.empty())),
+    (GROUP, "DetachableJoint"): Case(
+        plugins=DETACHABLE, key="detachable_joint/state", command=("attach", messages.empty())
+    ),
     **{(GROUP, name): Case(world_plugins=_world_plugin(name)) for name in RECOGNISED},
-    **{(SENSOR_GROUP, kind): Case(sensors=_lidar(kind), key="scanner") for kind in ("lidar", "gpu_lidar", "ray", "gpu_ray")},
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=_lidar(kind), key="scanner")
+        for kind in ("lidar", "gpu_lidar", "ray", "gpu_ray")
+    },
     (SENSOR_GROUP, "imu"): Case(sensors=_imu(), key="imu"),
     (SENSOR_GROUP, "camera"): Case(sensors=CAMERA, key="eye"),
-    **{(SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye") for kind in ("depth", "depth_camera")},
-    **{(SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points") for kind in ("rgbd", "rgbd_camera")},
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye")
+        for kind in ("depth", "depth_camera")
+    },
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points")
+        for kind in ("rgbd", "rgbd_camera")
+    },
 }
 """One SDF per entry point. A new entry point fails `test_entry_point_is_deterministic` until it has one here."""
 
@@ -219,7 +232,9 @@ def test_entry_point_is_deterministic(group: str, name: str, tmp_path: Path) -> 
     assert case is not None, f"entry point {name!r} of {group} has no conformance SDF: add a Case for it to CASES"
     first, second = run(tmp_path / "first", case, SEED), run(tmp_path / "second", case, SEED)
     if case.key is not None:
-        assert len(first.get(case.key, [])) >= 2, f"{name} published {len(first.get(case.key, []))} messages on {case.key}"
+        assert len(first.get(case.key, [])) >= 2, (
+            f"{name} published {len(first.get(case.key, []))} messages on {case.key}"
+        )
     assert first.keys() == second.keys()
     for key in first:
         assert first[key] == second[key], f"{key}: the runs differ"

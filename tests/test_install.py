@@ -160,7 +160,21 @@ def test_describe_packaged_warehouse(installed: Installed) -> None:
     assert f"from {trolley_sdf}" in out
 
 
-CLIENTS = ("teleop", "merger", "stitcher", "dock", "topics", "echo", "monitor", "snapshot", "launch", "state", "record", "play", "foxglove")
+CLIENTS = (
+    "teleop",
+    "merger",
+    "stitcher",
+    "dock",
+    "topics",
+    "echo",
+    "monitor",
+    "snapshot",
+    "launch",
+    "state",
+    "record",
+    "play",
+    "foxglove",
+)
 CLIENT_SCRIPTS = ("simbot-teleop", "simbot-merger", "simbot-stitcher", "simbot-dock")
 
 

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 from simbot.description import load_model, load_world
 from simbot.description.model import Cylinder
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 
 MISSING_MESH = "not found (tried"
 
@@ -34,7 +34,9 @@ def test_reference_robot(reference: Path, clean_resource_path: None, caplog: pyt
     assert isinstance(wheel.visuals[0].geometry, Cylinder) and wheel.visuals[0].pose == wheel.collisions[0].pose
 
 
-def test_reference_warehouse(reference: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+def test_reference_warehouse(
+    reference: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
     """The warehouse resolves model://trolley on GZ_SIM_RESOURCE_PATH and keeps the first <physics>."""
     caplog.set_level(logging.WARNING)
     monkeypatch.delenv("SIMBOT_RESOURCE_PATH", raising=False)

@@ -57,7 +57,7 @@ def box_urdf(
     return f"""<robot name="box"><link name="box">
       <inertial><origin xyz="{com[0]} {com[1]} {com[2]}"/><mass value="1"/>{INERTIA}</inertial>
       <visual><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry>
-        <material name="c"><color rgba="{' '.join(map(str, rgba))}"/></material></visual>
+        <material name="c"><color rgba="{" ".join(map(str, rgba))}"/></material></visual>
     </link></robot>"""
 
 
@@ -118,8 +118,6 @@ CAMERAS = [
 RGB, RGBD, MONO, FULL, NOISY_A, NOISY_B, NOISY_C = range(len(CAMERAS))
 
 
-
-
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def renderer(request: pytest.FixtureRequest) -> str:
     if request.param == "gl" and NO_EGL:
@@ -150,7 +148,10 @@ def render(pool: RenderPool, camera: int, pose: Transform, states: dict[str, Bod
     frames = [f for f in pool.collect(wait_for=camera, timeout=WAIT) if f.camera == camera]
     assert len(frames) == 1
     frame = frames[0]
-    copied = {name: None if getattr(frame, name) is None else getattr(frame, name).copy() for name in ("color", "depth", "points")}
+    copied = {
+        name: None if getattr(frame, name) is None else getattr(frame, name).copy()
+        for name in ("color", "depth", "points")
+    }
     return frame._replace(**copied)
 
 
@@ -226,7 +227,9 @@ def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, r
     towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
     lit = render(pool, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
     np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
-    with RenderPool([b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1, renderer=renderer) as default_light:
+    with RenderPool(
+        [b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1, renderer=renderer
+    ) as default_light:
         shaded = render(default_light, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
     np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
 
@@ -263,7 +266,9 @@ def test_depth_is_z_along_the_optical_axis_and_points_lie_on_the_surface(pool: R
     np.testing.assert_allclose(points[..., 0], u * 2.0 / FX, atol=0.01)  # x right
     np.testing.assert_allclose(points[..., 1], v * 2.0 / FX, atol=0.01)  # y down
     packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)
-    assert int(packed[0, 0]) == (int(frame.color[0, 0, 0]) << 16) | (int(frame.color[0, 0, 1]) << 8) | int(frame.color[0, 0, 2])
+    assert int(packed[0, 0]) == (int(frame.color[0, 0, 0]) << 16) | (int(frame.color[0, 0, 1]) << 8) | int(
+        frame.color[0, 0, 2]
+    )
     sky = render(pool, RGBD, at((GREY_AT[0] + 100.0, 0.0, 0.0)))  # past the last region: nothing within the far clip
     assert np.isposinf(sky.depth).all() and np.isnan(sky.points[..., :3]).all()
 
@@ -462,6 +467,8 @@ def test_a_scene_that_does_not_load_fails_the_start() -> None:
         (4, 10, PoolPlan(6, 1)),  # never more workers than cameras
     ],
 )
-def test_workers_times_threads_fit_every_core_but_the_physics_one(cores: int, asked: int | None, plan: PoolPlan) -> None:
+def test_workers_times_threads_fit_every_core_but_the_physics_one(
+    cores: int, asked: int | None, plan: PoolPlan
+) -> None:
     assert plan_pool(6, asked, cores) == plan
     assert plan.workers * plan.gl_threads <= max(1, cores - 1) or asked is not None

@@ -46,10 +46,16 @@ def test_relative_bare_and_package_names(tmp_path: Path, monkeypatch: pytest.Mon
     assert resolve("package://my_pkg/meshes/arm.dae").path == tmp_path / "lib" / "my_pkg" / "meshes" / "arm.dae"
     assert resolve(f"file://{tmp_path}/lib/shared.stl").path == tmp_path / "lib" / "shared.stl"
     missing = resolve("model://nothing/here.stl")
-    assert missing.path is None and len(missing.tried) >= 3 and str(tmp_path / "lib" / "nothing" / "here.stl") in missing.describe_tried()
+    assert (
+        missing.path is None
+        and len(missing.tried) >= 3
+        and str(tmp_path / "lib" / "nothing" / "here.stl") in missing.describe_tried()
+    )
 
 
-def test_missing_mesh_warns_with_paths_and_falls_back(tmp_path: Path, clean_resource_path: None, caplog: pytest.LogCaptureFixture) -> None:
+def test_missing_mesh_warns_with_paths_and_falls_back(
+    tmp_path: Path, clean_resource_path: None, caplog: pytest.LogCaptureFixture
+) -> None:
     """A missing visual mesh is a warning naming every path tried; the visual shows the collision box."""
     sdf = tmp_path / "m.sdf"
     sdf.write_text("""<sdf version='1.9'><model name='m'><link name='l'>
@@ -63,4 +69,7 @@ def test_missing_mesh_warns_with_paths_and_falls_back(tmp_path: Path, clean_reso
     assert visual.name == "v" and visual.geometry == link.collisions[0].geometry and visual.pose.xyz == (0, 0, 0.5)
     messages = [r.getMessage() for r in caplog.records]
     assert len(messages) == 2
-    assert str(tmp_path / "meshes" / "body.stl") in messages[1] and str(asset("worlds/models") / "meshes" / "body.stl") in messages[1]
+    assert (
+        str(tmp_path / "meshes" / "body.stl") in messages[1]
+        and str(asset("worlds/models") / "meshes" / "body.stl") in messages[1]
+    )

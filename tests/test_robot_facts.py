@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from conftest import ROBOT_SDF
 
-from simbot.sim.systems.camera import CameraParams
-from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 from simbot.description import Model, load_model
 from simbot.description.model import Box, Cylinder, Sphere
 from simbot.description.poses import Pose
+from simbot.sim.systems.camera import CameraParams
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 
 PI = math.pi
 TOL = 1e-9
@@ -54,7 +54,12 @@ def test_imu(robot: Model) -> None:
     assert _close((robot.link("base_link").pose.inverse() @ imu_link.pose).xyz, (0, 0, 0.06))
     assert robot.joint("imu_joint").type == "fixed" and robot.joint("imu_joint").parent == "base_link"
     (sensor,) = imu_link.sensors
-    assert sensor.type == "imu" and sensor.update_rate == 200 and sensor.topic == "imu_scan" and sensor.frame_name == "imu_link"
+    assert (
+        sensor.type == "imu"
+        and sensor.update_rate == 200
+        and sensor.topic == "imu_scan"
+        and sensor.frame_name == "imu_link"
+    )
     imu = ImuParams.from_sdf(sensor)
     for noise in imu.angular_velocity_noise:
         assert noise.type == "gaussian" and noise.mean == 0 and noise.stddev == 2e-4
@@ -64,15 +69,29 @@ def test_imu(robot: Model) -> None:
 
 @pytest.mark.parametrize(
     ("side", "link_xyz", "link_yaw", "sensor_xyz", "sensor_x", "looks"),
-    [("front", (1.0, 0, 0.04), PI, (0.01, 0, 0.22), 0.99, 1.0), ("back", (-0.9, 0, 0.04), 0.0, (-0.05, 0, 0.22), -0.95, -1.0)],
+    [
+        ("front", (1.0, 0, 0.04), PI, (0.01, 0, 0.22), 0.99, 1.0),
+        ("back", (-0.9, 0, 0.04), 0.0, (-0.05, 0, 0.22), -0.95, -1.0),
+    ],
 )
-def test_lidars(robot: Model, side: str, link_xyz: tuple[float, ...], link_yaw: float, sensor_xyz: tuple[float, ...], sensor_x: float, looks: float) -> None:
+def test_lidars(
+    robot: Model,
+    side: str,
+    link_xyz: tuple[float, ...],
+    link_yaw: float,
+    sensor_xyz: tuple[float, ...],
+    sensor_x: float,
+    looks: float,
+) -> None:
     """Lidar links and sensors where SPEC puts them, looking forward (front) and backward (back)."""
     link = robot.link(f"base_scan_{side}")
     assert _close(link.pose.xyz, link_xyz) and abs(abs(_yaw(link.pose)) - abs(link_yaw)) < TOL
     assert link.inertial is not None and link.inertial.mass == 1.17
     (collision,) = link.collisions
-    assert isinstance(collision.geometry, Cylinder) and (collision.geometry.radius, collision.geometry.length) == (0.05, 0.05)
+    assert isinstance(collision.geometry, Cylinder) and (collision.geometry.radius, collision.geometry.length) == (
+        0.05,
+        0.05,
+    )
     (sensor,) = link.sensors
     assert sensor.type == "gpu_lidar" and sensor.update_rate == 5 and sensor.frame_name == f"base_scan_{side}"
     assert sensor.topic == f"lidar_{side}"
@@ -102,7 +121,9 @@ def test_cameras(robot: Model) -> None:
     assert set(cameras) == set(CAMERAS)
     for name, (x, y, yaw) in CAMERAS.items():
         sensor = cameras[name]
-        assert _close(sensor.pose.xyz, (x, y, 0.39)) and math.isclose(math.cos(_yaw(sensor.pose) - yaw), 1.0, abs_tol=TOL)
+        assert _close(sensor.pose.xyz, (x, y, 0.39)) and math.isclose(
+            math.cos(_yaw(sensor.pose) - yaw), 1.0, abs_tol=TOL
+        )
         camera = CameraParams.from_sdf(sensor)
         assert (camera.width, camera.height, camera.format) == (640, 480, "R8G8B8")
         assert (camera.horizontal_fov, camera.near, camera.far, sensor.update_rate) == (2.0944, 0.05, 50, 30)
@@ -134,7 +155,15 @@ def test_wheels(robot: Model, name: str) -> None:
     assert joint.pose == link.pose
 
 
-@pytest.mark.parametrize(("name", "x", "y"), [("front_right", 0.92, -0.17), ("front_left", 0.92, 0.17), ("back_right", -0.79, -0.17), ("back_left", -0.79, 0.17)])
+@pytest.mark.parametrize(
+    ("name", "x", "y"),
+    [
+        ("front_right", 0.92, -0.17),
+        ("front_left", 0.92, 0.17),
+        ("back_right", -0.79, -0.17),
+        ("back_left", -0.79, 0.17),
+    ],
+)
 def test_castors(robot: Model, name: str, x: float, y: float) -> None:
     """Castors: spheres r 0.025, 0.103 kg, on ball joints at z −0.05."""
     link = robot.link(f"castor_{name}")
@@ -158,6 +187,10 @@ def test_plugins(robot: Model) -> None:
     assert joints.get_all("joint_name") == ["front_left_wheel_joint", "front_right_wheel_joint"]
     assert float(joints.get("update_rate") or 0) == 30
     dock = plugins["DetachableJoint"]
-    assert (dock.get("parent_link"), dock.get("child_model"), dock.get("child_link")) == ("base_link", "trolley", "base")
+    assert (dock.get("parent_link"), dock.get("child_model"), dock.get("child_link")) == (
+        "base_link",
+        "trolley",
+        "base",
+    )
     assert (dock.get("attach_topic"), dock.get("detach_topic")) == ("attach", "detach")
     assert dock.get("output_topic") == "detachable_joint/state"

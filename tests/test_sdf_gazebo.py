@@ -114,8 +114,12 @@ def test_urdf_of_the_shapes(tmp_path: Path) -> None:
         assert mesh is not None and (tmp_path / mesh.get("filename", "")).is_file()
     notch = ET.fromstring(model_to_urdf(world.model("notch"), tmp_path)).find("link/collision")
     assert notch is not None and notch.get("concave") == "yes"
-    terrain = ET.fromstring(model_to_urdf(load_world(FIXTURES / "heightmap.sdf").model("terrain"), tmp_path)).find("link")
-    assert terrain is not None and terrain.find("collision") is None and terrain.find("visual/geometry/mesh") is not None
+    terrain = ET.fromstring(model_to_urdf(load_world(FIXTURES / "heightmap.sdf").model("terrain"), tmp_path)).find(
+        "link"
+    )
+    assert (
+        terrain is not None and terrain.find("collision") is None and terrain.find("visual/geometry/mesh") is not None
+    )
 
 
 def _fuel_world(tmp_path: Path, url: str) -> Path:

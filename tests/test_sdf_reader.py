@@ -21,13 +21,16 @@ def _model(tmp_path: Path, body: str, version: str = "1.9") -> Path:
 
 def test_relative_to_chains_links_joints_and_frames(tmp_path: Path) -> None:
     """A link placed relative to a joint, which sits in its child's frame, via an explicit <frame>."""
-    sdf = _model(tmp_path, """
+    sdf = _model(
+        tmp_path,
+        """
       <frame name='mount' attached_to='a'><pose>0 0 1 0 0 0</pose></frame>
       <link name='a'><pose>1 0 0 0 0 1.5707963267948966</pose></link>
       <link name='b'><pose relative_to='mount'>1 0 0 0 0 0</pose></link>
       <link name='c'><pose relative_to='j'>0 0 0.5 0 0 0</pose></link>
       <joint name='j' type='fixed'><pose>0 2 0 0 0 0</pose><parent>a</parent><child>b</child></joint>
-      <joint name='k' type='fixed'><parent>a</parent><child>c</child></joint>""")
+      <joint name='k' type='fixed'><parent>a</parent><child>c</child></joint>""",
+    )
     model = load_model(sdf)
     # mount = a ∘ (0 0 1) = (1, 0, 1) yawed 90°; b = mount ∘ (1 0 0) = (1, 1, 1)
     assert np.allclose(model.link("b").pose.xyz, (1, 1, 1))
@@ -39,11 +42,14 @@ def test_relative_to_chains_links_joints_and_frames(tmp_path: Path) -> None:
 
 def test_shapes_and_sensors_relative_to_other_frames(tmp_path: Path) -> None:
     """A collision placed relative to another link is re-expressed in its own link's frame."""
-    sdf = _model(tmp_path, """
+    sdf = _model(
+        tmp_path,
+        """
       <link name='a'><pose>1 0 0 0 0 0</pose>
         <collision name='c'><pose relative_to='b'>0 0 0 0 0 0</pose><geometry><sphere><radius>0.1</radius></sphere></geometry></collision>
         <sensor name='s' type='imu'><pose relative_to='__model__'>0 0 2 0 0 0</pose></sensor></link>
-      <link name='b'><pose>0 3 0 0 0 0</pose></link>""")
+      <link name='b'><pose>0 3 0 0 0 0</pose></link>""",
+    )
     link = load_model(sdf).link("a")
     assert np.allclose(link.collisions[0].pose.xyz, (-1, 3, 0))
     assert np.allclose(link.sensors[0].pose.xyz, (-1, 0, 2))
@@ -55,19 +61,31 @@ def test_axis_expressed_in_and_sdf_16_conventions(tmp_path: Path) -> None:
       <joint name='j' type='revolute'><parent>a</parent><child>b</child><axis>{xyz}{extra}</axis></joint>"""
     in_joint = load_model(_model(tmp_path, joint.format(xyz="<xyz>1 0 0</xyz>", extra=""))).joint("j").axis
     assert in_joint is not None and np.allclose(in_joint.xyz, (1, 0, 0))
-    in_model = load_model(_model(tmp_path, joint.format(xyz="<xyz expressed_in='__model__'>1 0 0</xyz>", extra=""))).joint("j").axis
+    in_model = (
+        load_model(_model(tmp_path, joint.format(xyz="<xyz expressed_in='__model__'>1 0 0</xyz>", extra="")))
+        .joint("j")
+        .axis
+    )
     assert in_model is not None and np.allclose(in_model.xyz, (0, -1, 0))
     old = joint.format(xyz="<xyz>1 0 0</xyz>", extra="<use_parent_model_frame>true</use_parent_model_frame>")
-    legacy = load_model(_model(tmp_path, old.replace("<link name='a'/>", "<link name='a'></link>"), version="1.6")).joint("j").axis
+    legacy = (
+        load_model(_model(tmp_path, old.replace("<link name='a'/>", "<link name='a'></link>"), version="1.6"))
+        .joint("j")
+        .axis
+    )
     assert legacy is not None and np.allclose(legacy.xyz, (0, -1, 0))
 
 
 def test_pose_formats(tmp_path: Path) -> None:
     """Degrees, quaternions and the SDF 1.6 `frame` attribute are all read."""
-    sdf = _model(tmp_path, """
+    sdf = _model(
+        tmp_path,
+        """
       <link name='a'><pose degrees='true'>0 0 0 0 0 90</pose></link>
       <link name='b'><pose rotation_format='quat_xyzw'>1 2 3 0 0 0.7071067811865476 0.7071067811865476</pose></link>
-      <link name='c'><pose frame='b'>1 0 0 0 0 0</pose></link>""", version="1.9")
+      <link name='c'><pose frame='b'>1 0 0 0 0 0</pose></link>""",
+        version="1.9",
+    )
     model = load_model(sdf)
     assert model.link("a").pose.rpy[2] == pytest.approx(math.pi / 2)
     assert model.link("b").pose.rpy[2] == pytest.approx(math.pi / 2)
@@ -76,14 +94,17 @@ def test_pose_formats(tmp_path: Path) -> None:
 
 def test_limits_plugins_and_materials(tmp_path: Path) -> None:
     """Joint limits (±1e16 means none), plugin parameters in order and nested, colours."""
-    sdf = _model(tmp_path, """
+    sdf = _model(
+        tmp_path,
+        """
       <link name='a'><visual name='v'><geometry><box><size>1 1 1</size></box></geometry>
         <material><ambient>1 0 0 1</ambient><diffuse>0 1 0</diffuse></material></visual></link>
       <link name='b'/>
       <joint name='j' type='prismatic'><parent>a</parent><child>b</child>
         <axis><xyz>0 0 2</xyz><limit><lower>-0.5</lower><upper>1e16</upper><effort>7</effort></limit>
         <dynamics><damping>0.3</damping></dynamics></axis></joint>
-      <plugin name='P' filename='libp.so'><x>1</x><x>2</x><out type='T' topic='/t'><y>3</y></out></plugin>""")
+      <plugin name='P' filename='libp.so'><x>1</x><x>2</x><out type='T' topic='/t'><y>3</y></out></plugin>""",
+    )
     model = load_model(sdf)
     axis = model.joint("j").axis
     assert axis is not None and axis.xyz == (0, 0, 1) and (axis.lower, axis.upper, axis.effort) == (-0.5, None, 7)
@@ -101,9 +122,18 @@ def test_limits_plugins_and_materials(tmp_path: Path) -> None:
     [
         ("<link name='a'><pose relative_to='b'/></link><link name='b'><pose relative_to='a'/></link>", "cycle"),
         ("<link name='a'/><link name='a'/>", "duplicate frame name 'a'"),
-        ("<link name='a'/><joint name='j' type='universal'><parent>a</parent><child>a</child></joint>", "unsupported joint type"),
-        ("<link name='a'/><joint name='j' type='fixed'><parent>a</parent><child>z</child></joint>", "child 'z' is not a link"),
-        ("<link name='a'/><link name='b'/><joint name='j' type='revolute'><parent>a</parent><child>b</child></joint>", "needs an <axis>"),
+        (
+            "<link name='a'/><joint name='j' type='universal'><parent>a</parent><child>a</child></joint>",
+            "unsupported joint type",
+        ),
+        (
+            "<link name='a'/><joint name='j' type='fixed'><parent>a</parent><child>z</child></joint>",
+            "child 'z' is not a link",
+        ),
+        (
+            "<link name='a'/><link name='b'/><joint name='j' type='revolute'><parent>a</parent><child>b</child></joint>",
+            "needs an <axis>",
+        ),
         ("<link name='a'><inertial><mass>-1</mass></inertial></link>", "mass must be positive"),
         ("<link name='a'><pose>1 2 3</pose></link>", "expected 6 numbers"),
     ],
@@ -120,8 +150,12 @@ def test_world_include_with_overrides(tmp_path: Path, monkeypatch: pytest.Monkey
     """<include> resolves model:// through model.config, picks its newest SDF, and applies name, pose, static."""
     folder = tmp_path / "models" / "crate"
     folder.mkdir(parents=True)
-    (folder / "model.config").write_text("<model><sdf version='1.6'>old.sdf</sdf><sdf version='1.9'>model.sdf</sdf></model>")
-    (folder / "model.sdf").write_text("<sdf version='1.9'><model name='crate'><link name='l'><inertial><mass>2</mass></inertial></link></model></sdf>")
+    (folder / "model.config").write_text(
+        "<model><sdf version='1.6'>old.sdf</sdf><sdf version='1.9'>model.sdf</sdf></model>"
+    )
+    (folder / "model.sdf").write_text(
+        "<sdf version='1.9'><model name='crate'><link name='l'><inertial><mass>2</mass></inertial></link></model></sdf>"
+    )
     monkeypatch.setenv("SIMBOT_RESOURCE_PATH", str(tmp_path / "models"))
     world_file = tmp_path / "w.sdf"
     world_file.write_text("""<sdf version='1.9'><world name='w'><gravity>0 0 -3.7</gravity>
@@ -132,4 +166,6 @@ def test_world_include_with_overrides(tmp_path: Path, monkeypatch: pytest.Monkey
     world = load_world(world_file)
     crate = world.model("crate_7")
     assert crate.pose.xyz == (1, 2, 3) and crate.static and crate.links[0].inertial.mass == 2  # type: ignore[union-attr]
-    assert world.gravity == (0, 0, -3.7) and world.physics.max_step_size == 0.004 and world.lights[0].type == "directional"
+    assert (
+        world.gravity == (0, 0, -3.7) and world.physics.max_step_size == 0.004 and world.lights[0].type == "directional"
+    )

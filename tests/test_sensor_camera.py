@@ -28,11 +28,16 @@ WORLD = str(REPO / "tests" / "fixtures" / "camera_boxes.sdf")
 AT_ORIGIN = ["--spawn", "0", "0", "0.1", "0"]
 IMAGE = "sensor_msgs/msg/Image"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-CAMERAS = ("camera_front", "camera_back", "camera_front_right", "camera_back_right", "camera_front_left", "camera_back_left")
+CAMERAS = (
+    "camera_front",
+    "camera_back",
+    "camera_front_right",
+    "camera_back_right",
+    "camera_front_left",
+    "camera_back_left",
+)
 HFOV = 2.0944
 BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
-
-
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
@@ -62,11 +67,15 @@ def test_the_red_box_ahead_fills_the_front_image_and_no_other(sim: SimServer) ->
     assert front.header.frame_id == "camera_front_optical_frame"
     image = messages.image_pixels(front)
     red = _red(image)
-    assert red[240, 320] and red[235:245, 315:325].all(), f"the centre of the front image is {image[240, 320]}, not the red box"
+    assert red[240, 320] and red[235:245, 315:325].all(), (
+        f"the centre of the front image is {image[240, 320]}, not the red box"
+    )
     columns = np.flatnonzero(red[240])
     fx = 320 / math.tan(HFOV / 2)
     expected = fx * BOX_WIDTH / BOX_DISTANCE
-    assert abs(len(columns) - expected) <= 3, f"the box is {len(columns)} px wide, the pinhole model says {expected:.1f}"
+    assert abs(len(columns) - expected) <= 3, (
+        f"the box is {len(columns)} px wide, the pinhole model says {expected:.1f}"
+    )
     assert abs((columns[0] + columns[-1]) / 2 - 319.5) <= 1.5, "the box is not centred"
     for name in CAMERAS[1:]:
         seen = int(_red(messages.image_pixels(frames[name])).sum())
@@ -100,7 +109,9 @@ def test_images_are_stamped_with_the_sim_time_they_show(sim: SimServer) -> None:
             continue  # only stamps where the pose publisher (50 Hz) also has a sample, once clearly moving
         width = len(np.flatnonzero(_red(messages.image_pixels(frame))[240]))
         expected = (320 / math.tan(HFOV / 2)) * BOX_WIDTH / (3.5 - 1.0 - x)
-        assert abs(width - expected) <= 3, f"at {stamp_ns(frame) / 1e9:.3f} s (x {x:.3f}) the box is {width} px wide, expected {expected:.1f}"
+        assert abs(width - expected) <= 3, (
+            f"at {stamp_ns(frame) / 1e9:.3f} s (x {x:.3f}) the box is {width} px wide, expected {expected:.1f}"
+        )
         checked += 1
     sim.unsubscribe_all()
     assert checked >= 5, "too few frames coincided with ground-truth poses"
@@ -123,7 +134,9 @@ def test_rates_over_ten_seconds_in_lockstep() -> None:
         sim.step(10_000)
         end_ns = round((start + 10.0) * 1e9)
         for topic, collector in collectors.items():
-            frames = collector.wait_for(lambda items: stamp_ns(items[-1]) >= end_ns - 34_000_000, timeout=60.0, what=f"{topic} up to {end_ns}")
+            frames = collector.wait_for(
+                lambda items: stamp_ns(items[-1]) >= end_ns - 34_000_000, timeout=60.0, what=f"{topic} up to {end_ns}"
+            )
             stamps = [stamp_ns(m) for m in frames if start * 1e9 < stamp_ns(m) <= end_ns]
             assert abs(len(stamps) - 300) <= 1, f"{topic}: {len(stamps)} frames in 10 s"
             assert (frames[0].width, frames[0].height) == (80, 60)
@@ -155,22 +168,30 @@ def test_every_image_has_its_camera_info_under_the_same_stamp_in_real_time() -> 
         infos = {topic: sim.subscribe(f"{topic}/camera_info", CAMERA_INFO) for topic in CAMERAS}
         first = images["camera_front"].wait_count(1, timeout=60.0, what="a first camera_front image")
         start = stamp_ns(first[0])
-        images["camera_front"].wait_for(lambda items: stamp_ns(items[-1]) >= start + 3_000_000_000, timeout=60.0, what="3 s of frames")
+        images["camera_front"].wait_for(
+            lambda items: stamp_ns(items[-1]) >= start + 3_000_000_000, timeout=60.0, what="3 s of frames"
+        )
         for topic in CAMERAS:
             stamps = [stamp_ns(m) for m in images[topic].messages()][:-1]  # the last one's info may be in flight
             info_stamps = {stamp_ns(m) for m in infos[topic].messages()}
             missing = [s for s in stamps if s not in info_stamps]
-            assert len(stamps) >= 10 and not missing, f"{topic}: {len(missing)} of {len(stamps)} images have no camera_info with their stamp"
+            assert len(stamps) >= 10 and not missing, (
+                f"{topic}: {len(missing)} of {len(stamps)} images have no camera_info with their stamp"
+            )
 
 
 def test_camera_rate_option_and_the_renderer_in_world_state() -> None:
     """--camera-rate 10 gives 10 Hz; world state names the renderer the default picked (gl where EGL opens)."""
-    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120"]) as sim:
+    with running_server(
+        WORLD, "lockstep", extra=[*AT_ORIGIN, "--camera-rate", "10", "--camera-size", "160x120"]
+    ) as sim:
         images = sim.subscribe("camera_front", IMAGE)
         sim.prime(images, chunk=100, timeout=60.0)
         start = stamp_ns(images.messages()[-1])
         sim.step(1000)
-        frames = images.wait_for(lambda items: stamp_ns(items[-1]) >= start + 1_000_000_000, timeout=30.0, what="1 s of frames")
+        frames = images.wait_for(
+            lambda items: stamp_ns(items[-1]) >= start + 1_000_000_000, timeout=30.0, what="1 s of frames"
+        )
         assert len([m for m in frames if start < stamp_ns(m) <= start + 1_000_000_000]) == 10
         red = _red(messages.image_pixels(frames[-1]))
         assert red[60, 80], "the red box is not at the image centre"
@@ -193,7 +214,14 @@ def test_bad_camera_options_are_one_line_errors() -> None:
 
     from server_helpers import server_command
 
-    for option, value in (("--camera-size", "640by480"), ("--camera-size", "0x480"), ("--camera-rate", "-3"), ("--camera-rate", "nan"), ("--renderer", "egl"), ("--render-workers", "0")):
+    for option, value in (
+        ("--camera-size", "640by480"),
+        ("--camera-size", "0x480"),
+        ("--camera-rate", "-3"),
+        ("--camera-rate", "nan"),
+        ("--renderer", "egl"),
+        ("--render-workers", "0"),
+    ):
         result = run(server_command(option, value, "--world", "empty"), capture_output=True, text=True, timeout=30)
         assert result.returncode == 2, (option, value, result.stderr)
         assert option in result.stderr and "Traceback" not in result.stderr

@@ -31,8 +31,6 @@ W, H, HFOV = 160, 120, 1.2
 FX = (W / 2) / math.tan(HFOV / 2)
 
 
-
-
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
     if request.param == "gl" and NO_EGL:
@@ -64,7 +62,9 @@ def test_rgbd_camera_publishes_image_depth_points_and_info_under_one_stamp(sim: 
     common = set.intersection(*stamps.values())
     assert len(common) >= 3 and all(len(s - common) <= 1 for s in stamps.values()), stamps
     rgb = messages.image_pixels(latest["rgbd/image"])
-    assert rgb.shape == (H, W, 3) and abs(int(rgb[H // 2, W // 2, 2]) - int(rgb[H // 2, W // 2, 0])) > 60  # the wall is blue, not red
+    assert (
+        rgb.shape == (H, W, 3) and abs(int(rgb[H // 2, W // 2, 2]) - int(rgb[H // 2, W // 2, 0])) > 60
+    )  # the wall is blue, not red
     np.testing.assert_allclose(messages.depth_pixels(latest["rgbd/depth_image"]), WALL, atol=0.01)
     cloud = latest["rgbd/points"]
     assert [f.name for f in cloud.fields] == ["x", "y", "z", "rgb"] and (cloud.height, cloud.width) == (H, W)
@@ -75,27 +75,57 @@ def test_rgbd_camera_publishes_image_depth_points_and_info_under_one_stamp(sim: 
     np.testing.assert_allclose(points[..., 0], u * WALL / FX, atol=0.01)
     np.testing.assert_allclose(points[..., 1], v * WALL / FX, atol=0.01)
     packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)[H // 2, W // 2]
-    assert int(packed) == (int(rgb[H // 2, W // 2, 0]) << 16) | (int(rgb[H // 2, W // 2, 1]) << 8) | int(rgb[H // 2, W // 2, 2])
+    assert int(packed) == (int(rgb[H // 2, W // 2, 0]) << 16) | (int(rgb[H // 2, W // 2, 1]) << 8) | int(
+        rgb[H // 2, W // 2, 2]
+    )
 
 
 BAD_CAMERAS = [
-    ("<width>160</width><height>120</height><format>R_FLOAT32</format>", "<width>0</width><height>120</height>", "<width>"),
-    ("<width>160</width><height>120</height><format>R_FLOAT32</format>", "<width>100000</width><height>120</height>", "<width>"),
-    ("<horizontal_fov>1.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32", "<horizontal_fov>0</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32", "<horizontal_fov>"),
-    ("<horizontal_fov>1.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32", "<horizontal_fov>3.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32", "<horizontal_fov>"),
-    ("<near>0.1</near><far>10</far></clip>\n          </camera>\n        </sensor>\n      </link>", "<near>20</near><far>10</far></clip>\n          </camera>\n        </sensor>\n      </link>", "<near>"),
-    ("<width>160</width><height>120</height></image>", "<width>160</width><height>120</height><format>YUV_PLANAR</format></image>", "<format>"),
+    (
+        "<width>160</width><height>120</height><format>R_FLOAT32</format>",
+        "<width>0</width><height>120</height>",
+        "<width>",
+    ),
+    (
+        "<width>160</width><height>120</height><format>R_FLOAT32</format>",
+        "<width>100000</width><height>120</height>",
+        "<width>",
+    ),
+    (
+        "<horizontal_fov>1.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32",
+        "<horizontal_fov>0</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32",
+        "<horizontal_fov>",
+    ),
+    (
+        "<horizontal_fov>1.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32",
+        "<horizontal_fov>3.2</horizontal_fov>\n            <image><width>160</width><height>120</height><format>R_FLOAT32",
+        "<horizontal_fov>",
+    ),
+    (
+        "<near>0.1</near><far>10</far></clip>\n          </camera>\n        </sensor>\n      </link>",
+        "<near>20</near><far>10</far></clip>\n          </camera>\n        </sensor>\n      </link>",
+        "<near>",
+    ),
+    (
+        "<width>160</width><height>120</height></image>",
+        "<width>160</width><height>120</height><format>YUV_PLANAR</format></image>",
+        "<format>",
+    ),
     ("<width>160</width><height>120</height></image>", "<width>wide</width><height>120</height></image>", "<width>"),
 ]
 
 
 @pytest.mark.parametrize(("good", "bad", "field"), BAD_CAMERAS)
-def test_bad_camera_sdf_is_one_line_naming_the_sensor_and_field(tmp_path: Path, good: str, bad: str, field: str) -> None:
+def test_bad_camera_sdf_is_one_line_naming_the_sensor_and_field(
+    tmp_path: Path, good: str, bad: str, field: str
+) -> None:
     text = WORLD.read_text()
     assert good in text
     world = tmp_path / "bad.sdf"
     world.write_text(text.replace(good, bad, 1))
-    done = subprocess.run(server_command("--world", str(world), "--mode", "lockstep", *BEHIND), capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        server_command("--world", str(world), "--mode", "lockstep", *BEHIND), capture_output=True, text=True, timeout=60
+    )
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr

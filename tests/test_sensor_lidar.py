@@ -24,12 +24,12 @@ import pytest
 from conftest import REPO, ROBOT_SDF
 from server_helpers import POSE_STAMPED, Collector, SimServer, pose_of, reset_before_each, running_server, stamp_ns
 
-from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.rotations import quaternion_to_matrix
 from simbot.sim.physics import Physics
+from simbot.sim.systems.imu import ImuParams
+from simbot.sim.systems.lidar import LidarParams
 
 WORLD = REPO / "tests" / "fixtures" / "lidar_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
@@ -168,7 +168,10 @@ def test_message_fields_and_stamps(sim: SimServer) -> None:
     for name, collector in (("lidar_front", front), ("lidar_back", back)):
         scan = collector.wait_stamp(t, what=name)
         assert scan.header.frame_id == FRAMES[name]
-        assert (scan.angle_min, scan.angle_max) == (pytest.approx(-ANGLE_MAX, abs=1e-6), pytest.approx(ANGLE_MAX, abs=1e-6))
+        assert (scan.angle_min, scan.angle_max) == (
+            pytest.approx(-ANGLE_MAX, abs=1e-6),
+            pytest.approx(ANGLE_MAX, abs=1e-6),
+        )
         assert scan.angle_increment == pytest.approx(2 * ANGLE_MAX / (SAMPLES - 1), rel=1e-6)
         assert (scan.range_min, scan.range_max) == (pytest.approx(RANGE_MIN), pytest.approx(RANGE_MAX))
         assert scan.scan_time == pytest.approx(0.2) and scan.time_increment == 0.0

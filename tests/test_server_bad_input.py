@@ -206,9 +206,13 @@ def test_bad_world_control_requests_are_refused_and_counted(sim: SimServer) -> N
         for i, (label, payload, reason) in enumerate(cases, start=1):
             reply = sim.call(name, payload)
             assert reply.get("ok") is False, f"{name} <- {label}: accepted: {reply}"
-            assert reason.lower() in reply.get("error", "").lower(), f"{name} <- {label}: error {reply.get('error')!r} does not say {reason!r}"
+            assert reason.lower() in reply.get("error", "").lower(), (
+                f"{name} <- {label}: error {reply.get('error')!r} does not say {reason!r}"
+            )
             state = sim.state()
-            assert state["dropped"].get(key) == i, f"{name} <- {label}: dropped count {state['dropped'].get(key)}, expected {i}"
+            assert state["dropped"].get(key) == i, (
+                f"{name} <- {label}: dropped count {state['dropped'].get(key)}, expected {i}"
+            )
             assert state["last_errors"].get(key) == reply["error"]
     state = sim.state()
     assert state["iterations"] == before["iterations"], "a refused control request stepped or reset the world"
@@ -260,7 +264,9 @@ def test_absurd_set_pose_is_refused_and_the_world_stays_readable() -> None:
         sim.step(1000)
         (_, _, z), _ = sim.pose("trolley")
         if abs(z) > 0.01:
-            problems.append(f"after set_pose back and a reset the trolley falls through the floor: z {z:.3f} m after 1 s")
+            problems.append(
+                f"after set_pose back and a reset the trolley falls through the floor: z {z:.3f} m after 1 s"
+            )
         assert not problems, "SERVER BUG: " + "; ".join(problems)
 
 
@@ -277,7 +283,9 @@ def test_deeply_nested_json_is_refused_not_fatal(name: str) -> None:
         if not sim.alive():
             sim.stopped = True  # nothing left to stop; the assertion below says why
             tail = sim.stderr().strip().splitlines()[-1:]
-            raise AssertionError(f"SERVER BUG: the server died (code {sim.process.returncode}) on 100 000 nested brackets to {name}: {tail}")
+            raise AssertionError(
+                f"SERVER BUG: the server died (code {sim.process.returncode}) on 100 000 nested brackets to {name}: {tail}"
+            )
         assert reply is not None, f"no reply to deeply nested JSON on {name}, though the server is alive"
         assert reply["ok"] is False and "json" in reply["error"].lower(), reply
         assert sim.step(10)["iterations"] == 10
@@ -301,7 +309,9 @@ def bad_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     }  # fmt: skip
 
 
-@pytest.mark.parametrize("case", ["nosuch", "missing_file", "broken_xml", "missing_include", "a_model_not_a_world", "broken_robot"])
+@pytest.mark.parametrize(
+    "case", ["nosuch", "missing_file", "broken_xml", "missing_include", "a_model_not_a_world", "broken_robot"]
+)
 def test_a_bad_world_or_robot_is_exit_2_and_one_line(case: str, bad_files: dict[str, Path], tmp_path: Path) -> None:
     if case == "nosuch":
         args, named = ["--world", "nosuch"], "nosuch"
@@ -314,7 +324,9 @@ def test_a_bad_world_or_robot_is_exit_2_and_one_line(case: str, bad_files: dict[
     else:
         named = str(bad_files[case])
         args = ["--world", named]
-    result = subprocess.run(server_command(*args, "--listen", endpoint(free_port()), "--quiet"), capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        server_command(*args, "--listen", endpoint(free_port()), "--quiet"), capture_output=True, text=True, timeout=60
+    )
     assert result.returncode == 2, f"exit code {result.returncode}: {result.stderr}"
     lines = result.stderr.splitlines()
     assert any(named in line for line in lines), f"stderr does not name {named}: {result.stderr!r}"

@@ -84,7 +84,9 @@ def tf_static(client_node: Node) -> dict[str, tuple[str, np.ndarray]]:
         child = transform.child_frame_id
         assert child not in tree, f"tf_static gives {child!r} two parents"
         t, r = transform.transform.translation, transform.transform.rotation
-        assert abs(math.sqrt(r.x**2 + r.y**2 + r.z**2 + r.w**2) - 1.0) < 1e-9, f"{child}: rotation is not a unit quaternion"
+        assert abs(math.sqrt(r.x**2 + r.y**2 + r.z**2 + r.w**2) - 1.0) < 1e-9, (
+            f"{child}: rotation is not a unit quaternion"
+        )
         matrix = np.eye(4)
         matrix[:3, :3] = quaternion_to_matrix((r.x, r.y, r.z, r.w))
         matrix[:3, 3] = (t.x, t.y, t.z)
@@ -110,7 +112,9 @@ def _close(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def test_robot_description_matches_the_sdf(urdf_text: str, model: Model) -> None:
-    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    urdf = yourdfpy.URDF.load(
+        io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False
+    )
     assert urdf.validate(), "yourdfpy rejects the URDF on robot_description"
     assert urdf.base_link == ROOT
     assert model.link(ROOT).pose.is_identity()
@@ -123,7 +127,9 @@ def test_robot_description_matches_the_sdf(urdf_text: str, model: Model) -> None
         if link.inertial is not None:
             assert inertial is not None and inertial.mass == pytest.approx(link.inertial.mass)
     wheels = {j.name: j for j in urdf.robot.joints if j.name.endswith("_wheel_joint")}
-    assert sorted(wheels) == sorted(f"{w}_wheel_joint" for w in ("front_left", "front_right", "back_left", "back_right"))
+    assert sorted(wheels) == sorted(
+        f"{w}_wheel_joint" for w in ("front_left", "front_right", "back_left", "back_right")
+    )
     for joint in wheels.values():
         assert joint.type in ("continuous", "revolute")
         axis_in_root = urdf.get_transform(joint.child, ROOT)[:3, :3] @ np.asarray(joint.axis)
@@ -147,11 +153,15 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
         assert camera in tree, f"tf_static lacks the camera frame {camera!r}"
         parent, matrix = tree[camera]
         assert parent == "base_link", f"{camera} hangs from {parent!r}, not base_link"
-        assert _close(matrix, Pose((x, y, 0.39), (0.0, 0.0, yaw)).matrix()) < TOL, f"{camera} is not at ({x}, {y}, 0.39) yaw {yaw:.4f}"
+        assert _close(matrix, Pose((x, y, 0.39), (0.0, 0.0, yaw)).matrix()) < TOL, (
+            f"{camera} is not at ({x}, {y}, 0.39) yaw {yaw:.4f}"
+        )
         parent, optical = tree[optical_frame(camera)]
         assert parent == camera and np.allclose(optical[:3, 3], 0.0), f"{camera}'s optical frame is not at the camera"
         # z forward, x right, y down: the camera's x, -y, -z
-        assert np.allclose(optical[:3, :3], [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-9), f"{camera}'s optical frame is turned wrong"
+        assert np.allclose(optical[:3, :3], [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-9), (
+            f"{camera}'s optical frame is turned wrong"
+        )
 
     # every fixed link and every sensor frame, composed from base_footprint, where the SDF puts it
     fixed = {j.child for j in model.joints if j.type == "fixed"}
@@ -163,7 +173,9 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
             checked.append(link.name)
         for sensor in link.sensors:
             frame = sensor.frame_name or sensor.name
-            expected = (link.pose @ sensor.pose).matrix()  # the lidars' and the IMU's frames are their links'; they sit here too
+            expected = (
+                link.pose @ sensor.pose
+            ).matrix()  # the lidars' and the IMU's frames are their links'; they sit here too
             error = _close(_in_root(tree, frame), expected)
             assert error < TOL, f"tf_static puts {frame} {error:.2e} from the SDF pose of sensor {sensor.name}"
             checked.append(frame)
@@ -177,7 +189,9 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
 
 def test_tf_static_and_robot_description_agree(urdf_text: str, tf_static: dict[str, tuple[str, np.ndarray]]) -> None:
     """Every tf_static frame that is a URDF link sits where the URDF's kinematics puts it."""
-    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    urdf = yourdfpy.URDF.load(
+        io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False
+    )
     shared = [frame for frame in tf_static if frame in urdf.link_map]
     assert len(shared) >= 4
     for frame in shared:
@@ -227,7 +241,9 @@ def test_every_link_is_reachable_from_odom_and_the_wheels_turn_in_tf(
     messages = tf.wait_for(lambda m: len(m) >= 8, what="odom and joint transforms for 0.1 s")
     joints = [m for m in messages if m.transforms[0].header.frame_id != "odom"]
     assert len(joints) == 3, f"{len(joints)} joint transform messages in 0.1 s of sim time, not 3 (30 Hz)"
-    urdf = yourdfpy.URDF.load(io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False)
+    urdf = yourdfpy.URDF.load(
+        io.StringIO(urdf_text), build_scene_graph=True, load_meshes=False, load_collision_meshes=False
+    )
     tree = {**tf_static, **_tf_tree(messages)}
     for link in urdf.link_map:
         frame, chain = link, [link]
@@ -239,7 +255,9 @@ def test_every_link_is_reachable_from_odom_and_the_wheels_turn_in_tf(
     stamp = stamp_ns(last.transforms[0])
     state = states.wait_stamp(stamp, what="joint_states at the tf stamp")
     positions = dict(zip(state.name, state.position))
-    assert abs(positions["front_left_wheel_joint"]) > 5.0, "the wheel did not turn in 1 s at 0.5 m/s (0.5 / 0.075 rad/s)"
+    assert abs(positions["front_left_wheel_joint"]) > 5.0, (
+        "the wheel did not turn in 1 s at 0.5 m/s (0.5 / 0.075 rad/s)"
+    )
     urdf.update_cfg({name: positions[name] for name in ("front_left_wheel_joint", "front_right_wheel_joint")})
     for name in ("front_left_wheel_joint", "front_right_wheel_joint"):
         joint = urdf.joint_map[name]

@@ -55,8 +55,12 @@ def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     # drive under: 3.5 m at 0.5 m/s
     _drive_then_stop(sim, 0.5, 7000, settle_steps=1000)
     (trolley1, _), (robot1, robot_quat1) = sim.pose("trolley"), sim.pose()
-    assert robot1[0] == pytest.approx(trolley1[0], abs=0.15), f"robot centre x {robot1[0]:.3f} is not under the trolley's {trolley1[0]:.3f}"
-    assert abs(robot1[1] - robot0[1]) < 0.05 and abs(wrap(yaw_of(robot_quat1) - yaw_of(robot_quat0))) < 0.05, "the robot veered"
+    assert robot1[0] == pytest.approx(trolley1[0], abs=0.15), (
+        f"robot centre x {robot1[0]:.3f} is not under the trolley's {trolley1[0]:.3f}"
+    )
+    assert abs(robot1[1] - robot0[1]) < 0.05 and abs(wrap(yaw_of(robot_quat1) - yaw_of(robot_quat0))) < 0.05, (
+        "the robot veered"
+    )
     assert planar_distance(trolley0, trolley1) < 0.01, "the robot touched the trolley driving under it"
 
     sim.send("attach", messages.empty())
@@ -69,8 +73,12 @@ def test_dock_pull_and_leave_the_trolley(sim: SimServer) -> None:
     (trolley2, _), (robot2, _) = sim.pose("trolley"), sim.pose()
     pulled = planar_distance(trolley1, trolley2)
     robot_moved = planar_distance(robot1, robot2)
-    assert pulled == pytest.approx(2.0, abs=0.1), f"attached, the trolley moved {pulled:.4f} m while the robot drove 2 m"
-    assert abs(pulled - robot_moved) < 0.02, f"the trolley moved {pulled:.4f} m, the robot {robot_moved:.4f} m: not rigidly attached"
+    assert pulled == pytest.approx(2.0, abs=0.1), (
+        f"attached, the trolley moved {pulled:.4f} m while the robot drove 2 m"
+    )
+    assert abs(pulled - robot_moved) < 0.02, (
+        f"the trolley moved {pulled:.4f} m, the robot {robot_moved:.4f} m: not rigidly attached"
+    )
     assert trolley2[0] > trolley1[0]
 
     sim.send("detach", messages.empty())

@@ -91,7 +91,9 @@ def test_drive_straight(sim: SimServer) -> None:
     (ox1, oy1, _), oquat = pose_of(odom1.pose.pose)
     odom_distance = math.hypot(ox1 - ox0, oy1 - oy0)
     error = math.hypot((ox1 - ox0) - (end[0] - start[0]), (oy1 - oy0) - (end[1] - start[1]))
-    assert error / distance < ODOM_ERROR, f"odom displacement ({ox1 - ox0:.4f}, {oy1 - oy0:.4f}) vs ground truth: error {error:.4f} m"
+    assert error / distance < ODOM_ERROR, (
+        f"odom displacement ({ox1 - ox0:.4f}, {oy1 - oy0:.4f}) vs ground truth: error {error:.4f} m"
+    )
     assert abs(wrap(yaw_of(oquat) - yaw_of(end_quat))) < 0.005
     speed = odom1.twist.twist.linear.x
     assert speed == pytest.approx(V, rel=0.01), f"odom twist says {speed} m/s at the end of the drive"
@@ -138,8 +140,17 @@ def test_turn_on_the_spot_then_stop(sim: SimServer) -> None:
     at_rest = [(t, v, w) for t, v, w in moving if t >= 1_000_000_000]
     assert at_rest, "no poses from 1 s after the stop"
     worst_v, worst_w = max(v for _, v, _ in at_rest), max(w for _, _, w in at_rest)
-    assert worst_v < 0.01 and worst_w < 0.01, f"1 s after the stop: |v| up to {worst_v:.4f} m/s, |ω| up to {worst_w:.4f} rad/s"
-    stopped_at = next((t for t, v, w in moving if v < 0.01 and w < 0.01 and all(v2 < 0.01 and w2 < 0.01 for t2, v2, w2 in moving if t2 >= t)), None)
+    assert worst_v < 0.01 and worst_w < 0.01, (
+        f"1 s after the stop: |v| up to {worst_v:.4f} m/s, |ω| up to {worst_w:.4f} rad/s"
+    )
+    stopped_at = next(
+        (
+            t
+            for t, v, w in moving
+            if v < 0.01 and w < 0.01 and all(v2 < 0.01 and w2 < 0.01 for t2, v2, w2 in moving if t2 >= t)
+        ),
+        None,
+    )
     print(
         f"\nmeasured turn: {turned:.4f} rad in 6 s (commanded 3.0), wandered {wander:.4f} m, "
         f"at rest {stopped_at / 1e9 if stopped_at is not None else float('nan'):.3f} s after the stop "
@@ -161,7 +172,9 @@ def test_joint_states_and_tf_follow_the_wheels(sim: SimServer) -> None:
     end, _ = sim.pose()
 
     # 30 Hz: one message at the first step at or after each multiple of 1/30 s
-    window = [m for m in joints.wait_for(lambda ms: any(stamp_ns(m) >= t1 - 34_000_000 for m in ms), what="joint_states")]
+    window = [
+        m for m in joints.wait_for(lambda ms: any(stamp_ns(m) >= t1 - 34_000_000 for m in ms), what="joint_states")
+    ]
     in_two_seconds = [m for m in window if stamp_ns(first) < stamp_ns(m) <= stamp_ns(first) + 2_000_000_000]
     assert len(in_two_seconds) == 60, f"{len(in_two_seconds)} joint_states in 2 s of sim time, expected 60 at 30 Hz"
     last = window[-1]
@@ -171,8 +184,12 @@ def test_joint_states_and_tf_follow_the_wheels(sim: SimServer) -> None:
     travelled = planar_distance(start, end)
     for i, name in enumerate(names):
         turned = last.position[i] - first.position[first.name.index(name)]
-        assert turned * WHEEL_RADIUS == pytest.approx(travelled, rel=0.05), f"{name} turned {turned:.3f} rad for {travelled:.3f} m"
-        assert last.velocity[i] * WHEEL_RADIUS == pytest.approx(V, rel=0.05), f"{name} spins at {last.velocity[i]:.3f} rad/s"
+        assert turned * WHEEL_RADIUS == pytest.approx(travelled, rel=0.05), (
+            f"{name} turned {turned:.3f} rad for {travelled:.3f} m"
+        )
+        assert last.velocity[i] * WHEEL_RADIUS == pytest.approx(V, rel=0.05), (
+            f"{name} spins at {last.velocity[i]:.3f} rad/s"
+        )
 
     # tf: odom → base_footprint, the same pose as odom at the same stamp
     odom_last = odom.wait_stamp(t1, what="odom")

@@ -65,7 +65,9 @@ def test_lockstep_runs_with_the_same_seed_are_identical() -> None:
     assert moved > 0.3, f"the schedule barely moved the robot ({first[-1][3:5]}): the comparison would prove little"
     for a, b in zip(first, second):
         assert a == b, f"odom differs at {a[0] / 1e9:.3f} s:\n{a[:16]}\n{b[:16]}"
-    print(f"\nmeasured lockstep: {len(first)} odom messages identical in two runs, final odom ({first[-1][3]:.6f}, {first[-1][4]:.6f})")
+    print(
+        f"\nmeasured lockstep: {len(first)} odom messages identical in two runs, final odom ({first[-1][3]:.6f}, {first[-1][4]:.6f})"
+    )
 
 
 @pytest.fixture(scope="module")

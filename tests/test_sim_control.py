@@ -78,10 +78,14 @@ def test_state_reports_time_mode_and_every_model(world: Controlled) -> None:
 
 def test_set_pose_moves_a_model_and_reset_brings_it_back(world: Controlled) -> None:
     """set_pose normalises the quaternion; reset puts time and models back where they began."""
-    moved = world.ask(SET_POSE, {"name": "trolley", "position": {"x": -2.0, "y": 3.0, "z": 0.5}, "orientation": {"z": 2.0, "w": 0.0}})
+    moved = world.ask(
+        SET_POSE, {"name": "trolley", "position": {"x": -2.0, "y": 3.0, "z": 0.5}, "orientation": {"z": 2.0, "w": 0.0}}
+    )
     assert moved["ok"]
     (x, y, z), quat = world.sim.physics.model_pose("trolley")
-    assert (x, y, z) == pytest.approx((-2.0, 3.0, 0.5), abs=1e-6) and quat == pytest.approx((0.0, 0.0, 1.0, 0.0), abs=1e-6)
+    assert (x, y, z) == pytest.approx((-2.0, 3.0, 0.5), abs=1e-6) and quat == pytest.approx(
+        (0.0, 0.0, 1.0, 0.0), abs=1e-6
+    )
     world.ask(CONTROL, {"multi_step": 10})
     assert world.ask(CONTROL, {"reset": {"all": True}}) == {"ok": True, "sim_time": 0.0, "iterations": 0}
     assert world.sim.physics.model_pose("trolley")[0][:2] == pytest.approx(TROLLEY_AT[:2], abs=1e-6)
@@ -101,9 +105,15 @@ def test_set_pose_moves_a_model_and_reset_brings_it_back(world: Controlled) -> N
         (SET_POSE, {"name": "trolley", "orientation": {"w": 0.0}}, "orientation must be a non-zero quaternion"),
     ],
 )
-def test_a_bad_request_is_refused_counted_and_changes_nothing(world: Controlled, key: str, body: dict[str, Any] | bytes, error: str) -> None:
+def test_a_bad_request_is_refused_counted_and_changes_nothing(
+    world: Controlled, key: str, body: dict[str, Any] | bytes, error: str
+) -> None:
     reply = world.ask(key, body)
     assert reply["ok"] is False and error in reply["error"], reply
     state = world.ask(STATE, {})
-    assert state["iterations"] == 0 and state["models"]["trolley"]["position"][:2] == pytest.approx(TROLLEY_AT[:2], abs=1e-6)
-    assert state["dropped"] == {world.client.key(key): 1} and state["last_errors"][world.client.key(key)] == reply["error"]
+    assert state["iterations"] == 0 and state["models"]["trolley"]["position"][:2] == pytest.approx(
+        TROLLEY_AT[:2], abs=1e-6
+    )
+    assert (
+        state["dropped"] == {world.client.key(key): 1} and state["last_errors"][world.client.key(key)] == reply["error"]
+    )

@@ -135,7 +135,11 @@ def test_attach_holds_the_relative_pose_and_detach_frees(physics: Physics) -> No
     physics.detach(joint)
     _run(physics, 1.5)
     slid = physics.model_pose("trolley")[0][0] - trolley1[0]
-    assert slid == pytest.approx(0.5**2 / (2 * 0.05 * G), rel=0.06), "freed at 0.5 m/s, it slides v²/(2μg) on μ 0.05 feet"  # measured −3 %
+    assert slid == pytest.approx(0.5**2 / (2 * 0.05 * G), rel=0.06), (
+        "freed at 0.5 m/s, it slides v²/(2μg) on μ 0.05 feet"
+    )  # measured −3 %
     _run(physics, 1.0)
-    assert physics.model_pose("trolley")[0][0] - trolley1[0] == pytest.approx(slid, abs=0.005), "then stands while the robot drives on"
+    assert physics.model_pose("trolley")[0][0] - trolley1[0] == pytest.approx(slid, abs=0.005), (
+        "then stands while the robot drives on"
+    )
     assert physics.model_pose("flexley_tug")[0][0] > trolley1[0] + 1.0

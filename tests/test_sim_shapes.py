@@ -88,7 +88,9 @@ def test_heightfield_visual_is_a_mesh_the_cameras_draw() -> None:
     positions, _ = mesh(str(files[0]), (1.0, 1.0, 1.0))
     physics.close()  # removes the generated files
     assert positions.shape == (32 * 3, 3)
-    assert positions[:, 2].min() == pytest.approx(0.2) and positions[:, 2].max() == pytest.approx(0.2 + 2.44)  # grey 244 of 255 over 2.55 m
+    assert positions[:, 2].min() == pytest.approx(0.2) and positions[:, 2].max() == pytest.approx(
+        0.2 + 2.44
+    )  # grey 244 of 255 over 2.55 m
 
 
 def test_nested_links_and_joints_by_scoped_name() -> None:

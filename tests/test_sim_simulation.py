@@ -66,7 +66,12 @@ class World:
     sim: Simulation = field(init=False)
 
     def __post_init__(self) -> None:
-        systems: list[Any] = [Both("a", self.calls), PreOnly("b", self.calls), PostOnly("c", self.calls), Both("d", self.calls)]
+        systems: list[Any] = [
+            Both("a", self.calls),
+            PreOnly("b", self.calls),
+            PostOnly("c", self.calls),
+            Both("d", self.calls),
+        ]
         self.sim = Simulation(cast(Physics, StandInPhysics(self.calls)), systems, Mode.LOCKSTEP)
 
 
@@ -75,7 +80,15 @@ def test_a_step_runs_pre_update_physics_clock_post_update_in_system_order() -> N
     world = World()
     world.sim.step()
     world.sim.step()
-    one = [("pre", "a", "0"), ("pre", "b", "0"), ("pre", "d", "0"), ("physics.step",), ("post", "a", "1000000"), ("post", "c", "1000000"), ("post", "d", "1000000")]
+    one = [
+        ("pre", "a", "0"),
+        ("pre", "b", "0"),
+        ("pre", "d", "0"),
+        ("physics.step",),
+        ("post", "a", "1000000"),
+        ("post", "c", "1000000"),
+        ("post", "d", "1000000"),
+    ]
     two = [(*call[:2], str(int(call[2]) + STEP_NS)) if len(call) == 3 else call for call in one]
     assert world.calls == one + two
     assert (world.sim.clock.now_ns, world.sim.clock.iterations) == (2 * STEP_NS, 2)

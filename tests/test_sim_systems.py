@@ -43,7 +43,14 @@ def test_the_robot_and_world_plugins_are_all_registered() -> None:
 
 def test_an_unknown_plugin_is_a_warning_naming_it(caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.WARNING):
-        assert lookup(_plugin("ignition::gazebo::systems::TriggeredPublisher", "libignition-gazebo-triggered-publisher-system.so")) is None
+        assert (
+            lookup(
+                _plugin(
+                    "ignition::gazebo::systems::TriggeredPublisher", "libignition-gazebo-triggered-publisher-system.so"
+                )
+            )
+            is None
+        )
     assert "TriggeredPublisher" in caplog.text
 
 
@@ -53,7 +60,15 @@ def test_diff_drive_reads_gazebo_and_reference_names() -> None:
     ours = DiffDriveParams.parse(model.plugins[0], model)
     assert (ours.frame_id, ours.child_frame_id, ours.odom_rate, len(ours.left)) == ("odom", "base_footprint", 50.0, 2)
     joints = {"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint"}
-    legacy = _plugin("dd", odometry_frame="odom2", base_frame="base_link", update_rate="20", wheel_separation="0.4", wheel_radius="0.075", **joints)
+    legacy = _plugin(
+        "dd",
+        odometry_frame="odom2",
+        base_frame="base_link",
+        update_rate="20",
+        wheel_separation="0.4",
+        wheel_radius="0.075",
+        **joints,
+    )
     params = DiffDriveParams.parse(legacy, model)
     assert (params.frame_id, params.child_frame_id, params.odom_rate) == ("odom2", "base_link", 20.0)
 
@@ -61,9 +76,33 @@ def test_diff_drive_reads_gazebo_and_reference_names() -> None:
 @pytest.mark.parametrize(
     ("params", "message"),
     [
-        ({"left_joint": "nope", "right_joint": "front_right_wheel_joint", "wheel_separation": "0.4", "wheel_radius": "0.075"}, "no joint 'nope'"),
-        ({"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint", "wheel_separation": "wide", "wheel_radius": "0.075"}, "<wheel_separation> expected a number"),
-        ({"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint", "wheel_separation": "0.4", "wheel_radius": "-1"}, "positive"),
+        (
+            {
+                "left_joint": "nope",
+                "right_joint": "front_right_wheel_joint",
+                "wheel_separation": "0.4",
+                "wheel_radius": "0.075",
+            },
+            "no joint 'nope'",
+        ),
+        (
+            {
+                "left_joint": "front_left_wheel_joint",
+                "right_joint": "front_right_wheel_joint",
+                "wheel_separation": "wide",
+                "wheel_radius": "0.075",
+            },
+            "<wheel_separation> expected a number",
+        ),
+        (
+            {
+                "left_joint": "front_left_wheel_joint",
+                "right_joint": "front_right_wheel_joint",
+                "wheel_separation": "0.4",
+                "wheel_radius": "-1",
+            },
+            "positive",
+        ),
         ({"right_joint": "front_right_wheel_joint"}, "<left_joint>"),
     ],
 )
@@ -111,6 +150,8 @@ class _Twist:
         self.angular = type("V", (), {"x": 0.0, "y": 0.0, "z": wz})()
 
 
-@pytest.mark.parametrize(("vx", "wz", "ok"), [(0.5, 0.5, True), (math.nan, 0, False), (0, math.inf, False), (1e6, 0, False), (-99, 99, True)])
+@pytest.mark.parametrize(
+    ("vx", "wz", "ok"), [(0.5, 0.5, True), (math.nan, 0, False), (0, math.inf, False), (1e6, 0, False), (-99, 99, True)]
+)
 def test_check_twist(vx: float, wz: float, ok: bool) -> None:
     assert (check_twist(_Twist(vx, wz)) is None) == ok

@@ -19,9 +19,15 @@ XACRO = Path(__file__).parent / "fixtures" / "two_wheels.urdf.xacro"
 def test_xacro_is_expanded() -> None:
     """Macros and properties expand: two wheels at ±track/2 with the property's radius."""
     model = load_description(XACRO)
-    assert model.name == "two_wheels" and [link.name for link in model.links] == ["base_link", "left_wheel", "right_wheel"]
+    assert model.name == "two_wheels" and [link.name for link in model.links] == [
+        "base_link",
+        "left_wheel",
+        "right_wheel",
+    ]
     left = model.link("left_wheel")
-    assert np.allclose(left.pose.xyz, (0, 0.25, -0.05)) and np.allclose(model.link("right_wheel").pose.xyz, (0, -0.25, -0.05))
+    assert np.allclose(left.pose.xyz, (0, 0.25, -0.05)) and np.allclose(
+        model.link("right_wheel").pose.xyz, (0, -0.25, -0.05)
+    )
     visual = left.visuals[0]
     assert isinstance(visual.geometry, Cylinder) and visual.geometry.radius == 0.1
     assert visual.pose.rpy[0] == pytest.approx(math.pi / 2) and visual.material is not None
@@ -49,12 +55,16 @@ def test_generated_urdf_reads_back_as_the_sdf() -> None:
 def test_bad_xacro_and_urdf(tmp_path: Path) -> None:
     """A xacro error or an invalid URDF is a DescriptionError naming the file."""
     broken = tmp_path / "broken.urdf.xacro"
-    broken.write_text('<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="r"><link name="${undefined_property}"/></robot>')
+    broken.write_text(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="r"><link name="${undefined_property}"/></robot>'
+    )
     with pytest.raises(DescriptionError, match="xacro") as error:
         load_description(broken)
     assert error.value.file == str(broken)
     invalid = tmp_path / "invalid.urdf"
-    invalid.write_text('<robot name="r"><link name="a"/><joint name="j" type="hinge"><parent link="a"/><child link="a"/></joint></robot>')
+    invalid.write_text(
+        '<robot name="r"><link name="a"/><joint name="j" type="hinge"><parent link="a"/><child link="a"/></joint></robot>'
+    )
     with pytest.raises(DescriptionError, match="invalid URDF"):
         load_description(invalid)
     result = run_cli("describe", str(broken))

@@ -122,7 +122,9 @@ def test_a_link_that_names_its_sensor_frame_has_its_urdf_frame_at_the_sensor(tmp
     for name, (x, yaw) in {"base_scan_front": (0.99, 0.0), "base_scan_back": (-0.95, math.pi)}.items():
         frame = urdf.get_transform(name, urdf.base_link)
         assert np.allclose(frame[:3, 3], (x, 0.0, 0.26), atol=1e-9), name
-        assert math.isclose(math.atan2(frame[1, 0], frame[0, 0]) % (2 * math.pi), yaw % (2 * math.pi), abs_tol=1e-9), name
+        assert math.isclose(math.atan2(frame[1, 0], frame[0, 0]) % (2 * math.pi), yaw % (2 * math.pi), abs_tol=1e-9), (
+            name
+        )
         cylinder = frame @ _origin(urdf.link_map[name].collisions[0])
         sdf_link = model.link(name)
         assert np.allclose(cylinder, sdf_link.pose.matrix() @ sdf_link.collisions[0].pose.matrix(), atol=1e-9), name

@@ -348,7 +348,9 @@ def point_cloud(ns: int, frame: str, points: npt.NDArray[np.float32]) -> PointCl
     if points.dtype != np.float32 or points.ndim != 3 or points.shape[2] != len(POINT_FIELDS):
         raise ValueError(f"point cloud: expected H×W×4 float32, got {points.dtype} {points.shape}")
     height, width = points.shape[:2]
-    fields = [PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, name in enumerate(POINT_FIELDS)]
+    fields = [
+        PointField(name=name, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, name in enumerate(POINT_FIELDS)
+    ]
     return PointCloud2(
         header=header(ns, frame),
         height=height,
@@ -366,7 +368,9 @@ def point_cloud_array(msg: PointCloud2) -> npt.NDArray[np.float32]:
     """H×W×4 float32 x y z rgb of a cloud `point_cloud` made (the inverse of `point_cloud`)."""
     names = tuple(f.name for f in msg.fields)
     if names != POINT_FIELDS or int(msg.point_step) != 16:
-        raise ValueError(f"fields {names} with point step {msg.point_step}: expected {POINT_FIELDS} float32 at 16 bytes")
+        raise ValueError(
+            f"fields {names} with point step {msg.point_step}: expected {POINT_FIELDS} float32 at 16 bytes"
+        )
     data = np.asarray(msg.data, dtype=np.uint8)
     return np.ascontiguousarray(data).view(np.float32).reshape(int(msg.height), int(msg.width), 4)
 
@@ -387,7 +391,9 @@ def image_pixels(msg: Image) -> npt.NDArray[np.uint8]:
     width, height, step = int(msg.width), int(msg.height), int(msg.step)
     data = np.asarray(msg.data, dtype=np.uint8)
     if step < width * channels or data.size < step * height:
-        raise ValueError(f"{data.size} bytes with step {step} cannot hold {height} rows of {width} {msg.encoding} pixels")
+        raise ValueError(
+            f"{data.size} bytes with step {step} cannot hold {height} rows of {width} {msg.encoding} pixels"
+        )
     rows = data[: step * height].reshape(height, step)[:, : width * channels]
     return rows if channels == 1 else rows.reshape(height, width, channels)
 

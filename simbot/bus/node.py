@@ -100,7 +100,9 @@ class Publisher:
     type it carries, else at its first `put`: a camera nobody watches is on the graph all the same.
     """
 
-    def __init__(self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None) -> None:
+    def __init__(
+        self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None
+    ) -> None:
         self.key = key
         self.latched = latched
         self.typename = typename

@@ -36,7 +36,14 @@ def ellipsoid(shape: Ellipsoid) -> tuple[Vertices, Faces]:
     rings = SEGMENTS // 2
     polar = np.linspace(0.0, np.pi, rings + 1)[1:-1]
     around = np.linspace(0.0, 2.0 * np.pi, SEGMENTS, endpoint=False)
-    ring = np.stack([np.outer(np.sin(polar), np.cos(around)), np.outer(np.sin(polar), np.sin(around)), np.outer(np.cos(polar), np.ones(SEGMENTS))], axis=-1)
+    ring = np.stack(
+        [
+            np.outer(np.sin(polar), np.cos(around)),
+            np.outer(np.sin(polar), np.sin(around)),
+            np.outer(np.cos(polar), np.ones(SEGMENTS)),
+        ],
+        axis=-1,
+    )
     unit = np.vstack([[0.0, 0.0, 1.0], ring.reshape(-1, 3), [0.0, 0.0, -1.0]])
     faces = _cap(0, 1, reverse=False)
     for r in range(rings - 2):
@@ -116,7 +123,11 @@ def _is_ear(points: Vertices, a: int, b: int, c: int, left: list[int]) -> bool:
     pa, pb, pc = points[a], points[b], points[c]
     if _cross(pa, pb, pc) <= 0:
         return False
-    return not any(_cross(pa, pb, points[p]) >= 0 and _cross(pb, pc, points[p]) >= 0 and _cross(pc, pa, points[p]) >= 0 for p in left if p not in (a, b, c))
+    return not any(
+        _cross(pa, pb, points[p]) >= 0 and _cross(pb, pc, points[p]) >= 0 and _cross(pc, pa, points[p]) >= 0
+        for p in left
+        if p not in (a, b, c)
+    )
 
 
 def _cross(o: Vertices, a: Vertices, b: Vertices) -> float:
@@ -132,8 +143,12 @@ def heightmap_heights(shape: Heightmap, file: Path | None = None) -> npt.NDArray
         raise DescriptionError(file, f"heightmap image {shape.uri!r} was not found", "heightmap")
     image = cv2.imread(str(shape.path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_GRAYSCALE)
     if image is None or image.ndim != 2 or min(image.shape) < 2:
-        raise DescriptionError(file, f"heightmap {shape.path} is not a readable image of at least 2×2 pixels", "heightmap")
-    full_scale = float(np.iinfo(image.dtype).max) if np.issubdtype(image.dtype, np.integer) else float(image.max() or 1.0)
+        raise DescriptionError(
+            file, f"heightmap {shape.path} is not a readable image of at least 2×2 pixels", "heightmap"
+        )
+    full_scale = (
+        float(np.iinfo(image.dtype.name).max) if np.issubdtype(image.dtype, np.integer) else float(image.max() or 1.0)
+    )
     return image.astype(np.float64) / full_scale * shape.size[2]
 
 
@@ -161,7 +176,9 @@ def mesh_file(shape: Generated, folder: Path, file: Path | None = None) -> Path:
         vertices, faces = polyline(shape)
     else:
         vertices, faces = heightmap(shape, file)
-    text = "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in vertices) + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces)
+    text = "".join(f"v {x:.9g} {y:.9g} {z:.9g}\n" for x, y, z in vertices) + "".join(
+        f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces
+    )
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     path = folder / f"simbot_{type(shape).__name__.lower()}_{digest}.obj"
     if not path.exists():

@@ -25,7 +25,16 @@ def _warn(source: Path, shape: Collision | Visual, link: str, outcome: str) -> N
     assert isinstance(mesh, Mesh)
     tried = resolve(mesh.uri, source.parent).describe_tried()
     kind = "collision" if isinstance(shape, Collision) else "visual"
-    logger.warning("%s: %s %r of link %r: mesh %r not found (tried %s); %s", source, kind, shape.name, link, mesh.uri, tried, outcome)
+    logger.warning(
+        "%s: %s %r of link %r: mesh %r not found (tried %s); %s",
+        source,
+        kind,
+        shape.name,
+        link,
+        mesh.uri,
+        tried,
+        outcome,
+    )
 
 
 def present_collisions(source: Path, link: str, collisions: list[Collision]) -> list[Collision]:
@@ -42,9 +51,13 @@ def visuals_with_fallbacks(source: Path, link: str, visuals: list[Visual], colli
         if not is_missing(visual):
             result.append(visual)
             continue
-        _warn(source, visual, link, "showing the collision geometry instead" if collisions else "nothing to show instead")
+        _warn(
+            source, visual, link, "showing the collision geometry instead" if collisions else "nothing to show instead"
+        )
         result += [
-            Visual(visual.name if len(collisions) == 1 else f"{visual.name}_{c.name}", c.geometry, c.pose, visual.material)
+            Visual(
+                visual.name if len(collisions) == 1 else f"{visual.name}_{c.name}", c.geometry, c.pose, visual.material
+            )
             for c in collisions
         ]
     return result

@@ -100,8 +100,12 @@ def _fuel_candidates(host: str, path: str) -> list[Path]:
     version = rest.pop(0) if rest and (rest[0].isdigit() or rest[0] == "tip") else "tip"
     rest = rest[1:] if rest[:1] == ["files"] else rest
     candidates = []
-    for folder in dict.fromkeys(fuel_cache() / host / o / "models" / n for o, n in ((owner, name), (owner.lower(), name.lower()))):
-        versions = sorted((int(v.name) for v in folder.glob("*") if v.name.isdigit()), reverse=True) if folder.is_dir() else []
+    for folder in dict.fromkeys(
+        fuel_cache() / host / o / "models" / n for o, n in ((owner, name), (owner.lower(), name.lower()))
+    ):
+        versions = (
+            sorted((int(v.name) for v in folder.glob("*") if v.name.isdigit()), reverse=True) if folder.is_dir() else []
+        )
         chosen = versions[:1] if version == "tip" else [int(version)]
         candidates += [folder.joinpath(str(v), *rest) for v in chosen] or [folder]
     return candidates

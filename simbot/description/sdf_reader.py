@@ -186,7 +186,9 @@ def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> M
     joint_ends = {link.name: link.name for link in links} | {n.name: n.scoped(n.model.canonical_link) for n in nested}
     joints = tuple(_read_joint(reader, version, frames, e, joint_ends) for e in element.findall("joint"))
     joints += tuple(joint for n in nested for joint in n.joints(frames))
-    canonical = element.get("canonical_link") or (own[0].name if own else nested[0].scoped(nested[0].model.canonical_link))
+    canonical = element.get("canonical_link") or (
+        own[0].name if own else nested[0].scoped(nested[0].model.canonical_link)
+    )
     if canonical not in joint_ends:
         raise reader.error(element, f"canonical_link {canonical!r} is not a link of model {name!r}")
     return Model(
@@ -220,11 +222,16 @@ class _Nested:
     def add_frames(self, frames: _Frames) -> None:
         """The nested model's frame, and its links and joints relative to it."""
         frames.add(self.name, self.model.pose, self.relative_to or MODEL_FRAME, self.element)
-        for inner, pose in [(link.name, link.pose) for link in self.model.links] + [(j.name, j.pose) for j in self.model.joints]:
+        for inner, pose in [(link.name, link.pose) for link in self.model.links] + [
+            (j.name, j.pose) for j in self.model.joints
+        ]:
             frames.add(self.scoped(inner), pose, self.name, self.element)
 
     def links(self, frames: _Frames) -> list[Link]:
-        return [replace(link, name=self.scoped(link.name), pose=frames.in_model(self.scoped(link.name), self.element)) for link in self.model.links]
+        return [
+            replace(link, name=self.scoped(link.name), pose=frames.in_model(self.scoped(link.name), self.element))
+            for link in self.model.links
+        ]
 
     def joints(self, frames: _Frames) -> list[Joint]:
         return [
@@ -247,7 +254,13 @@ def _read_nested(reader: Reader, version: tuple[int, int], model: Element) -> li
             continue
         inner = _read_model(reader, version, element) if element.tag == "model" else _read_include(reader, element)
         for plugin in inner.plugins:
-            logger.warning("%s:%s: plugin %r of nested model %r is not run (simbot flattens nested models)", reader.file, element.sourceline, plugin.name, inner.name)
+            logger.warning(
+                "%s:%s: plugin %r of nested model %r is not run (simbot flattens nested models)",
+                reader.file,
+                element.sourceline,
+                plugin.name,
+                inner.name,
+            )
         nested.append(_Nested(replace(inner, plugins=()), element, _pose(reader, element)[1]))
     return nested
 
@@ -396,7 +409,7 @@ def _rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, flo
         values = values + (1.0,)
     if len(values) != 4:
         raise reader.error(found, f"expected 4 numbers 'r g b a', got {len(values)}")
-    return values  # type: ignore[return-value]
+    return values
 
 
 def _read_material(reader: Reader, element: Element) -> Material:
@@ -406,24 +419,32 @@ def _read_material(reader: Reader, element: Element) -> Material:
 # ---------------------------------------------------------------- joints
 
 
-def _read_joint(reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, ends: dict[str, str]) -> Joint:
+def _read_joint(
+    reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, ends: dict[str, str]
+) -> Joint:
     """`ends` maps each name a joint may join (a link, or a nested model: its canonical link) to the link."""
     name = reader.attr(element, "name")
     kind = reader.attr(element, "type")
     if kind not in JOINT_TYPES:
-        raise reader.error(element, f"unsupported joint type {kind!r} for joint {name!r} (supported: {', '.join(JOINT_TYPES)})")
+        raise reader.error(
+            element, f"unsupported joint type {kind!r} for joint {name!r} (supported: {', '.join(JOINT_TYPES)})"
+        )
     parent = reader.text(element, "parent") or ""
     child = reader.text(element, "child") or ""
     for role, link in (("parent", parent), ("child", child)):
         if link not in ends and not (role == "parent" and link == "world"):
-            raise reader.error(reader.child(element, role), f"joint {name!r}: {role} {link!r} is not a link of this model")
+            raise reader.error(
+                reader.child(element, role), f"joint {name!r}: {role} {link!r} is not a link of this model"
+            )
     parent, child = ends.get(parent, parent), ends[child]
     pose = frames.in_model(name, element)
     axis = element.find("axis")
     needs_axis = kind in ("revolute", "continuous", "prismatic")
     if axis is None and needs_axis:
         raise reader.error(element, f"joint {name!r} of type {kind} needs an <axis>")
-    return Joint(name, kind, parent, child, pose, _read_axis(reader, version, frames, pose, axis) if needs_axis else None)
+    return Joint(
+        name, kind, parent, child, pose, _read_axis(reader, version, frames, pose, axis) if needs_axis else None
+    )
 
 
 def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_pose: Pose, axis: Element) -> Axis:

@@ -92,16 +92,32 @@ def summarize_model(model: Model) -> str:
     head = f"model {model.name}" + (" (static)" if model.static else "") + f", canonical link {model.canonical_link}"
     if model.source is not None:
         head += f"\n  from {model.source}"
-    links = table("links", ["name", "pose in model: xyz | rpy", "mass", "collisions", "visuals"], [_link_row(link) for link in model.links])
+    links = table(
+        "links",
+        ["name", "pose in model: xyz | rpy", "mass", "collisions", "visuals"],
+        [_link_row(link) for link in model.links],
+    )
     joints = table(
         "joints",
         ["name", "type", "parent -> child", "axis", "limits"],
-        [[j.name, j.type, f"{j.parent} -> {j.child}", " ".join(_num(v) for v in j.axis.xyz) if j.axis else "-", _limits(j.axis)] for j in model.joints],
+        [
+            [
+                j.name,
+                j.type,
+                f"{j.parent} -> {j.child}",
+                " ".join(_num(v) for v in j.axis.xyz) if j.axis else "-",
+                _limits(j.axis),
+            ]
+            for j in model.joints
+        ],
     )
     sensors = table(
         "sensors",
         ["name", "type", "link", "rate Hz", "topic", "frame", "pose in link: xyz | rpy"],
-        [[s.name, s.type, link.name, _num(s.update_rate), s.topic or "-", s.frame_name or "-", _pose(s.pose)] for link, s in model.sensors()],
+        [
+            [s.name, s.type, link.name, _num(s.update_rate), s.topic or "-", s.frame_name or "-", _pose(s.pose)]
+            for link, s in model.sensors()
+        ],
     )
     plugins = table("plugins", ["name", "filename", "parameters"], [_plugin_row(p) for p in model.plugins])
     return "\n\n".join([head, links, joints, sensors, plugins])
@@ -118,7 +134,10 @@ def summarize_world(world: World) -> str:
     models = table(
         "models",
         ["name", "pose: xyz | rpy", "static", "links", "from"],
-        [[m.name, _pose(m.pose), "yes" if m.static else "no", str(len(m.links)), m.uri or "inline"] for m in world.models],
+        [
+            [m.name, _pose(m.pose), "yes" if m.static else "no", str(len(m.links)), m.uri or "inline"]
+            for m in world.models
+        ],
     )
     plugins = table("world plugins", ["name", "filename", "parameters"], [_plugin_row(p) for p in world.plugins])
     dynamic = [summarize_model(m) for m in world.models if not m.static]

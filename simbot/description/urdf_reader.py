@@ -130,7 +130,9 @@ def _link(urdf: yourdfpy.URDF, link: yourdfpy.Link, pose: Pose, path: Path) -> L
         values = (i[0, 0], i[0, 1], i[0, 2], i[1, 1], i[1, 2], i[2, 2])
         inertial = Inertial(float(link.inertial.mass), _pose(link.inertial.origin), tuple(float(v) for v in values))  # type: ignore[arg-type]
     visuals = [
-        Visual(v.name or f"{link.name}_visual_{k}", _geometry(v.geometry, path.parent), _pose(v.origin), _material(urdf, v))
+        Visual(
+            v.name or f"{link.name}_visual_{k}", _geometry(v.geometry, path.parent), _pose(v.origin), _material(urdf, v)
+        )
         for k, v in enumerate(link.visuals)
     ]
     collisions = [

@@ -87,7 +87,11 @@ def _declare_prefixes(text: str, source: Path | str) -> str:
     root = _ROOT_START.search(text)
     if not undeclared or root is None:
         return text
-    logger.debug("%s: undeclared namespace prefixes %s; their elements are kept, simbot reads none", source, ", ".join(undeclared))
+    logger.debug(
+        "%s: undeclared namespace prefixes %s; their elements are kept, simbot reads none",
+        source,
+        ", ".join(undeclared),
+    )
     declarations = "".join(f' xmlns:{p}="{UNDECLARED_NS}{p}"' for p in undeclared)
     return text[: root.end()] + declarations + text[root.end() :]
 
@@ -95,7 +99,11 @@ def _declare_prefixes(text: str, source: Path | str) -> str:
 def sdf_tag(element: Element) -> str:
     """The element's name as the file wrote it: `gz:policies`, `gz::system_priority`, `link`."""
     qname = etree.QName(element)
-    prefix = qname.namespace[len(UNDECLARED_NS) :] + ":" if qname.namespace and qname.namespace.startswith(UNDECLARED_NS) else ""
+    prefix = (
+        qname.namespace[len(UNDECLARED_NS) :] + ":"
+        if qname.namespace and qname.namespace.startswith(UNDECLARED_NS)
+        else ""
+    )
     return prefix + qname.localname.replace(SCOPE_MARK, "::")
 
 
@@ -162,7 +170,9 @@ class Reader:
             raise self.error(element.find(tag), f"expected a whole number, got {value}")
         return int(value)
 
-    def vector(self, element: Element, tag: str, count: int, default: tuple[float, ...] | None = None) -> tuple[float, ...] | None:
+    def vector(
+        self, element: Element, tag: str, count: int, default: tuple[float, ...] | None = None
+    ) -> tuple[float, ...] | None:
         """An optional child element holding `count` numbers."""
         found = element.find(tag)
         return default if found is None else self.floats(found, count)

@@ -83,14 +83,16 @@ class WorldControl:
     def _set_pose(self, request: Request, body: dict[str, Any]) -> None:
         name = body.get("name")
         if not isinstance(name, str):
-            raise TypeError("set_pose needs a model \"name\"")
+            raise TypeError('set_pose needs a model "name"')
         position = _vector(body.get("position", {}), "xyz", "position", 0.0)
         orientation = _vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0)
         norm = math.sqrt(sum(v * v for v in orientation))
         if norm < 1e-9:
             raise ValueError("orientation must be a non-zero quaternion")
         quat = tuple(v / norm for v in orientation)
-        self.sim.physics.set_model_pose(name, ((position[0], position[1], position[2]), (quat[0], quat[1], quat[2], quat[3])))
+        self.sim.physics.set_model_pose(
+            name, ((position[0], position[1], position[2]), (quat[0], quat[1], quat[2], quat[3]))
+        )
         request.reply(self._time(ok=True))
 
     def _state(self, request: Request, body: dict[str, Any]) -> None:
@@ -117,9 +119,11 @@ class WorldControl:
 
 def _reset(value: Any) -> bool:
     """Whether a reset field asks for a reset (Gazebo's all, model_only and time_only all reset everything here)."""
-    if value is True or (isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))):
+    if value is True or (
+        isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))
+    ):
         return True
-    raise ValueError(f"reset expects true or {{\"all\": true}}, got {value!r}")
+    raise ValueError(f'reset expects true or {{"all": true}}, got {value!r}')
 
 
 def _pause(value: Any) -> bool:

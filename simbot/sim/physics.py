@@ -125,7 +125,9 @@ class Physics:
         frame = pose_to_transform(pose if pose is not None else model.pose)
         root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
         flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
-        body_id = pb.loadURDF(str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client)
+        body_id = pb.loadURDF(
+            str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client
+        )
         body = self._index(name, model, body_id, root, urdf_text)
         self.bodies[name] = body
         self._configure_joints(body)
@@ -136,11 +138,17 @@ class Physics:
                     self._add_heightfield(model, link, collision, collision.geometry, frame)
         return body
 
-    def _add_heightfield(self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform) -> None:
+    def _add_heightfield(
+        self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform
+    ) -> None:
         """A heightmap's collision as a PyBullet heightfield fixed in the world, URDF having none;
         only in a static model, as Gazebo has it (the URDF carries the heightmap's visual)."""
         if not model.static:
-            logger.warning("model %r: heightmap %r is in a model that moves; Gazebo collides only static ones, and so does simbot", model.name, collision.name)
+            logger.warning(
+                "model %r: heightmap %r is in a model that moves; Gazebo collides only static ones, and so does simbot",
+                model.name,
+                collision.name,
+            )
             return
         heights = heightmap_heights(heightmap, model.source)
         rows, cols = heights.shape
@@ -152,7 +160,11 @@ class Physics:
             numHeightfieldColumns=rows,
             physicsClientId=self.client,
         )
-        centre = (heightmap.pos[0], heightmap.pos[1], heightmap.pos[2] + (heights.min() + heights.max()) / 2.0)  # Bullet centres its height range
+        centre = (
+            heightmap.pos[0],
+            heightmap.pos[1],
+            heightmap.pos[2] + (heights.min() + heights.max()) / 2.0,
+        )  # Bullet centres its height range
         pose = compose(frame, pose_to_transform(link.pose @ collision.pose @ Pose(centre, (0.0, 0.0, 0.0))))
         body = pb.createMultiBody(0.0, shape, -1, *pose, physicsClientId=self.client)
         mu = collision.friction.mu if collision.friction else SDF_DEFAULT_MU
@@ -181,7 +193,9 @@ class Physics:
             joint = sdf_joints.get(urdf_name.split("__", 1)[0])  # a ball joint's three parts are JOINT__yaw, ...
             if joint is not None:
                 friction = joint.axis.friction if joint.axis else 0.0
-                pb.setJointMotorControl2(body.id, index, pb.VELOCITY_CONTROL, force=friction, physicsClientId=self.client)
+                pb.setJointMotorControl2(
+                    body.id, index, pb.VELOCITY_CONTROL, force=friction, physicsClientId=self.client
+                )
 
     def _configure_friction(self, body: Body) -> None:
         """SDF μ per link; wheels with μ ≠ μ2 get the anisotropic model PyBullet lacks (see wheel_friction)."""
@@ -196,7 +210,9 @@ class Physics:
             if friction and joint is not None and joint.axis is not None:
                 wheels.append(Wheel(index, friction.mu, friction.mu2, _axis_in_link(joint, link.pose)))
                 mu = 0.0
-            pb.changeDynamics(body.id, index, lateralFriction=mu, rollingFriction=0, spinningFriction=0, physicsClientId=self.client)
+            pb.changeDynamics(
+                body.id, index, lateralFriction=mu, rollingFriction=0, spinningFriction=0, physicsClientId=self.client
+            )
         if wheels:
             self._wheels.append(WheelFriction(self.client, body.id, tuple(wheels)))
             self._soften_tyres(body, wheels)
@@ -206,7 +222,13 @@ class Physics:
         mass = sum(pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in body.links.values())
         damping = 2.0 * math.sqrt(TYRE_STIFFNESS * mass / len(wheels))
         for wheel in wheels:
-            pb.changeDynamics(body.id, wheel.link, contactStiffness=TYRE_STIFFNESS, contactDamping=damping, physicsClientId=self.client)
+            pb.changeDynamics(
+                body.id,
+                wheel.link,
+                contactStiffness=TYRE_STIFFNESS,
+                contactDamping=damping,
+                physicsClientId=self.client,
+            )
 
     @staticmethod
     def _wheel_joint(model: Model, link: str) -> Joint | None:
@@ -260,7 +282,9 @@ class Physics:
         offset = self._offsets.get(key)
         if offset is None:
             sdf_link = body.model.link(link)
-            offset = self._offsets[key] = pose_to_transform(link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link)
+            offset = self._offsets[key] = pose_to_transform(
+                link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link
+            )
         return offset
 
     def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]:
@@ -273,12 +297,18 @@ class Physics:
             linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
             frame = compose(_as_transform(com, orn), body.com_to_root)
         else:
-            state = pb.getLinkState(body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client)
+            state = pb.getLinkState(
+                body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
+            )
             com, linear, angular = state[0], state[6], state[7]
             frame = _as_transform(state[4], state[5])
         pose = compose(frame, self._offset(body, link, pose_in_link))
         (wx, wy, wz), (rx, ry, rz) = angular, (pose[0][0] - com[0], pose[0][1] - com[1], pose[0][2] - com[2])
-        velocity = (linear[0] + wy * rz - wz * ry, linear[1] + wz * rx - wx * rz, linear[2] + wx * ry - wy * rx)  # v + ω × r
+        velocity = (
+            linear[0] + wy * rz - wz * ry,
+            linear[1] + wz * rx - wx * rz,
+            linear[2] + wx * ry - wy * rx,
+        )  # v + ω × r
         return pose, velocity, (float(wx), float(wy), float(wz))
 
     def blind_rays_to(self, model: str) -> None:
@@ -289,7 +319,9 @@ class Physics:
 
     def cast_rays(self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing."""
-        hits = pb.rayTestBatch(starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client)
+        hits = pb.rayTestBatch(
+            starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client
+        )
         return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
 
     def moving_bodies(self) -> list[str]:
@@ -327,7 +359,12 @@ class Physics:
         """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo."""
         body = self.body(model)
         pb.setJointMotorControl2(
-            body.id, self._joint(body, joint), pb.VELOCITY_CONTROL, targetVelocity=velocity, force=max_effort, physicsClientId=self.client
+            body.id,
+            self._joint(body, joint),
+            pb.VELOCITY_CONTROL,
+            targetVelocity=velocity,
+            force=max_effort,
+            physicsClientId=self.client,
         )
 
     def attach(self, parent: tuple[str, str], child: tuple[str, str]) -> int:
@@ -348,7 +385,11 @@ class Physics:
         body = self.body(model)
         index = self._link(body, link)
         if index == -1:
-            return body.id, index, _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+            return (
+                body.id,
+                index,
+                _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)),
+            )
         state = pb.getLinkState(body.id, index, physicsClientId=self.client)
         return body.id, index, _as_transform(state[0], state[1])
 

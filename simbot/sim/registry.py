@@ -23,7 +23,9 @@ log = logging.getLogger(__name__)
 
 GROUP = "simbot.systems"
 SENSOR_GROUP = "simbot.sensors"
-_LIBRARY = re.compile(r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$")
+_LIBRARY = re.compile(
+    r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$"
+)
 
 
 def canonical_name(plugin: Plugin) -> str:
@@ -53,7 +55,9 @@ def lookup(plugin: Plugin) -> Callable[..., object] | None:
     name = canonical_name(plugin)
     system = registered().get(name)
     if system is None:
-        log.warning("unknown plugin %s (%s): no system named %r is registered; ignored", plugin.name, plugin.filename, name)
+        log.warning(
+            "unknown plugin %s (%s): no system named %r is registered; ignored", plugin.name, plugin.filename, name
+        )
     return system
 
 
@@ -61,5 +65,7 @@ def sensor_lookup(sensor: Sensor) -> Callable[..., object] | None:
     """The class for a `<sensor>` of this type, or None with a warning naming it."""
     system = registered(SENSOR_GROUP).get(sensor.type)
     if system is None:
-        log.warning("sensor %s of type %r: no sensor system of that type is registered; ignored", sensor.name, sensor.type)
+        log.warning(
+            "sensor %s of type %r: no sensor system of that type is registered; ignored", sensor.name, sensor.type
+        )
     return system

@@ -100,12 +100,28 @@ class Server:
         self.control = WorldControl(node, self.world.name, self.sim, self.bus)
 
     def _context(
-        self, model: Model | None = None, name: str | None = None, plugin: Plugin | None = None, sensor: tuple[Link, Sensor] | None = None
+        self,
+        model: Model | None = None,
+        name: str | None = None,
+        plugin: Plugin | None = None,
+        sensor: tuple[Link, Sensor] | None = None,
     ) -> SystemContext:
         link, sdf_sensor = sensor if sensor else (None, None)
         leaf = (link.name, sdf_sensor.name) if link and sdf_sensor else (plugin.name,) if plugin else ()
         rng = scoped_rng(self._seed, name or "world", *leaf)
-        return SystemContext(self.physics, self.bus, self.world, rng, model, name, plugin, link, sdf_sensor, self._settings, self.rendering)
+        return SystemContext(
+            self.physics,
+            self.bus,
+            self.world,
+            rng,
+            model,
+            name,
+            plugin,
+            link,
+            sdf_sensor,
+            self._settings,
+            self.rendering,
+        )
 
     def _systems(self, robot: Model) -> list[object]:
         """World plugins, then each model's plugins and sensors, then the server's own publishers."""
@@ -157,19 +173,41 @@ class Server:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="simbot-server", description="simbot's simulator: a world, the Flexley Tug, and the bus")
-    parser.add_argument("--world", default="warehouse", help="world file, or a built-in world: warehouse (default), empty")
+    parser = argparse.ArgumentParser(
+        prog="simbot-server", description="simbot's simulator: a world, the Flexley Tug, and the bus"
+    )
+    parser.add_argument(
+        "--world", default="warehouse", help="world file, or a built-in world: warehouse (default), empty"
+    )
     parser.add_argument("--robot", type=Path, help="robot SDF, URDF or xacro (default: simbot's Flexley Tug)")
-    parser.add_argument("--spawn", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), default=DEFAULT_SPAWN, help="robot pose in the world")
-    parser.add_argument("--mode", choices=[m.value for m in Mode], default=Mode.REALTIME.value, help="realtime (default), fast, or lockstep")
+    parser.add_argument(
+        "--spawn",
+        nargs=4,
+        type=float,
+        metavar=("X", "Y", "Z", "YAW"),
+        default=DEFAULT_SPAWN,
+        help="robot pose in the world",
+    )
+    parser.add_argument(
+        "--mode",
+        choices=[m.value for m in Mode],
+        default=Mode.REALTIME.value,
+        help="realtime (default), fast, or lockstep",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
     parser.add_argument(
-        "--renderer", choices=RENDERERS, default="auto",
+        "--renderer",
+        choices=RENDERERS,
+        default="auto",
         help="camera renderer: gl (OpenGL on EGL: the GPU, else Mesa on the CPU), tiny (PyBullet's TinyRenderer), auto (default: gl where an EGL context opens, else tiny)",
     )
-    parser.add_argument("--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240")
+    parser.add_argument(
+        "--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240"
+    )
     parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
-    parser.add_argument("--render-workers", type=_count, metavar="N", help="camera render processes (default: every core but one)")
+    parser.add_argument(
+        "--render-workers", type=_count, metavar="N", help="camera render processes (default: every core but one)"
+    )
     parser.add_argument("--quiet", action="store_true", help="no status line")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
@@ -210,7 +248,12 @@ def _count(text: str) -> int:
 
 def _config(args: argparse.Namespace) -> ServerConfig:
     robot = args.robot if args.robot is not None else asset("urdf/flexley_tug.sdf")
-    sensors = SensorSettings(renderer=args.renderer, camera_size=args.camera_size, camera_rate=args.camera_rate, render_workers=args.render_workers)
+    sensors = SensorSettings(
+        renderer=args.renderer,
+        camera_size=args.camera_size,
+        camera_rate=args.camera_rate,
+        render_workers=args.render_workers,
+    )
     return ServerConfig(world_path(args.world), robot, tuple(args.spawn), Mode(args.mode), args.seed, sensors)
 
 
@@ -220,7 +263,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not all(math.isfinite(v) for v in args.spawn):
         parser.error(f"--spawn expects finite numbers, got {' '.join(map(str, args.spawn))}")
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.INFO, format="%(levelname)s %(name)s: %(message)s"
+    )
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -228,7 +273,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         config = _config(args)
         with Node(BusOptions.from_args(args), "server") as node:
             server = Server(config, node)
-            log.info("world %s, robot %s, %s mode, namespace %r", server.world.name, config.robot.name, config.mode.value, node.namespace)
+            log.info(
+                "world %s, robot %s, %s mode, namespace %r",
+                server.world.name,
+                config.robot.name,
+                config.mode.value,
+                node.namespace,
+            )
             try:
                 server.run(stop, status=not args.quiet)
             finally:

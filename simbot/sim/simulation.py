@@ -167,7 +167,9 @@ class Simulation:
     def runs_freely(self) -> bool:
         return not self.paused and self.mode is not Mode.LOCKSTEP
 
-    def run(self, stop: threading.Event, poll: Callable[[], None], every_second: Callable[[], None] | None = None) -> None:
+    def run(
+        self, stop: threading.Event, poll: Callable[[], None], every_second: Callable[[], None] | None = None
+    ) -> None:
         """Steps until `stop` is set; `poll` handles requests between steps."""
         self._pacer.anchor(self.clock.now_ns)
         next_tick = time.monotonic() + 1.0

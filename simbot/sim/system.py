@@ -116,7 +116,9 @@ class Input:
         """The valid messages that arrived since the last call, oldest first."""
         if self._inbox.overflowed != self._overflowed:
             lost, self._overflowed = self._inbox.overflowed - self._overflowed, self._inbox.overflowed
-            self._drops.drop(self.key, "more commands arrived within one step than the queue holds; the oldest were dropped", lost)
+            self._drops.drop(
+                self.key, "more commands arrived within one step than the queue holds; the oldest were dropped", lost
+            )
         messages = []
         for payload in self._inbox.drain():
             try:
@@ -245,7 +247,9 @@ def number_param(plugin: Plugin, *tags: str, default: float | None = None, posit
     except ValueError:
         raise SystemConfigError(f"{plugin.name}: <{tags[0]}> expected a number, got {text!r}") from None
     if not math.isfinite(value) or (positive and value <= 0):
-        raise SystemConfigError(f"{plugin.name}: <{tags[0]}> must be a {'positive ' if positive else ''}finite number, got {text!r}")
+        raise SystemConfigError(
+            f"{plugin.name}: <{tags[0]}> must be a {'positive ' if positive else ''}finite number, got {text!r}"
+        )
     return value
 
 

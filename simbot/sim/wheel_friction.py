@@ -94,13 +94,23 @@ class WheelFriction:
             acc = loads.get(link)
             if acc is not None:
                 n = acc[0]
-                self._apply_one(self._wheels[link], (acc[1] / n, acc[2] / n, acc[3] / n), (acc[4] / n, acc[5] / n, acc[6] / n), n, state)
+                self._apply_one(
+                    self._wheels[link],
+                    (acc[1] / n, acc[2] / n, acc[3] / n),
+                    (acc[4] / n, acc[5] / n, acc[6] / n),
+                    n,
+                    state,
+                )
 
     def _apply_one(self, wheel: Wheel, point: Vec3, normal: Vec3, load: float, state: tuple[Any, ...]) -> None:
         centre, linear, angular = state[0], state[6], state[7]
         m = pb.getMatrixFromQuaternion(state[5])
         a = wheel.axle
-        axle = (m[0] * a[0] + m[1] * a[1] + m[2] * a[2], m[3] * a[0] + m[4] * a[1] + m[5] * a[2], m[6] * a[0] + m[7] * a[1] + m[8] * a[2])
+        axle = (
+            m[0] * a[0] + m[1] * a[1] + m[2] * a[2],
+            m[3] * a[0] + m[4] * a[1] + m[5] * a[2],
+            m[6] * a[0] + m[7] * a[1] + m[8] * a[2],
+        )
         along = _cross(axle, normal)
         norm = (along[0] * along[0] + along[1] * along[1] + along[2] * along[2]) ** 0.5
         if norm < 1e-6:  # touching with its side: no rolling direction

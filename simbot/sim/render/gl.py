@@ -95,7 +95,9 @@ class GlRenderer:
 
     name = "gl"
 
-    def __init__(self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec], threads: int | None = None) -> None:
+    def __init__(
+        self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec], threads: int | None = None
+    ) -> None:
         if threads is not None:
             os.environ["LP_NUM_THREADS"] = str(threads)  # read by Mesa's llvmpipe when the context opens
         import moderngl  # an import error is a reason to fall back, reported by the worker
@@ -185,7 +187,9 @@ class GlRenderer:
         """Each part's model matrix for the scene's current pose, worked out once per pose (the
         six cameras of a set share it)."""
         if self._posed != self.scene.version:
-            frames = {body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}}
+            frames = {
+                body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}
+            }
             self._model_matrices = [_gl(np.eye(4) if p.body is None else frames[p.body][p.link]) for p in self.parts]
             self._posed = self.scene.version
         return self._model_matrices

@@ -54,4 +54,3 @@ class PointGrid:
         out[..., 2] = z
         packed = (rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8) | rgb[..., 2]
         out[..., 3] = packed.view(np.float32)
-

@@ -128,7 +128,11 @@ class RenderPool:
             raise
         self._summarise(ready)
         log.info(
-            "render pool: %d cameras on %d workers, renderer %s (%s)", len(self.cameras), n, self.renderer_used, self.device,
+            "render pool: %d cameras on %d workers, renderer %s (%s)",
+            len(self.cameras),
+            n,
+            self.renderer_used,
+            self.device,
         )
 
     @property
@@ -367,5 +371,3 @@ def _free(shm: SharedMemory) -> None:
         log.debug("shared memory %s still viewed by a caller's frame; unmapped when that goes", shm.name)
     with contextlib.suppress(FileNotFoundError):
         shm.unlink()
-
-

@@ -101,7 +101,14 @@ class BulletScene:
         """The body's visuals, in its URDF link frames."""
         shapes = self.pb.getVisualShapeData(self.ids[name], physicsClientId=self.client)
         return [
-            VisualShape(s[1], s[2], tuple(s[3]), s[4].decode(errors="replace") if isinstance(s[4], bytes) else str(s[4]), (s[5], s[6]), s[7])
+            VisualShape(
+                s[1],
+                s[2],
+                tuple(s[3]),
+                s[4].decode(errors="replace") if isinstance(s[4], bytes) else str(s[4]),
+                (s[5], s[6]),
+                s[7],
+            )
             for s in shapes
         ]
 
@@ -113,7 +120,9 @@ class BulletScene:
         frames = {-1: base @ np.linalg.inv(inertial)}  # the base pose is its centre of mass's
         count = pb.getNumJoints(body_id, physicsClientId=client)
         if count:
-            states = pb.getLinkStates(body_id, list(range(count)), computeForwardKinematics=True, physicsClientId=client)
+            states = pb.getLinkStates(
+                body_id, list(range(count)), computeForwardKinematics=True, physicsClientId=client
+            )
             frames.update((j, matrix(state[4], state[5])) for j, state in enumerate(states))
         return frames
 
@@ -135,7 +144,7 @@ def view_matrix(pose: Transform) -> Matrix:
     # eye axes in the camera frame: x_eye = -y_cam (right), y_eye = z_cam (up), z_eye = -x_cam (back)
     eye_in_camera = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
     world_to_camera = np.linalg.inv(camera)
-    return eye_in_camera @ world_to_camera  # type: ignore[no-any-return]
+    return eye_in_camera @ world_to_camera
 
 
 def projection_matrix(vfov_deg: float, aspect: float, near: float, far: float) -> Matrix:

@@ -89,10 +89,19 @@ def _sphere_profile(radius: float, half_length: float) -> list[tuple[float, floa
 def _cylinder_profile(length: float, radius: float) -> list[tuple[float, float, float, float]]:
     """Flat caps (their own normals) and a smooth side."""
     h = length / 2.0
-    return [(0.0, -h, 0.0, -1.0), (radius, -h, 0.0, -1.0), (radius, -h, 1.0, 0.0), (radius, h, 1.0, 0.0), (radius, h, 0.0, 1.0), (0.0, h, 0.0, 1.0)]
+    return [
+        (0.0, -h, 0.0, -1.0),
+        (radius, -h, 0.0, -1.0),
+        (radius, -h, 1.0, 0.0),
+        (radius, h, 1.0, 0.0),
+        (radius, h, 0.0, 1.0),
+        (0.0, h, 0.0, 1.0),
+    ]
 
 
-def revolved(profile: list[tuple[float, float, float, float]]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+def revolved(
+    profile: list[tuple[float, float, float, float]],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """A surface of revolution about z: each pair of profile points sweeps a band of quads."""
     angles = np.linspace(0.0, 2.0 * np.pi, SEGMENTS + 1)
     cos, sin = np.cos(angles), np.sin(angles)

@@ -26,7 +26,9 @@ class TinyRenderer:
         self.scene = scene
         self.light = light
         self.cameras = dict(cameras)
-        self.projections = {i: _flat(projection_matrix(s.vfov_deg, s.width / s.height, s.near, s.far)) for i, s in cameras.items()}
+        self.projections = {
+            i: _flat(projection_matrix(s.vfov_deg, s.width / s.height, s.near, s.far)) for i, s in cameras.items()
+        }
 
     def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None:
         spec = self.cameras[camera]
@@ -57,6 +59,6 @@ class TinyRenderer:
         """Nothing of its own: the scene's client is the worker's to disconnect."""
 
 
-def _flat(m: np.ndarray) -> Sequence[float]:  # type: ignore[type-arg]
+def _flat(m: np.ndarray) -> Sequence[float]:
     """A 4×4 matrix as PyBullet wants it: 16 floats, column-major."""
     return [float(v) for v in m.T.reshape(-1)]

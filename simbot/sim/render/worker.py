@@ -57,20 +57,21 @@ class CameraBuffers:
         self.spec = spec
         self.shm = shm
         self.arrays: dict[str, Any] = {
-            name: np.ndarray(shape, dtype=dtype, buffer=shm.buf, offset=offset) for name, (dtype, shape, offset) in spec.layout().items()
+            name: np.ndarray(shape, dtype=dtype, buffer=shm.buf, offset=offset)
+            for name, (dtype, shape, offset) in spec.layout().items()
         }
 
     @property
     def color(self) -> Pixels | None:
-        return self.arrays.get("color")  # type: ignore[no-any-return]
+        return self.arrays.get("color")
 
     @property
     def depth(self) -> Depths | None:
-        return self.arrays.get("depth")  # type: ignore[no-any-return]
+        return self.arrays.get("depth")
 
     @property
     def points(self) -> Points | None:
-        return self.arrays.get("points")  # type: ignore[no-any-return]
+        return self.arrays.get("points")
 
     def release(self) -> None:
         """Drop the views first: a mapping with live views cannot be closed."""
@@ -152,7 +153,9 @@ def _serve(conn: Connection, scene: BulletScene, renderer: Renderer, cameras: di
         return
 
 
-def render(scene: BulletScene, renderer: Renderer, camera: _Camera, pose: Transform, states: Mapping[str, BodyState]) -> None:
+def render(
+    scene: BulletScene, renderer: Renderer, camera: _Camera, pose: Transform, states: Mapping[str, BodyState]
+) -> None:
     """Pose the scene, draw, and finish the outputs in the camera's shared memory."""
     scene.apply(states)
     buffers = camera.buffers

@@ -138,7 +138,9 @@ class Camera(Sampled):
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
         """The camera's products: here the colour image on the sensor's topic."""
-        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.image(f.stamp_ns, self.frame_id, f.rgb()))]
+        return [
+            Output(bus.publisher(topic, messages.Image), lambda f: messages.image(f.stamp_ns, self.frame_id, f.rgb()))
+        ]
 
     def info_key(self, topic: str) -> str:
         return camera_info_key(topic)
@@ -158,7 +160,9 @@ class Camera(Sampled):
         if self._info.has_subscribers:
             spec = self.spec
             cx, cy = spec.principal_point
-            self._info.put(messages.camera_info(stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy))
+            self._info.put(
+                messages.camera_info(stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy)
+            )
 
     def report(self) -> dict[str, Any]:
         figures = super().report() | {"skipped": self.skipped, "size": [self.spec.width, self.spec.height]}

@@ -21,4 +21,9 @@ class DepthCamera(Camera):
     color = False
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
-        return [Output(bus.publisher(topic, messages.Image), lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.metres()))]
+        return [
+            Output(
+                bus.publisher(topic, messages.Image),
+                lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.metres()),
+            )
+        ]

@@ -30,7 +30,9 @@ class DetachableJoint:
         plugin = ctx.plugin
         assert plugin is not None
         model, self._name = ctx.require_model("DetachableJoint")
-        parent_link, child_model, child_link = (param(plugin, tag) for tag in ("parent_link", "child_model", "child_link"))
+        parent_link, child_model, child_link = (
+            param(plugin, tag) for tag in ("parent_link", "child_model", "child_link")
+        )
         if parent_link is None or child_model is None or child_link is None:
             raise SystemConfigError(f"{plugin.name}: <parent_link>, <child_model> and <child_link> are required")
         if parent_link not in {link.name for link in model.links}:
@@ -40,7 +42,11 @@ class DetachableJoint:
         self._physics = ctx.physics
         self._attach = ctx.bus.input(param(plugin, "attach_topic", default="attach") or "attach", EMPTY)
         self._detach = ctx.bus.input(param(plugin, "detach_topic", default="detach") or "detach", EMPTY)
-        self._state = ctx.bus.publisher(param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state", messages.String, latched=True)
+        self._state = ctx.bus.publisher(
+            param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state",
+            messages.String,
+            latched=True,
+        )
         self._joint: int | None = None
         self._publish()
 

@@ -196,7 +196,9 @@ class DiffDrive:
     def post_update(self, now_ns: int) -> None:
         if not self._every.due(now_ns):
             return
-        distance, turn = self._odom.update(self._side(self.params.left), self._side(self.params.right), self.params.radius, self.params.separation)
+        distance, turn = self._odom.update(
+            self._side(self.params.left), self._side(self.params.right), self.params.radius, self.params.separation
+        )
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
         speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
@@ -211,7 +213,17 @@ class DiffDrive:
         quat = (0.0, 0.0, math.sin(o.yaw / 2), math.cos(o.yaw / 2))
         pose_cov = _diagonal(POSE_COVARIANCE)
         twist_cov = _diagonal(TWIST_COVARIANCE)
-        odom = messages.odometry(now_ns, p.frame_id, p.child_frame_id, (o.x, o.y, 0.0), quat, (speed, 0.0, 0.0), (0.0, 0.0, rate), pose_cov, twist_cov)
+        odom = messages.odometry(
+            now_ns,
+            p.frame_id,
+            p.child_frame_id,
+            (o.x, o.y, 0.0),
+            quat,
+            (speed, 0.0, 0.0),
+            (0.0, 0.0, rate),
+            pose_cov,
+            twist_cov,
+        )
         self._odom_pub.put(odom)
         if self._tf_pub is not None:
             transform = messages.transform_stamped(now_ns, p.frame_id, p.child_frame_id, (o.x, o.y, 0.0), quat)

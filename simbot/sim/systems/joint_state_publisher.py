@@ -30,14 +30,22 @@ class JointStatePublisher:
                 raise SystemConfigError(f"{ctx.plugin.name}: model {model.name!r} has no movable joint {name!r}")
         self._joints = list(names)
         self._physics = ctx.physics
-        self._pub = ctx.bus.publisher(param(ctx.plugin, "topic", default="joint_states") or "joint_states", messages.JointState)
-        self._every = Every.hz(number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ)
+        self._pub = ctx.bus.publisher(
+            param(ctx.plugin, "topic", default="joint_states") or "joint_states", messages.JointState
+        )
+        self._every = Every.hz(
+            number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ
+        )
 
     def post_update(self, now_ns: int) -> None:
         if not self._every.due(now_ns):
             return
         states = self._physics.joint_states(self._name, self._joints)
-        self._pub.put(messages.joint_state(now_ns, self._joints, [s[0] for s in states], [s[1] for s in states], [s[2] for s in states]))
+        self._pub.put(
+            messages.joint_state(
+                now_ns, self._joints, [s[0] for s in states], [s[1] for s in states], [s[2] for s in states]
+            )
+        )
 
     def reset(self, now_ns: int) -> None:
         self._every.restart()

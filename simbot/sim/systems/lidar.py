@@ -47,7 +47,9 @@ class ScanAxis:
 
     @staticmethod
     def from_sdf(element: SdfElement) -> ScanAxis:
-        return ScanAxis(element.integer("samples", 1), element.number("min_angle", 0.0), element.number("max_angle", 0.0))
+        return ScanAxis(
+            element.integer("samples", 1), element.number("min_angle", 0.0), element.number("max_angle", 0.0)
+        )
 
 
 @dataclass(frozen=True)
@@ -86,19 +88,33 @@ def ray_directions(spec: LidarParams) -> tuple[npt.NDArray[np.float64], float]:
     h = spec.horizontal
     angles = np.linspace(h.min_angle, h.max_angle, h.samples)
     increment = (h.max_angle - h.min_angle) / (h.samples - 1) if h.samples > 1 else 0.0
-    elevation = spec.vertical.min_angle if spec.vertical.samples <= 1 else (spec.vertical.min_angle + spec.vertical.max_angle) / 2
+    elevation = (
+        spec.vertical.min_angle
+        if spec.vertical.samples <= 1
+        else (spec.vertical.min_angle + spec.vertical.max_angle) / 2
+    )
     cos_e = math.cos(elevation)
-    directions = np.stack([np.cos(angles) * cos_e, np.sin(angles) * cos_e, np.full_like(angles, math.sin(elevation))], axis=1)
+    directions = np.stack(
+        [np.cos(angles) * cos_e, np.sin(angles) * cos_e, np.full_like(angles, math.sin(elevation))], axis=1
+    )
     return directions, increment
 
 
 def _check(name: str, spec: LidarParams) -> None:
     if spec.horizontal.samples < 1:
-        raise SystemConfigError(f"sensor {name}: <horizontal><samples> must be at least 1, got {spec.horizontal.samples}")
+        raise SystemConfigError(
+            f"sensor {name}: <horizontal><samples> must be at least 1, got {spec.horizontal.samples}"
+        )
     if not 0 <= spec.range_min < spec.range_max or not math.isfinite(spec.range_max):
-        raise SystemConfigError(f"sensor {name}: <range> needs 0 ≤ min < max, got min {spec.range_min} max {spec.range_max}")
+        raise SystemConfigError(
+            f"sensor {name}: <range> needs 0 ≤ min < max, got min {spec.range_min} max {spec.range_max}"
+        )
     if spec.vertical.samples > 1:
-        log.warning("sensor %s: %d vertical samples; a LaserScan holds one plane, the middle one is published", name, spec.vertical.samples)
+        log.warning(
+            "sensor %s: %d vertical samples; a LaserScan holds one plane, the middle one is published",
+            name,
+            spec.vertical.samples,
+        )
 
 
 class Lidar(Sampled):
@@ -125,7 +141,9 @@ class Lidar(Sampled):
             return
         spec = self.params
         self._pub.put(
-            messages.laser_scan(now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), self.scan())
+            messages.laser_scan(
+                now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), self.scan()
+            )
         )
         self.published(now_ns)
 

@@ -115,7 +115,10 @@ class Rendering:
         if self.failure is not None:
             return False
         if self._starting is None:
-            bodies = [SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0]) for name, body in self.physics.bodies.items()]
+            bodies = [
+                SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0])
+                for name, body in self.physics.bodies.items()
+            ]
             self._starting = threading.Thread(target=self._start, args=(bodies,), name="render-pool-start", daemon=True)
             self._starting.start()
         if self.settings.lockstep:
@@ -128,7 +131,9 @@ class Rendering:
         specs = [camera.spec for camera in self.cameras]
         plan = plan_pool(len(specs), self.settings.render_workers)
         try:
-            pool = RenderPool(bodies, specs, plan.workers, self.settings.renderer, self.light, gl_threads=plan.gl_threads)
+            pool = RenderPool(
+                bodies, specs, plan.workers, self.settings.renderer, self.light, gl_threads=plan.gl_threads
+            )
         except (OSError, RuntimeError, ValueError) as exc:
             self.failure = f"the camera render workers did not start: {exc}"
             log.error("%s; no images will be published", self.failure)
@@ -158,7 +163,9 @@ class Rendering:
             return
         try:
             waits = range(len(self.cameras)) if self.settings.lockstep else [None]
-            frames = [frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)]
+            frames = [
+                frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)
+            ]
         except (RuntimeError, TimeoutError) as exc:
             self.fail(str(exc))
             return

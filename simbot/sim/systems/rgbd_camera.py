@@ -27,9 +27,17 @@ class RgbdCamera(Camera):
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
         frame = self.frame_id
         return [
-            Output(bus.publisher(f"{topic}/image", messages.Image), lambda f: messages.image(f.stamp_ns, frame, f.rgb())),
-            Output(bus.publisher(f"{topic}/depth_image", messages.Image), lambda f: messages.depth_image(f.stamp_ns, frame, f.metres())),
-            Output(bus.publisher(f"{topic}/points", messages.PointCloud2), lambda f: messages.point_cloud(f.stamp_ns, frame, f.cloud())),
+            Output(
+                bus.publisher(f"{topic}/image", messages.Image), lambda f: messages.image(f.stamp_ns, frame, f.rgb())
+            ),
+            Output(
+                bus.publisher(f"{topic}/depth_image", messages.Image),
+                lambda f: messages.depth_image(f.stamp_ns, frame, f.metres()),
+            ),
+            Output(
+                bus.publisher(f"{topic}/points", messages.PointCloud2),
+                lambda f: messages.point_cloud(f.stamp_ns, frame, f.cloud()),
+            ),
         ]
 
     def info_key(self, topic: str) -> str:

@@ -55,7 +55,10 @@ class MovableJoint:
             x, y, z = self.axis
             return compose(self.origin, ((x * position, y * position, z * position), (0.0, 0.0, 0.0, 1.0)))
         s = math.sin(position / 2)
-        return compose(self.origin, ((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))))
+        return compose(
+            self.origin,
+            ((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))),
+        )
 
 
 def movable_joints(urdf: str) -> list[MovableJoint]:
@@ -102,8 +105,13 @@ class RobotStatePublisher:
     def __init__(self, ctx: SystemContext) -> None:
         model, self._name = ctx.require_model("RobotStatePublisher")
         urdf = ctx.physics.body(self._name).urdf
-        ctx.bus.publisher("robot_description", messages.String, latched=True).put(messages.string(model_to_urdf(model, mesh_uris=True)))
-        transforms = [messages.transform_stamped(0, parent, child, *pose_to_transform(pose)) for parent, child, pose in static_transforms(model, urdf)]
+        ctx.bus.publisher("robot_description", messages.String, latched=True).put(
+            messages.string(model_to_urdf(model, mesh_uris=True))
+        )
+        transforms = [
+            messages.transform_stamped(0, parent, child, *pose_to_transform(pose))
+            for parent, child, pose in static_transforms(model, urdf)
+        ]
         ctx.bus.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
         self._physics = ctx.physics
         self._joints = movable_joints(urdf)
@@ -115,7 +123,8 @@ class RobotStatePublisher:
             return
         states = self._physics.joint_states(self._name, [joint.name for joint in self._joints])
         transforms = [
-            messages.transform_stamped(now_ns, joint.parent, joint.child, *joint.transform(state[0])) for joint, state in zip(self._joints, states)
+            messages.transform_stamped(now_ns, joint.parent, joint.child, *joint.transform(state[0]))
+            for joint, state in zip(self._joints, states)
         ]
         self._tf.put(messages.tf_message(transforms))
 
