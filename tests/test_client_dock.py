@@ -214,4 +214,7 @@ def test_checks_count_sim_time_not_wall_time() -> None:
             client.wait_for(r"checking 2/3", since=mark)
             sim.step(250)
             client.wait_for(r"attach sent: 3 checks near", since=mark)
-            collector.wait_for(lambda ms: ms[-1].data == "attached", what="'attached'")
+            # the command is applied at the next step, which in lockstep comes only when asked for
+            wait_until(
+                lambda: sim.step(10) and states(collector)[-1:] == ["attached"], 10.0, "'attached' at the next steps"
+            )
