@@ -236,6 +236,21 @@ class SystemContext:
             raise SystemConfigError("a sensor system needs the <sensor> element of a model's link")
         return self.model_name, self.link, self.sensor
 
+    def model_topic(self, leaf: str) -> str:
+        """Gazebo's default key of a model's system: `model/<model>/<leaf>` (a nested `a::b` as `a/b`)."""
+        _, name = self.require_model(leaf)
+        return f"model/{scoped_key(name)}/{leaf}"
+
+    def sensor_topic(self, kind: str) -> str:
+        """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
+        (`scan`, `image`, `imu`, `points`, ...)."""
+        name, link, sensor = self.require_sensor()
+        stated = (sensor.topic or "").strip().strip("/")
+        if stated:
+            return stated
+        scope = (self.world.name, name, link.name, sensor.name)
+        return "world/{}/model/{}/link/{}/sensor/{}/".format(*map(scoped_key, scope)) + kind
+
     def require_rendering(self) -> Rendering:
         """The rendering system a camera registers with."""
         if self.rendering is None:
@@ -250,6 +265,11 @@ def scoped_rng(seed: int, *scope: str) -> np.random.Generator:
     which, unlike `hash()`, is the same in every process."""
     digest = hashlib.sha256("\0".join(scope).encode()).digest()
     return np.random.default_rng(np.random.SeedSequence([seed, *np.frombuffer(digest, dtype=np.uint32).tolist()]))
+
+
+def scoped_key(name: str) -> str:
+    """A scoped SDF name (`outer::inner`) as key segments (`outer/inner`), as Gazebo names its topics."""
+    return "/".join(part for part in name.split("::") if part)
 
 
 def sensor_topic(sensor: Sensor) -> str:
