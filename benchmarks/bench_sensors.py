@@ -265,7 +265,7 @@ def systems_of(server: Server, kind: type) -> list[Any]:
 def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
     """Our scan + encode + publish against the bare ray batch of the same 720 rays."""
     physics, lidar = server.physics, systems_of(server, Lidar)[0]
-    now = server.sim.clock.now_ns
+    now = server.sim.clock.info()
 
     def ours() -> None:
         lidar.every.restart()  # due now: post_update does exactly what it does at each tick
@@ -287,7 +287,7 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
 def imu_costs(server: Server, costs: Costs, repeats: int) -> None:
     """Our sample + encode + publish against one bare getLinkState with the link's velocity."""
     physics, imu = server.physics, systems_of(server, Imu)[0]
-    now = server.sim.clock.now_ns
+    now = server.sim.clock.info()
 
     def ours() -> None:
         imu.every.restart()

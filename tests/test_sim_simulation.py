@@ -1,17 +1,27 @@
-"""The loop alone (simbot/sim/simulation.py): the order of one step, reset and requested steps.
+"""The loop alone (simbot/sim/simulation.py): the order of one step, priorities, the update
+record, reset and requested steps.
 
 Stand-ins for the physics and the systems record every call with the sim time they were given,
-so the order is checked exactly, without PyBullet or a bus.
+so the order is checked exactly, without PyBullet or a bus. The read-only physics of post_update
+is checked on a real PyBullet world.
 """
 
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, cast
 
-from simbot.sim.physics import Physics
+import pytest
+
+from simbot.description.model import Box, Collision, Inertial, Link, Model, Param, Plugin
+from simbot.description.model import World as SdfWorld
+from simbot.description.poses import Pose
+from simbot.sim.physics import Physics, PhysicsReadOnly
 from simbot.sim.simulation import Mode, Simulation
+from simbot.sim.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, plugin_priority
 
 STEP_NS = 1_000_000
 Calls = list[tuple[str, ...]]
@@ -30,6 +40,11 @@ class StandInPhysics:
     def reset(self) -> None:
         self.calls.append(("physics.reset",))
 
+    @contextmanager
+    def reading(self) -> Iterator[None]:
+        self.calls.append(("physics.read_only",))
+        yield
+
 
 @dataclass
 class PreOnly:
@@ -38,8 +53,8 @@ class PreOnly:
     name: str
     calls: Calls
 
-    def pre_update(self, now_ns: int) -> None:
-        self.calls.append(("pre", self.name, str(now_ns)))
+    def pre_update(self, info: UpdateInfo) -> None:
+        self.calls.append(("pre", self.name, str(info.sim_time_ns)))
 
 
 @dataclass
@@ -49,15 +64,15 @@ class PostOnly:
     name: str
     calls: Calls
 
-    def post_update(self, now_ns: int) -> None:
-        self.calls.append(("post", self.name, str(now_ns)))
+    def post_update(self, info: UpdateInfo) -> None:
+        self.calls.append(("post", self.name, str(info.sim_time_ns)))
 
 
 class Both(PreOnly, PostOnly):
     """A system with every phase, reset included."""
 
-    def reset(self, now_ns: int) -> None:
-        self.calls.append(("reset", self.name, str(now_ns)))
+    def reset(self, info: UpdateInfo) -> None:
+        self.calls.append(("reset", self.name, str(info.sim_time_ns)))
 
 
 @dataclass
@@ -75,16 +90,18 @@ class World:
         self.sim = Simulation(cast(Physics, StandInPhysics(self.calls)), systems, Mode.LOCKSTEP)
 
 
-def test_a_step_runs_pre_update_physics_clock_post_update_in_system_order() -> None:
-    """Commands in before the physics at the old time; state out after it at the new time; the system list's order."""
+def test_a_step_runs_pre_update_physics_post_update_in_system_order() -> None:
+    """Commands in before the physics, state out after it with the physics read-only, both phases
+    at the time the step reaches (one record for the step); the system list's order."""
     world = World()
     world.sim.step()
     world.sim.step()
     one = [
-        ("pre", "a", "0"),
-        ("pre", "b", "0"),
-        ("pre", "d", "0"),
+        ("pre", "a", "1000000"),
+        ("pre", "b", "1000000"),
+        ("pre", "d", "1000000"),
         ("physics.step",),
+        ("physics.read_only",),
         ("post", "a", "1000000"),
         ("post", "c", "1000000"),
         ("post", "d", "1000000"),
@@ -114,3 +131,93 @@ def test_requested_steps_run_in_lockstep_and_reply_after_the_last() -> None:
     loop.join(10.0)
     assert not loop.is_alive() and done == [-1, 3]
     assert world.calls.count(("physics.step",)) == 3
+
+
+@dataclass
+class Recorder:
+    """Keeps every UpdateInfo it is given, in both phases."""
+
+    infos: list[tuple[str, UpdateInfo]] = field(default_factory=list)
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        self.infos.append(("pre", info))
+
+    def post_update(self, info: UpdateInfo) -> None:
+        self.infos.append(("post", info))
+
+
+def test_every_phase_of_a_step_gets_one_update_record() -> None:
+    """Sim time reached, step size, iterations, and paused when world control steps a paused world."""
+    recorder, calls = Recorder(), []
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), [recorder], Mode.LOCKSTEP)
+    sim.step()
+    sim.set_paused(True)
+    sim.step()
+    first, second = UpdateInfo(STEP_NS, STEP_NS, 1, False), UpdateInfo(2 * STEP_NS, STEP_NS, 2, True)
+    assert recorder.infos == [("pre", first), ("post", first), ("pre", second), ("post", second)]
+
+
+def test_systems_run_by_priority_lower_first_ties_in_given_order() -> None:
+    """A class's priority, or one set on the system (the SDF's <gz:system_priority>), orders each phase."""
+    calls: Calls = []
+    late, early, plain, plain2 = (
+        Both("late", calls),
+        Both("early", calls),
+        Both("plain", calls),
+        PostOnly("plain2", calls),
+    )
+    late.priority, early.priority = LAST_PRIORITY, -10  # type: ignore[attr-defined]
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), [late, plain, early, plain2], Mode.LOCKSTEP)
+    sim.step()
+    order = [(phase, name) for phase, name, *_ in (c for c in calls if len(c) == 3)]
+    assert order == [
+        ("pre", "early"), ("pre", "plain"), ("pre", "late"),
+        ("post", "early"), ("post", "plain"), ("post", "plain2"), ("post", "late"),
+    ]  # fmt: skip
+
+
+def test_a_plugin_states_its_priority_as_gazebo_does() -> None:
+    """`<gz:system_priority>` (or `gz::`), an integer; anything else is an error naming the element."""
+
+    def plugin(*params: tuple[str, str]) -> Plugin:
+        return Plugin("gz::sim::systems::DiffDrive", "gz-sim-diff-drive-system", tuple(Param(t, x) for t, x in params))
+
+    assert plugin_priority(plugin()) is None
+    assert plugin_priority(plugin(("gz:system_priority", "-5"))) == -5
+    assert plugin_priority(plugin(("gz::system_priority", " 12 "))) == 12
+    with pytest.raises(SystemConfigError, match=r"DiffDrive: <gz:system_priority> expected an integer, got 'soon'"):
+        plugin_priority(plugin(("gz:system_priority", "soon")))
+
+
+@dataclass
+class Meddler:
+    """A post-update system that tries to change the world it may only read."""
+
+    physics: Physics
+    refused: list[str] = field(default_factory=list)
+
+    def post_update(self, info: UpdateInfo) -> None:
+        try:
+            self.physics.set_model_pose("box", ((0.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0)))
+        except PhysicsReadOnly as exc:
+            self.refused.append(str(exc))
+
+
+def test_post_update_sees_the_physics_read_only() -> None:
+    """A real PyBullet world: changing it in post_update raises and leaves it as the step left it;
+    between steps (world control, pre_update) it may be changed again."""
+    box = Model("box", links=(Link("l", inertial=Inertial(1.0), collisions=(Collision("c", Box((0.2, 0.2, 0.2))),)),))
+    physics = Physics(SdfWorld("w"))
+    try:
+        physics.add_model(box, "box", Pose((0.0, 0.0, 1.0), (0.0, 0.0, 0.0)))
+        meddler = Meddler(physics)
+        sim = Simulation(physics, [meddler], Mode.LOCKSTEP)
+        sim.step()
+        assert meddler.refused == ["Physics.set_model_pose: the physics is read-only after the step (post_update)"]
+        (_, _, z), _ = physics.model_pose("box")
+        assert z == pytest.approx(1.0 - 9.8 * 0.001**2, abs=1e-4)  # one step of free fall, not 5 m up
+        assert not physics.read_only
+        physics.set_model_pose("box", ((0.0, 0.0, 2.0), (0.0, 0.0, 0.0, 1.0)))
+        assert physics.model_pose("box")[0][2] == pytest.approx(2.0)
+    finally:
+        physics.close()

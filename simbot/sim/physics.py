@@ -10,9 +10,12 @@ from __future__ import annotations
 import logging
 import math
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import wraps
 from pathlib import Path
+from typing import Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +44,26 @@ FIXED_CONSTRAINT_FORCE = 1e6
 RAY_BLIND_GROUP = 1 << 10
 """Collision group of the bodies a sensor's rays pass through (its own robot). PyBullet's own
 groups are 1 (dynamic) and 2 (static); a body in this group alone still collides with both."""
+
+
+class PhysicsReadOnly(RuntimeError):
+    """A system changed the world where it may only read it (in post_update, as Gazebo's PostUpdate)."""
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def _changes_world(method: Callable[Concatenate[Physics, P], R]) -> Callable[Concatenate[Physics, P], R]:
+    """Marks a method that changes the world: refused while the physics is read-only."""
+
+    @wraps(method)
+    def guarded(self: Physics, *args: P.args, **kwargs: P.kwargs) -> R:
+        if self.read_only:
+            raise PhysicsReadOnly(f"Physics.{method.__name__}: the physics is read-only after the step (post_update)")
+        return method(self, *args, **kwargs)
+
+    return guarded
 
 
 def pose_to_transform(pose: Pose) -> Transform:
@@ -92,6 +115,8 @@ class Physics:
     constraints: set[int] = field(default_factory=set)
     _wheels: list[WheelFriction] = field(default_factory=list)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
+    read_only: bool = False
+    """True while post-update systems run: they read the step's result and change nothing."""
     _saved_state: int | None = None
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
@@ -113,6 +138,7 @@ class Physics:
 
     # building
 
+    @_changes_world
     def add_model(self, model: Model, name: str | None = None, pose: Pose | None = None) -> Body:
         """Loads `model` (through its URDF) as `name` at `pose` (default: the model's own pose)."""
         name = name or model.name
@@ -234,18 +260,29 @@ class Physics:
     def _wheel_joint(model: Model, link: str) -> Joint | None:
         return next((j for j in model.joints if j.child == link and j.type in ("revolute", "continuous")), None)
 
+    @contextmanager
+    def reading(self) -> Iterator[None]:
+        """The world read-only for the duration (the post-update phase)."""
+        self.read_only = True
+        try:
+            yield
+        finally:
+            self.read_only = False
+
     def save_initial_state(self) -> None:
         """Remembers the world as built, for `reset`."""
         self._saved_state = pb.saveState(physicsClientId=self.client)
 
     # stepping
 
+    @_changes_world
     def step(self) -> None:
         """One physics step: wheel friction from the last contacts, then PyBullet."""
         for wheels in self._wheels:
             wheels.apply()
         pb.stepSimulation(physicsClientId=self.client)
 
+    @_changes_world
     def reset(self) -> None:
         """Every body back to where it was built, at rest; detachable joints are the systems' to undo."""
         if self._saved_state is not None:
@@ -265,6 +302,7 @@ class Physics:
         com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
         return compose(com, body.com_to_frame)
 
+    @_changes_world
     def set_model_pose(self, model: str, pose: Transform) -> None:
         """Teleports the model frame to `pose` and stops it."""
         body = self.body(model)
@@ -355,6 +393,7 @@ class Physics:
         states = pb.getJointStates(body.id, indices, physicsClientId=self.client)
         return [(float(s[0]), float(s[1]), float(s[3])) for s in states]
 
+    @_changes_world
     def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:
         """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo."""
         body = self.body(model)
@@ -367,6 +406,7 @@ class Physics:
             physicsClientId=self.client,
         )
 
+    @_changes_world
     def attach(self, parent: tuple[str, str], child: tuple[str, str]) -> int:
         """Fixes child (model, link) to parent (model, link) at their current relative pose."""
         pbody, plink, pcom = self._com_frame(*parent)
@@ -393,6 +433,7 @@ class Physics:
         state = pb.getLinkState(body.id, index, physicsClientId=self.client)
         return body.id, index, _as_transform(state[0], state[1])
 
+    @_changes_world
     def detach(self, constraint: int) -> None:
         """Removes a joint made by `attach`."""
         if constraint in self.constraints:

@@ -31,7 +31,7 @@ from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext, scoped_rng
+from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext, plugin_priority, scoped_rng
 from simbot.sim.systems.clock_publisher import ClockPublisher
 from simbot.sim.systems.pose_publisher import PosePublisher
 from simbot.sim.systems.rendering import Rendering, world_light
@@ -133,6 +133,8 @@ class Server:
             factory = lookup(plugin)
             if factory is not None:
                 systems.append(factory(self._context(model, name, plugin)))
+                if (stated := plugin_priority(plugin)) is not None:
+                    setattr(systems[-1], "priority", stated)  # noqa: B010 (any class may be a system; the SDF overrides its priority)
         systems += self._sensors()
         if self.rendering.cameras:
             systems.append(self.rendering)

@@ -1,8 +1,9 @@
 """The simulation loop: the sim clock, the three run modes, and the order of a step.
 
-One step: every system's `pre_update` (commands in), the physics step, the clock advances, every
-system's `post_update` (state out). The loop only schedules; what happens in a step is the
-systems' and the physics module's business.
+One step: the clock advances, every system's `pre_update` (commands in), the physics step, every
+system's `post_update` (state out) with the physics read-only. Every phase gets the same
+`UpdateInfo`; within a phase systems run by priority (see `simbot.sim.system`). The loop only
+schedules; what happens in a step is the systems' and the physics module's business.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from simbot.sim.physics import Physics
-from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable
+from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable, UpdateInfo, in_order
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,9 @@ class SimClock:
     def advance(self) -> None:
         self.now_ns += self.step_ns
         self.iterations += 1
+
+    def info(self, paused: bool = False) -> UpdateInfo:
+        return UpdateInfo(self.now_ns, self.step_ns, self.iterations, paused)
 
     def reset(self) -> None:
         self.now_ns = self.iterations = 0
@@ -119,17 +123,20 @@ class Simulation:
 
     def __post_init__(self) -> None:
         self.clock = SimClock(round(self.physics.step_size * 1e9))
-        self._pre = [s for s in self.systems if isinstance(s, PreUpdate)]
-        self._post = [s for s in self.systems if isinstance(s, PostUpdate)]
+        ordered = in_order(self.systems)
+        self._pre = [s for s in ordered if isinstance(s, PreUpdate)]
+        self._post = [s for s in ordered if isinstance(s, PostUpdate)]
 
     def step(self) -> None:
-        """One step of every system and the physics."""
-        for before in self._pre:
-            before.pre_update(self.clock.now_ns)
-        self.physics.step()
+        """One step of every system and the physics; `paused` in the record when world control stepped a paused world."""
         self.clock.advance()
-        for after in self._post:
-            after.post_update(self.clock.now_ns)
+        info = self.clock.info(self.paused)
+        for before in self._pre:
+            before.pre_update(info)
+        self.physics.step()
+        with self.physics.reading():
+            for after in self._post:
+                after.post_update(info)
 
     def request_steps(self, count: int, done: Callable[[], None]) -> None:
         """`count` more steps, then `done()`; these run even when paused or in lockstep."""
@@ -147,9 +154,10 @@ class Simulation:
         """Time to zero, every model where it began, every system forgets."""
         self.physics.reset()
         self.clock.reset()
-        for system in self.systems:
+        info = self.clock.info(self.paused)
+        for system in in_order(self.systems):
             if isinstance(system, Resettable):
-                system.reset(0)
+                system.reset(info)
         self._pacer.anchor(0)
         self.rtf.clear()
 

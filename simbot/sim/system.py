@@ -1,16 +1,25 @@
 """The contract between the simulation loop and its systems, as in Gazebo Sim.
 
 A system is a class built once from a `SystemContext` (its SDF element, the model it belongs to,
-the world and the bus). It then implements only the phases it needs:
+the world and the bus). It then implements only the phases it needs, each given the step's one
+`UpdateInfo` (sim time, step size, iterations, paused: Gazebo's UpdateInfo):
 
-- `pre_update(now_ns)`: before the physics step; drain commands, write joint targets.
-- `post_update(now_ns)`: after the step; read state, publish at its own rate.
-- `reset(now_ns)`: the world was reset; forget what was integrated.
+- `pre_update(info)`: before the physics step; drain commands, write joint targets.
+- `post_update(info)`: after the step; read state, publish at its own rate. The physics is
+  read-only here (`PhysicsReadOnly` if a system tries to change it), as Gazebo's PostUpdate
+  sees a const entity-component manager: every system reads the same, finished step.
+- `reset(info)`: the world was reset; forget what was integrated.
 - `report()`: figures for world control's `state` (a sensor's achieved rate).
 - `close()`: the server is stopping; end worker processes.
 
+Order: within each phase, systems run by `priority` (lower first, as Gazebo's
+`<gz:system_priority>`, which a `<plugin>` may set), and in the order the SDF lists them where
+priorities tie. The phases give the coarse order Gazebo's priorities exist for: commands act
+before the physics step, sensors see its result after.
+
 Systems come from SDF `<plugin>` elements (by plugin name) and `<sensor>` elements (by sensor
-type); both kinds get the same context, a sensor's with its link and sensor filled in.
+type); both kinds get the same context, a sensor's with its link and sensor filled in. Each gets
+its own random stream from the seed and its scoped name (`scoped_rng`).
 
 The loop keeps one list per phase. Bus callbacks only queue (see `Input`); systems act in the
 loop, so everything a system does happens at a definite sim time.
@@ -47,19 +56,49 @@ class SystemConfigError(ValueError):
     """A system's SDF parameters are unusable; the message names the plugin and the parameter."""
 
 
+DEFAULT_PRIORITY = 0
+"""A system's place in each phase when neither its class nor its SDF says otherwise (Gazebo's default)."""
+LAST_PRIORITY = 1_000_000
+"""After every other system: the clock, so that a client that sees sim time t has every message stamped t."""
+
+
+@dataclass(frozen=True)
+class UpdateInfo:
+    """One step as every phase of it sees it (Gazebo's UpdateInfo).
+
+    `sim_time_ns` is the time the step reaches, the stamp of what post_update publishes; a reset
+    is told time zero."""
+
+    sim_time_ns: int
+    step_ns: int
+    iterations: int
+    paused: bool = False
+
+
 @runtime_checkable
 class PreUpdate(Protocol):
-    def pre_update(self, now_ns: int) -> None: ...
+    def pre_update(self, info: UpdateInfo) -> None: ...
 
 
 @runtime_checkable
 class PostUpdate(Protocol):
-    def post_update(self, now_ns: int) -> None: ...
+    def post_update(self, info: UpdateInfo) -> None: ...
 
 
 @runtime_checkable
 class Resettable(Protocol):
-    def reset(self, now_ns: int) -> None: ...
+    def reset(self, info: UpdateInfo) -> None: ...
+
+
+def priority(system: object) -> int:
+    """Where a system runs within a phase: its `priority` attribute, else the default."""
+    value = getattr(system, "priority", DEFAULT_PRIORITY)
+    return value if isinstance(value, int) else DEFAULT_PRIORITY
+
+
+def in_order(systems: list[object]) -> list[object]:
+    """Systems by priority, lower first; ties keep their given (SDF) order."""
+    return sorted(systems, key=priority)
 
 
 @runtime_checkable
@@ -197,6 +236,21 @@ class SystemContext:
             raise SystemConfigError("a sensor system needs the <sensor> element of a model's link")
         return self.model_name, self.link, self.sensor
 
+    def model_topic(self, leaf: str) -> str:
+        """Gazebo's default key of a model's system: `model/<model>/<leaf>` (a nested `a::b` as `a/b`)."""
+        _, name = self.require_model(leaf)
+        return f"model/{scoped_key(name)}/{leaf}"
+
+    def sensor_topic(self, kind: str) -> str:
+        """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
+        (`scan`, `image`, `imu`, `points`, ...)."""
+        name, link, sensor = self.require_sensor()
+        stated = (sensor.topic or "").strip().strip("/")
+        if stated:
+            return stated
+        scope = (self.world.name, name, link.name, sensor.name)
+        return "world/{}/model/{}/link/{}/sensor/{}/".format(*map(scoped_key, scope)) + kind
+
     def require_rendering(self) -> Rendering:
         """The rendering system a camera registers with."""
         if self.rendering is None:
@@ -211,6 +265,11 @@ def scoped_rng(seed: int, *scope: str) -> np.random.Generator:
     which, unlike `hash()`, is the same in every process."""
     digest = hashlib.sha256("\0".join(scope).encode()).digest()
     return np.random.default_rng(np.random.SeedSequence([seed, *np.frombuffer(digest, dtype=np.uint32).tolist()]))
+
+
+def scoped_key(name: str) -> str:
+    """A scoped SDF name (`outer::inner`) as key segments (`outer/inner`), as Gazebo names its topics."""
+    return "/".join(part for part in name.split("::") if part)
 
 
 def sensor_topic(sensor: Sensor) -> str:
@@ -251,6 +310,21 @@ def number_param(plugin: Plugin, *tags: str, default: float | None = None, posit
             f"{plugin.name}: <{tags[0]}> must be a {'positive ' if positive else ''}finite number, got {text!r}"
         )
     return value
+
+
+PRIORITY_TAGS = ("gz:system_priority", "gz::system_priority")
+"""Where a `<plugin>` states its priority: Gazebo's element, written either way Gazebo accepts."""
+
+
+def plugin_priority(plugin: Plugin) -> int | None:
+    """The priority the SDF gives a plugin's system, if any; a value that is not an integer is an error naming it."""
+    text = param(plugin, *PRIORITY_TAGS)
+    if text is None:
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        raise SystemConfigError(f"{plugin.name}: <{PRIORITY_TAGS[0]}> expected an integer, got {text!r}") from None
 
 
 def bool_param(plugin: Plugin, *tags: str, default: bool) -> bool:
@@ -317,7 +391,7 @@ class RateMeter:
 class Sampled:
     """What every sensor shares: its name, its rate, the rate it achieved, and forgetting on reset.
 
-    A sensor system derives from it, calls `due(now_ns)` each step and `published(stamp_ns)` for
+    A sensor system derives from it, calls `due(info)` each step and `published(stamp_ns)` for
     each message; world state's `sensors` reports what it achieved.
     """
 
@@ -327,9 +401,9 @@ class Sampled:
         self.meter = RateMeter()
         self._now_ns = 0
 
-    def due(self, now_ns: int) -> bool:
-        self._now_ns = now_ns
-        return self.every.due(now_ns)
+    def due(self, info: UpdateInfo) -> bool:
+        self._now_ns = info.sim_time_ns
+        return self.every.due(info.sim_time_ns)
 
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)
@@ -337,7 +411,7 @@ class Sampled:
     def report(self) -> dict[str, Any]:
         return {"rate_hz": round(self.meter.rate(self._now_ns), 3), "messages": self.meter.count}
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self.every.restart()
         self.meter.reset()
-        self._now_ns = now_ns
+        self._now_ns = info.sim_time_ns

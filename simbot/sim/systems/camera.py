@@ -39,7 +39,16 @@ from simbot.bus.frames import optical_frame
 from simbot.description.model import Sensor
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import Sampled, SimBus, SystemConfigError, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import (
+    Sampled,
+    SimBus,
+    SystemConfigError,
+    SystemContext,
+    UpdateInfo,
+    sensor_frame,
+    sensor_rate,
+    sensor_topic,
+)
 
 CHANNELS = {"R8G8B8": 3, "RGB_INT8": 3, "L8": 1, "L_INT8": 1}
 """SDF image formats simbot renders, by the number of uint8 channels (rgb8, mono8)."""
@@ -172,6 +181,6 @@ class Camera(Sampled):
             figures["error"] = self.rendering.failure
         return figures
 
-    def reset(self, now_ns: int) -> None:
-        super().reset(now_ns)
+    def reset(self, info: UpdateInfo) -> None:
+        super().reset(info)
         self.skipped = 0

@@ -3,22 +3,25 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemContext
+from simbot.sim.system import LAST_PRIORITY, Every, SystemContext, UpdateInfo
 
 CLOCK_RATE = 100.0
 """Hz of sim time; SPEC §4 asks for at least 100."""
 
 
 class ClockPublisher:
-    """Built into the server; not from an SDF plugin."""
+    """Built into the server; not from an SDF plugin. It publishes last in a step, so a client that
+    sees sim time t has been sent everything stamped t."""
+
+    priority = LAST_PRIORITY
 
     def __init__(self, ctx: SystemContext) -> None:
         self._pub = ctx.bus.publisher("clock", messages.Clock)
         self._every = Every.hz(CLOCK_RATE)
 
-    def post_update(self, now_ns: int) -> None:
-        if self._every.due(now_ns):
-            self._pub.put(messages.clock(now_ns))
+    def post_update(self, info: UpdateInfo) -> None:
+        if self._every.due(info.sim_time_ns):
+            self._pub.put(messages.clock(info.sim_time_ns))
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self._every.restart()

@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 
 from simbot.bus import messages
-from simbot.sim.system import SystemConfigError, SystemContext, param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, param
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ class DetachableJoint:
     def attached(self) -> bool:
         return self._joint is not None
 
-    def pre_update(self, now_ns: int) -> None:
+    def pre_update(self, info: UpdateInfo) -> None:
         # Both within one step: attach, then detach (the bus keeps no order between two keys).
         wants_attach, wants_detach = bool(self._attach.drain()), bool(self._detach.drain())
         if wants_attach and not self.attached:
@@ -81,6 +81,6 @@ class DetachableJoint:
     def _publish(self) -> None:
         self._state.put(messages.string("attached" if self.attached else "detached"))
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         if self.attached:
             self._do_detach()

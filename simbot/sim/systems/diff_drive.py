@@ -30,7 +30,7 @@ from typing import Any
 
 from simbot.bus import messages
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import Every, SystemConfigError, SystemContext, bool_param, number_param, param
+from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param
 
 ABSURD_SPEED = 100.0
 """m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
@@ -176,7 +176,7 @@ class DiffDrive:
         axis = self._model.joint(joint).axis
         return axis.effort if axis is not None and axis.effort is not None else 1e16
 
-    def pre_update(self, now_ns: int) -> None:
+    def pre_update(self, info: UpdateInfo) -> None:
         for msg in self._commands.drain():
             self._target = (self.params.linear.clamp(msg.linear.x), self.params.angular.clamp(msg.angular.z))
         dt = self._physics.step_size
@@ -193,7 +193,8 @@ class DiffDrive:
                 self._physics.set_joint_velocity(self._name, joint, speed / self.params.radius, self._efforts[joint])
         self._applied = (v, w)
 
-    def post_update(self, now_ns: int) -> None:
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
         if not self._every.due(now_ns):
             return
         distance, turn = self._odom.update(
@@ -229,12 +230,12 @@ class DiffDrive:
             transform = messages.transform_stamped(now_ns, p.frame_id, p.child_frame_id, (o.x, o.y, 0.0), quat)
             self._tf_pub.put(messages.tf_message([transform]))
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self._target = self._current = (0.0, 0.0)
         self._drive(0.0, 0.0)
         self._odom = Odometry()
         self._every.restart()
-        self._last_ns = now_ns
+        self._last_ns = info.sim_time_ns
 
 
 def _diagonal(values: tuple[float, ...]) -> list[float]:

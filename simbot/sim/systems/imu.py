@@ -28,7 +28,7 @@ from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
 from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import Sampled, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate, sensor_topic
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""
@@ -95,8 +95,9 @@ class Imu(Sampled):
         self._last: tuple[int, npt.NDArray[np.float64]] | None = None
         self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.Imu)
 
-    def post_update(self, now_ns: int) -> None:
-        if not self.due(now_ns):
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
+        if not self.due(info):
             return
         (_, quat), linear_xyz, angular_xyz = self._physics.frame_motion(*self._where)
         linear, angular = np.array(linear_xyz), np.array(angular_xyz)
@@ -110,8 +111,8 @@ class Imu(Sampled):
         self._pub.put(messages.imu(now_ns, self._frame, quat, gyro, accel, self._covariances))
         self.published(now_ns)
 
-    def reset(self, now_ns: int) -> None:
-        super().reset(now_ns)
+    def reset(self, info: UpdateInfo) -> None:
+        super().reset(info)
         self._last = None
         self._gyro.draw_bias()
         self._accel.draw_bias()

@@ -10,7 +10,7 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemConfigError, SystemContext, number_param, param
+from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, number_param, param
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 DEFAULT_RATE_HZ = 30.0
@@ -37,7 +37,8 @@ class JointStatePublisher:
             number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ
         )
 
-    def post_update(self, now_ns: int) -> None:
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
         if not self._every.due(now_ns):
             return
         states = self._physics.joint_states(self._name, self._joints)
@@ -47,5 +48,5 @@ class JointStatePublisher:
             )
         )
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self._every.restart()

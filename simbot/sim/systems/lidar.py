@@ -34,7 +34,15 @@ from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
 from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import Sampled, SystemConfigError, SystemContext, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import (
+    Sampled,
+    SystemConfigError,
+    SystemContext,
+    UpdateInfo,
+    sensor_frame,
+    sensor_rate,
+    sensor_topic,
+)
 
 log = logging.getLogger(__name__)
 
@@ -136,8 +144,9 @@ class Lidar(Sampled):
         self._times = (0.0, 1.0 / rate)
         self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.LaserScan)
 
-    def post_update(self, now_ns: int) -> None:
-        if not self.due(now_ns):
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
+        if not self.due(info):
             return
         spec = self.params
         self._pub.put(

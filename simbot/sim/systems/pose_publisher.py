@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemContext
+from simbot.sim.system import Every, SystemContext, UpdateInfo
 
 POSE_RATE = 50.0
 """Hz of sim time: as often as odometry, so the two can be compared sample by sample."""
@@ -18,12 +18,13 @@ class PosePublisher:
         self._pubs = {name: ctx.bus.publisher(f"model/{name}/pose", messages.PoseStamped) for name in dynamic}
         self._every = Every.hz(POSE_RATE)
 
-    def post_update(self, now_ns: int) -> None:
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
         if not self._every.due(now_ns):
             return
         for name, pub in self._pubs.items():
             xyz, quat = self._physics.model_pose(name)
             pub.put(messages.pose_stamped(now_ns, "world", xyz, quat))
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self._every.restart()

@@ -34,7 +34,7 @@ from simbot.description.model import World
 from simbot.description.poses import Pose
 from simbot.sim.physics import Physics
 from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, plan_pool
-from simbot.sim.system import SensorSettings
+from simbot.sim.system import SensorSettings, UpdateInfo
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ class RenderedSensor(Protocol):
     """(model, link, pose in the link): where the camera is, looking along its +x with z up."""
     skipped: int
 
-    def due(self, now_ns: int) -> bool: ...
+    def due(self, info: UpdateInfo) -> bool: ...
 
     def wanted(self) -> bool:
         """Someone subscribes to an output that needs rendering."""
@@ -95,9 +95,10 @@ class Rendering:
 
     # --- the update
 
-    def post_update(self, now_ns: int) -> None:
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
         for index, camera in enumerate(self.cameras):
-            if not camera.due(now_ns):
+            if not camera.due(info):
                 continue
             if camera.wanted() and self.failure is None:
                 camera.skipped += index in self._waiting  # real time: the physics never waits for a frame
@@ -183,7 +184,7 @@ class Rendering:
     def renderer(self) -> str | None:
         return None if self.pool is None else self.pool.renderer_used
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         """The world was reset: waiting ticks belong to the old timeline."""
         self._waiting.clear()
 

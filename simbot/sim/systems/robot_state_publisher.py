@@ -24,7 +24,7 @@ from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf
 from simbot.sim.physics import Transform, compose, pose_to_transform
-from simbot.sim.system import Every, SystemContext, sensor_frame
+from simbot.sim.system import Every, SystemContext, UpdateInfo, sensor_frame
 from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 
 
@@ -118,7 +118,8 @@ class RobotStatePublisher:
         self._tf = ctx.bus.publisher("tf", messages.TFMessage) if self._joints else None
         self._every = Every.hz(DEFAULT_RATE_HZ)
 
-    def post_update(self, now_ns: int) -> None:
+    def post_update(self, info: UpdateInfo) -> None:
+        now_ns = info.sim_time_ns
         if self._tf is None or not self._every.due(now_ns):
             return
         states = self._physics.joint_states(self._name, [joint.name for joint in self._joints])
@@ -128,5 +129,5 @@ class RobotStatePublisher:
         ]
         self._tf.put(messages.tf_message(transforms))
 
-    def reset(self, now_ns: int) -> None:
+    def reset(self, info: UpdateInfo) -> None:
         self._every.restart()
