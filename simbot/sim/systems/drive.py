@@ -1,0 +1,165 @@
+"""What the drive systems share (DiffDrive, AckermannSteering, MecanumDrive, OdometryPublisher):
+command checks, velocity limits, planar dead reckoning and the odometry/tf output.
+
+One owner for each piece, so that a fix to the limits or the odometry message reaches every drive.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from simbot.bus import messages
+from simbot.description.model import Model, Plugin
+from simbot.sim.system import SimBus, SystemConfigError, number_param
+
+ABSURD_SPEED = 100.0
+"""m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
+POSE_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
+TWIST_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
+"""Diagonals (x, y, z, roll, pitch, yaw): planar odometry knows nothing of z, roll and pitch."""
+UNLIMITED_EFFORT = 1e16
+"""N·m or N for a joint whose SDF states no effort limit: Gazebo's velocity command is exact there."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on commanded velocity and its change; None where the SDF sets none."""
+
+    min_value: float | None = None
+    max_value: float | None = None
+    min_rate: float | None = None
+    max_rate: float | None = None
+
+    def clamp(self, value: float) -> float:
+        low = -math.inf if self.min_value is None else self.min_value
+        high = math.inf if self.max_value is None else self.max_value
+        return min(max(value, low), high)
+
+    def ramp(self, current: float, target: float, dt: float) -> float:
+        """`target`, reached no faster than the acceleration limits allow."""
+        up = math.inf if self.max_rate is None else self.max_rate * dt
+        down = -math.inf if self.min_rate is None else self.min_rate * dt
+        return current + min(max(target - current, down), up)
+
+
+def limits(plugin: Plugin, kind: str | None, legacy: str | None = None) -> Limits:
+    """`min_/max_<kind>_velocity` and `_acceleration` (`min_velocity`, ... where `kind` is None, as
+    AckermannSteering and MecanumDrive name them); `legacy` an older spelling of the maxima.
+    A maximum acceleration alone bounds deceleration likewise."""
+    infix = f"{kind}_" if kind else ""
+    legacy_velocity = (f"max_{legacy}velocity",) if legacy is not None else ()
+    legacy_acceleration = (f"max_{legacy}acceleration",) if legacy is not None else ()
+    max_rate = number_param(plugin, f"max_{infix}acceleration", *legacy_acceleration, positive=True)
+    min_rate = number_param(plugin, f"min_{infix}acceleration")
+    return Limits(
+        number_param(plugin, f"min_{infix}velocity"),
+        number_param(plugin, f"max_{infix}velocity", *legacy_velocity),
+        -max_rate if min_rate is None and max_rate is not None else min_rate,
+        max_rate,
+    )
+
+
+def check_twist(msg: Any) -> str | None:
+    """Why a Twist is no command: NaN, infinite or absurd components."""
+    values = (msg.linear.x, msg.linear.y, msg.linear.z, msg.angular.x, msg.angular.y, msg.angular.z)
+    if not all(math.isfinite(v) for v in values):
+        return f"non-finite velocity {values}"
+    if max(abs(v) for v in values) > ABSURD_SPEED:
+        return f"absurd velocity: linear {values[:3]}, angular {values[3:]} (limit {ABSURD_SPEED})"
+    return None
+
+
+def check_float(msg: Any) -> str | None:
+    """Why a Float64 is no joint command: NaN or infinite."""
+    return None if math.isfinite(msg.data) else f"non-finite value {msg.data}"
+
+
+def joint_effort(model: Model, joint: str) -> float:
+    """The joint's SDF effort limit: the most a velocity servo on it may exert."""
+    axis = model.joint(joint).axis
+    return axis.effort if axis is not None and axis.effort is not None else UNLIMITED_EFFORT
+
+
+def require_joints(plugin: Plugin, model: Model, tag: str) -> tuple[str, ...]:
+    """Every `<tag>` of the plugin (at least one), each a joint of the model."""
+    joints = tuple(plugin.get_all(tag))
+    if not joints:
+        raise SystemConfigError(f"{plugin.name}: needs at least one <{tag}>")
+    known = {j.name for j in model.joints}
+    for joint in joints:
+        if joint not in known:
+            raise SystemConfigError(f"{plugin.name}: <{tag}> {joint!r}: model {model.name!r} has no such joint")
+    return joints
+
+
+@dataclass
+class PlanarPose:
+    """A pose in the plane, advanced by motions given in its own frame along exact arcs."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+
+    def advance(self, forward: float, lateral: float, turn: float) -> None:
+        """Moves by (forward, lateral) metres of its own frame while turning `turn` radians: the
+        constant-twist path (an arc), exact for any step, so odometry does not drift with the rate."""
+        if abs(turn) > 1e-9:
+            s, c = math.sin(turn) / turn, (1.0 - math.cos(turn)) / turn
+            forward, lateral = forward * s - lateral * c, forward * c + lateral * s
+        cos_yaw, sin_yaw = math.cos(self.yaw), math.sin(self.yaw)
+        self.x += forward * cos_yaw - lateral * sin_yaw
+        self.y += forward * sin_yaw + lateral * cos_yaw
+        end = self.yaw + turn
+        self.yaw = math.atan2(math.sin(end), math.cos(end))
+
+    @property
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return 0.0, 0.0, math.sin(self.yaw / 2), math.cos(self.yaw / 2)
+
+
+class OdometryOutput:
+    """nav_msgs/Odometry on one key and, optionally, the same frame → child transform on a tf key."""
+
+    def __init__(self, bus: SimBus, odom_topic: str, tf_topic: str | None, frame_id: str, child_frame_id: str) -> None:
+        self._odom = bus.publisher(odom_topic, messages.Odometry)
+        self._tf = bus.publisher(tf_topic, messages.TFMessage) if tf_topic is not None else None
+        self.frame_id, self.child_frame_id = frame_id, child_frame_id
+
+    def put_planar(self, now_ns: int, pose: PlanarPose, linear: tuple[float, float], turn_rate: float) -> None:
+        """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown)."""
+        self.put(
+            now_ns,
+            ((pose.x, pose.y, 0.0), pose.quaternion),
+            ((linear[0], linear[1], 0.0), (0.0, 0.0, turn_rate)),
+            diagonal(POSE_COVARIANCE),
+            diagonal(TWIST_COVARIANCE),
+        )
+
+    def put(
+        self,
+        now_ns: int,
+        pose: tuple[tuple[float, float, float], tuple[float, float, float, float]],
+        twist: tuple[tuple[float, float, float], tuple[float, float, float]],
+        pose_covariance: list[float],
+        twist_covariance: list[float],
+    ) -> None:
+        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`."""
+        xyz, quat = pose
+        self._odom.put(
+            messages.odometry(
+                now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
+            )
+        )
+        if self._tf is not None:
+            transform = messages.transform_stamped(now_ns, self.frame_id, self.child_frame_id, xyz, quat)
+            self._tf.put(messages.tf_message([transform]))
+
+
+def diagonal(values: tuple[float, ...]) -> list[float]:
+    """A row-major 6×6 covariance with `values` on its diagonal."""
+    matrix = [0.0] * 36
+    for i, value in enumerate(values):
+        matrix[i * 7] = value
+    return matrix
