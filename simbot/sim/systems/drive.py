@@ -1,5 +1,6 @@
-"""What the drive systems share (DiffDrive, AckermannSteering, MecanumDrive, OdometryPublisher):
-command checks, velocity limits, planar dead reckoning and the odometry/tf output.
+"""What the drive and joint systems share (DiffDrive, AckermannSteering, MecanumDrive,
+VelocityControl, OdometryPublisher, the joint controllers): command checks, parameters, velocity
+limits, wheel encoders, planar dead reckoning and the odometry/tf output with Gazebo's defaults.
 
 One owner for each piece, so that a fix to the limits or the odometry message reaches every drive.
 """
@@ -12,13 +13,15 @@ from typing import Any
 
 from simbot.bus import messages
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import SimBus, SystemConfigError, number_param
+from simbot.sim.physics import Physics
+from simbot.sim.system import SimBus, SystemConfigError, SystemContext, number_param, param, scoped_key
 
 ABSURD_SPEED = 100.0
 """m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
 POSE_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
 TWIST_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
 """Diagonals (x, y, z, roll, pitch, yaw): planar odometry knows nothing of z, roll and pitch."""
+Vec3 = tuple[float, float, float]
 UNLIMITED_EFFORT = 1e16
 """N·m or N for a joint whose SDF states no effort limit: Gazebo's velocity command is exact there."""
 
@@ -94,6 +97,43 @@ def require_joints(plugin: Plugin, model: Model, tag: str) -> tuple[str, ...]:
     return joints
 
 
+def command_topic(ctx: SystemContext, plugin: Plugin, default_leaf: str) -> str:
+    """`<topic>`, else `model/<m>/<sub_topic>`, else `model/<m>/<default_leaf>`: Gazebo's order."""
+    sub_topic = param(plugin, "sub_topic")
+    return param(plugin, "topic") or ctx.model_topic(sub_topic.strip("/") if sub_topic else default_leaf)
+
+
+def vector_param(plugin: Plugin, tag: str, default: Vec3 = (0.0, 0.0, 0.0)) -> Vec3:
+    """Three numbers (`<initial_linear>0.5 0 0</initial_linear>`); anything else is an error naming the tag."""
+    text = param(plugin, tag)
+    if text is None:
+        return default
+    try:
+        x, y, z = (float(part) for part in text.split())
+    except ValueError:
+        raise SystemConfigError(f"{plugin.name}: <{tag}> expected three numbers, got {text!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        raise SystemConfigError(f"{plugin.name}: <{tag}> must be finite, got {text!r}")
+    return x, y, z
+
+
+class Encoders:
+    """Wheel joints' rotation since the last reading: what dead reckoning integrates."""
+
+    def __init__(self, physics: Physics, model: str, joints: tuple[str, ...]) -> None:
+        self._physics, self._model, self._joints = physics, model, list(joints)
+        self._last: list[float] | None = None
+
+    def deltas(self) -> list[float]:
+        """Radians (or metres) each joint moved since the last call; zeros on the first."""
+        now = [state[0] for state in self._physics.joint_states(self._model, self._joints)]
+        last, self._last = self._last or now, now
+        return [a - b for a, b in zip(now, last)]
+
+    def restart(self) -> None:
+        self._last = None
+
+
 @dataclass
 class PlanarPose:
     """A pose in the plane, advanced by motions given in its own frame along exact arcs."""
@@ -122,6 +162,19 @@ class PlanarPose:
 class OdometryOutput:
     """nav_msgs/Odometry on one key and, optionally, the same frame → child transform on a tf key."""
 
+    @staticmethod
+    def from_plugin(ctx: SystemContext, plugin: Plugin, model: Model, name: str) -> OdometryOutput:
+        """`odom_topic`, `tf_topic`, `frame_id`, `child_frame_id` with Gazebo's defaults:
+        `model/<m>/odometry`, `model/<m>/tf`, `<m>/odom`, `<m>/<canonical link>`."""
+        frame = scoped_key(name)
+        return OdometryOutput(
+            ctx.bus,
+            param(plugin, "odom_topic") or ctx.model_topic("odometry"),
+            param(plugin, "tf_topic") or ctx.model_topic("tf"),
+            param(plugin, "frame_id") or f"{frame}/odom",
+            param(plugin, "child_frame_id") or f"{frame}/{model.canonical_link}",
+        )
+
     def __init__(self, bus: SimBus, odom_topic: str, tf_topic: str | None, frame_id: str, child_frame_id: str) -> None:
         self._odom = bus.publisher(odom_topic, messages.Odometry)
         self._tf = bus.publisher(tf_topic, messages.TFMessage) if tf_topic is not None else None
@@ -144,17 +197,17 @@ class OdometryOutput:
         twist: tuple[tuple[float, float, float], tuple[float, float, float]],
         pose_covariance: list[float],
         twist_covariance: list[float],
-    ) -> None:
-        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`."""
+    ) -> messages.Odometry:
+        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`; returns what it sent."""
         xyz, quat = pose
-        self._odom.put(
-            messages.odometry(
-                now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
-            )
+        odometry = messages.odometry(
+            now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
         )
+        self._odom.put(odometry)
         if self._tf is not None:
             transform = messages.transform_stamped(now_ns, self.frame_id, self.child_frame_id, xyz, quat)
             self._tf.put(messages.tf_message([transform]))
+        return odometry
 
 
 def diagonal(values: tuple[float, ...]) -> list[float]:
