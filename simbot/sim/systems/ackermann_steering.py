@@ -31,34 +31,26 @@ cotangents), from the start pose, so it drifts where the wheels slip. Gazebo's `
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import (
-    Every,
-    SystemConfigError,
-    SystemContext,
-    UpdateInfo,
-    bool_param,
-    number_param,
-)
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param
 from simbot.sim.systems.drive import (
+    DeadReckoning,
     Encoders,
     Limits,
     OdometryOutput,
-    PlanarPose,
     check_float,
     check_twist,
     command_topic,
     joint_effort,
     limits,
+    positive,
+    refuse_actuators,
     require_joints,
+    warn_unsupported,
 )
-from simbot.sim.systems.joint_controller import refuse_actuators
-
-log = logging.getLogger(__name__)
 
 STRAIGHT = 0.001
 """rad/s of commanded turn below which the car drives straight (Gazebo's threshold)."""
@@ -82,25 +74,20 @@ class AckermannParams:
 
     @staticmethod
     def parse(plugin: Plugin, model: Model) -> AckermannParams:
-        def positive(tag: str, default: float) -> float:
-            return number_param(plugin, tag, default=default, positive=True) or default
-
-        for tag in ("min_jerk", "max_jerk"):
-            if plugin.get(tag) is not None:
-                log.warning("%s: <%s> is not supported; ignored", plugin.name, tag)
+        warn_unsupported(plugin, "min_jerk", "max_jerk")
         steering = [require_joints(plugin, model, tag) for tag in ("left_steering_joint", "right_steering_joint")]
         if any(len(joints) > 1 for joints in steering):
             raise SystemConfigError(f"{plugin.name}: one <left_steering_joint> and one <right_steering_joint>")
-        limit = positive("steering_limit", 0.5)
+        limit = positive(plugin, "steering_limit", 0.5)
         if limit >= math.pi / 2:
             raise SystemConfigError(f"{plugin.name}: <steering_limit> must be below π/2, got {limit:g}")
         return AckermannParams(
             require_joints(plugin, model, "left_joint"), require_joints(plugin, model, "right_joint"),
             steering[0][0], steering[1][0],
-            positive("wheel_separation", 1.0), positive("kingpin_width", 0.8), positive("wheel_base", 1.0),
-            positive("wheel_radius", 0.2), limit, positive("steer_p_gain", 1.0),
-            bool_param(plugin, "steering_only", default=False),
-            positive("odom_publish_frequency", 50.0), limits(plugin, None),
+            positive(plugin, "wheel_separation", 1.0), positive(plugin, "kingpin_width", 0.8),
+            positive(plugin, "wheel_base", 1.0), positive(plugin, "wheel_radius", 0.2), limit,
+            positive(plugin, "steer_p_gain", 1.0), bool_param(plugin, "steering_only", default=False),
+            positive(plugin, "odom_publish_frequency", 50.0), limits(plugin, None),
         )  # fmt: skip
 
     def curvature(self, v: float, w: float) -> float:
@@ -133,22 +120,23 @@ class AckermannSteering:
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
         model, self._name = ctx.require_model("AckermannSteering")
-        refuse_actuators(ctx)
+        refuse_actuators(ctx.plugin)
         self.params = p = AckermannParams.parse(ctx.plugin, model)
         self._physics = ctx.physics
         self._efforts = {j: joint_effort(model, j) for j in (*p.left, *p.right, p.left_steering, p.right_steering)}
+        self._odometry: DeadReckoning | None = None
         if p.steering_only:
             topic = command_topic(ctx, ctx.plugin, "steer_angle")
             self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
         else:
             topic = command_topic(ctx, ctx.plugin, "cmd_vel")
             self._commands = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
-            self._output = OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name)
-        self._encoders = Encoders(ctx.physics, self._name, (p.left[0], p.right[0]))
-        self._every = Every.hz(p.odom_rate)
+            self._odometry = DeadReckoning(
+                OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
+                Encoders(ctx.physics, self._name, (p.left[0], p.right[0])),
+                p.odom_rate,
+            )
         self._target = self._current = (0.0, 0.0)
-        self._odom = PlanarPose()
-        self._last_ns = 0
 
     def pre_update(self, info: UpdateInfo) -> None:
         for msg in self._commands.drain():
@@ -187,22 +175,16 @@ class AckermannSteering:
             )
 
     def post_update(self, info: UpdateInfo) -> None:
-        if self.params.steering_only or not self._every.due(info.sim_time_ns):
+        rotations = self._odometry.due(info.sim_time_ns) if self._odometry is not None else None
+        if self._odometry is None or rotations is None:
             return
         p = self.params
-        left, right = self._encoders.deltas()
-        distance = (left + right) / 2 * p.radius
+        distance = (rotations[0] + rotations[1]) / 2 * p.radius
         steering = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
         turn = distance * bicycle_curvature(steering[0][0], steering[1][0], p.wheel_base)
-        self._odom.advance(distance, 0.0, turn)
-        dt = (info.sim_time_ns - self._last_ns) / 1e9
-        self._last_ns = info.sim_time_ns
-        speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
-        self._output.put_planar(info.sim_time_ns, self._odom, (speed, 0.0), rate)
+        self._odometry.advance(info.sim_time_ns, distance, 0.0, turn)
 
     def reset(self, info: UpdateInfo) -> None:
         self._target = self._current = (0.0, 0.0)
-        self._odom = PlanarPose()
-        self._encoders.restart()
-        self._every.restart()
-        self._last_ns = info.sim_time_ns
+        if self._odometry is not None:
+            self._odometry.restart(info.sim_time_ns)

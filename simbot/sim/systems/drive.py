@@ -7,6 +7,7 @@ One owner for each piece, so that a fix to the limits or the odometry message re
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -14,7 +15,18 @@ from typing import Any
 from simbot.bus import messages
 from simbot.description.model import Model, Plugin
 from simbot.sim.physics import Physics
-from simbot.sim.system import SimBus, SystemConfigError, SystemContext, number_param, param, scoped_key
+from simbot.sim.system import (
+    Every,
+    SimBus,
+    SystemConfigError,
+    SystemContext,
+    bool_param,
+    number_param,
+    param,
+    scoped_key,
+)
+
+log = logging.getLogger(__name__)
 
 ABSURD_SPEED = 100.0
 """m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
@@ -62,6 +74,28 @@ def limits(plugin: Plugin, kind: str | None, legacy: str | None = None) -> Limit
         -max_rate if min_rate is None and max_rate is not None else min_rate,
         max_rate,
     )
+
+
+def positive(plugin: Plugin, tag: str, default: float) -> float:
+    """A positive number parameter, `default` where the SDF gives none."""
+    value = number_param(plugin, tag, default=default, positive=True)
+    assert value is not None
+    return value
+
+
+def warn_unsupported(plugin: Plugin, *tags: str) -> None:
+    """Gazebo parameters simbot does not implement and can do without (jerk limits): a warning each."""
+    for tag in tags:
+        if plugin.get(tag) is not None:
+            log.warning("%s: <%s> is not supported; ignored", plugin.name, tag)
+
+
+def refuse_actuators(plugin: Plugin) -> None:
+    """Gazebo's `use_actuator_msg` takes gz.msgs.Actuators, which has no ROS 2 counterpart."""
+    if bool_param(plugin, "use_actuator_msg", default=False):
+        raise SystemConfigError(
+            f"{plugin.name}: <use_actuator_msg> is not supported (gz.msgs.Actuators is no ROS 2 message)"
+        )
 
 
 def check_twist(msg: Any) -> str | None:
@@ -216,3 +250,31 @@ def diagonal(values: tuple[float, ...]) -> list[float]:
     for i, value in enumerate(values):
         matrix[i * 7] = value
     return matrix
+
+
+class DeadReckoning:
+    """Wheel-encoder odometry at its own rate: integrates each motion, publishes pose and mean twist."""
+
+    def __init__(self, output: OdometryOutput, encoders: Encoders, rate_hz: float) -> None:
+        self._output, self._encoders = output, encoders
+        self._every = Every.hz(rate_hz)
+        self.pose = PlanarPose()
+        self._last_ns = 0
+
+    def due(self, now_ns: int) -> list[float] | None:
+        """The encoders' rotation since the last update when one is due, else None."""
+        return self._encoders.deltas() if self._every.due(now_ns) else None
+
+    def advance(self, now_ns: int, forward: float, lateral: float, turn: float) -> None:
+        """Moves by a motion of the robot's own frame and publishes; the twist is its mean since the last."""
+        self.pose.advance(forward, lateral, turn)
+        dt = (now_ns - self._last_ns) / 1e9
+        self._last_ns = now_ns
+        rate = 1 / dt if dt > 0 else 0.0
+        self._output.put_planar(now_ns, self.pose, (forward * rate, lateral * rate), turn * rate)
+
+    def restart(self, now_ns: int) -> None:
+        self.pose = PlanarPose()
+        self._encoders.restart()
+        self._every.restart()
+        self._last_ns = now_ns

@@ -22,18 +22,48 @@ from __future__ import annotations
 
 import math
 
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, scoped_key
-from simbot.sim.systems.drive import check_float, command_topic, joint_effort, require_joints
+from simbot.sim.system import SystemContext, UpdateInfo, bool_param, number_param, scoped_key
+from simbot.sim.systems.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
 from simbot.sim.systems.pid import Pid, PidGains
 
 
-def refuse_actuators(ctx: SystemContext) -> None:
-    """Gazebo's `use_actuator_msg` takes gz.msgs.Actuators, which has no ROS 2 counterpart."""
-    assert ctx.plugin is not None
-    if bool_param(ctx.plugin, "use_actuator_msg", default=False):
-        raise SystemConfigError(
-            f"{ctx.plugin.name}: <use_actuator_msg> is not supported (gz.msgs.Actuators is no ROS 2 message)"
-        )
+class CommandedJoints:
+    """What both joint controllers share: the joints, their effort limits, the command input and its
+    target (Gazebo's default key `model/<m>/joint/<first joint>/<leaf>`)."""
+
+    def __init__(self, ctx: SystemContext, system: str, leaf: str, initial_tag: str) -> None:
+        assert ctx.plugin is not None
+        plugin = ctx.plugin
+        model, self.model = ctx.require_model(system)
+        refuse_actuators(plugin)
+        self.joints = require_joints(plugin, model, "joint_name")
+        self._efforts = [joint_effort(model, joint) for joint in self.joints]
+        topic = command_topic(ctx, plugin, f"joint/{scoped_key(self.joints[0])}/{leaf}")
+        self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
+        self._initial = number_param(plugin, initial_tag, default=0.0) or 0.0
+        self._physics = ctx.physics
+        self.target = self._initial
+
+    def update(self) -> float:
+        """The target after the commands that arrived."""
+        for msg in self._commands.drain():
+            self.target = msg.data
+        return self.target
+
+    def first(self) -> tuple[float, float, float]:
+        """(position, velocity, effort) of the first joint, which the controller measures."""
+        return self._physics.joint_states(self.model, [self.joints[0]])[0]
+
+    def set_velocity(self, velocity: float) -> None:
+        for joint, effort in zip(self.joints, self._efforts):
+            self._physics.set_joint_velocity(self.model, joint, velocity, effort)
+
+    def push(self, force: float) -> None:
+        for joint in self.joints:
+            self._physics.set_joint_force(self.model, joint, force)
+
+    def reset(self) -> None:
+        self.target = self._initial
 
 
 class JointController:
@@ -41,37 +71,21 @@ class JointController:
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
-        plugin = ctx.plugin
-        model, self._name = ctx.require_model("JointController")
-        refuse_actuators(ctx)
-        self._joints = require_joints(plugin, model, "joint_name")
-        self._efforts = [joint_effort(model, joint) for joint in self._joints]
-        topic = command_topic(ctx, plugin, f"joint/{scoped_key(self._joints[0])}/cmd_vel")
-        self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
-        self._initial = number_param(plugin, "initial_velocity", default=0.0) or 0.0
-        self._force_mode = bool_param(plugin, "use_force_commands", default=False)
-        self._no_braking = bool_param(plugin, "disable_braking", default=False)
-        self._pid = Pid(PidGains.parse(plugin, 1.0, 0.0, 0.0))
-        self._physics = ctx.physics
-        self.target = self._initial
+        self._joints = CommandedJoints(ctx, "JointController", "cmd_vel", "initial_velocity")
+        self._force_mode = bool_param(ctx.plugin, "use_force_commands", default=False)
+        self._no_braking = bool_param(ctx.plugin, "disable_braking", default=False)
+        self._pid = Pid(PidGains.parse(ctx.plugin, 1.0, 0.0, 0.0))
 
     def pre_update(self, info: UpdateInfo) -> None:
-        for msg in self._commands.drain():
-            self.target = msg.data
-        if self._force_mode:
-            self._push(info.step_ns / 1e9)
+        target = self._joints.update()
+        if not self._force_mode:
+            self._joints.set_velocity(target)
             return
-        for joint, effort in zip(self._joints, self._efforts):
-            self._physics.set_joint_velocity(self._name, joint, self.target, effort)
-
-    def _push(self, dt: float) -> None:
-        error = self._physics.joint_states(self._name, [self._joints[0]])[0][1] - self.target
-        if self._no_braking and (self.target == 0.0 or math.copysign(1.0, self.target) * error > 0.0):
+        error = self._joints.first()[1] - target
+        if self._no_braking and (target == 0.0 or math.copysign(1.0, target) * error > 0.0):
             return
-        force = self._pid.update(error, dt)
-        for joint in self._joints:
-            self._physics.set_joint_force(self._name, joint, force)
+        self._joints.push(self._pid.update(error, info.step_ns / 1e9))
 
     def reset(self, info: UpdateInfo) -> None:
-        self.target = self._initial
+        self._joints.reset()
         self._pid.reset()

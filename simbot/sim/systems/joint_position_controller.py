@@ -19,9 +19,8 @@ as in Gazebo: the joint is driven at the velocity that closes the error in one s
 
 from __future__ import annotations
 
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param, scoped_key
-from simbot.sim.systems.drive import check_float, command_topic, joint_effort, require_joints
-from simbot.sim.systems.joint_controller import refuse_actuators
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param
+from simbot.sim.systems.joint_controller import CommandedJoints
 from simbot.sim.systems.pid import Pid, PidGains
 
 
@@ -31,37 +30,25 @@ class JointPositionController:
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
         plugin = ctx.plugin
-        model, self._name = ctx.require_model("JointPositionController")
-        refuse_actuators(ctx)
-        self._joints = require_joints(plugin, model, "joint_name")
         if (param(plugin, "joint_index") or "0") != "0":
             raise SystemConfigError(f"{plugin.name}: <joint_index> must be 0: simbot's joints have one axis")
-        self._efforts = [joint_effort(model, joint) for joint in self._joints]
-        topic = command_topic(ctx, plugin, f"joint/{scoped_key(self._joints[0])}/0/cmd_pos")
-        self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
-        self._initial = number_param(plugin, "initial_position", default=0.0) or 0.0
+        self._joints = CommandedJoints(ctx, "JointPositionController", "0/cmd_pos", "initial_position")
         self._by_velocity = bool_param(plugin, "use_velocity_commands", default=False)
         self._max_speed = number_param(plugin, "cmd_max", positive=True) if self._by_velocity else None
         self._pid = Pid(PidGains.parse(plugin, 1.0, 0.1, 0.01))
-        self._physics = ctx.physics
-        self.target = self._initial
 
     def pre_update(self, info: UpdateInfo) -> None:
-        for msg in self._commands.drain():
-            self.target = msg.data
+        target = self._joints.update()
         dt = info.step_ns / 1e9
-        error = self._physics.joint_states(self._name, [self._joints[0]])[0][0] - self.target
-        if self._by_velocity:
-            speed = -error / dt
-            if self._max_speed is not None:
-                speed = min(max(speed, -self._max_speed), self._max_speed)
-            for joint, effort in zip(self._joints, self._efforts):
-                self._physics.set_joint_velocity(self._name, joint, speed, effort)
+        error = self._joints.first()[0] - target
+        if not self._by_velocity:
+            self._joints.push(self._pid.update(error, dt))
             return
-        force = self._pid.update(error, dt)
-        for joint in self._joints:
-            self._physics.set_joint_force(self._name, joint, force)
+        speed = -error / dt
+        if self._max_speed is not None:
+            speed = min(max(speed, -self._max_speed), self._max_speed)
+        self._joints.set_velocity(speed)
 
     def reset(self, info: UpdateInfo) -> None:
-        self.target = self._initial
+        self._joints.reset()
         self._pid.reset()

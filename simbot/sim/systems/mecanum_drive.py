@@ -25,24 +25,23 @@ rollers' own inertia and the bump of their discrete contacts.
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import Every, SystemContext, UpdateInfo, number_param
+from simbot.sim.system import SystemContext, UpdateInfo
 from simbot.sim.systems.drive import (
+    DeadReckoning,
     Encoders,
     Limits,
     OdometryOutput,
-    PlanarPose,
     check_twist,
     command_topic,
     joint_effort,
     limits,
+    positive,
     require_joints,
+    warn_unsupported,
 )
-
-log = logging.getLogger(__name__)
 
 CORNERS = ("front_left", "front_right", "back_left", "back_right")
 SIGNS = ((-1.0, -1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0))
@@ -61,18 +60,13 @@ class MecanumParams:
 
     @staticmethod
     def parse(plugin: Plugin, model: Model) -> MecanumParams:
-        def positive(tag: str, default: float) -> float:
-            return number_param(plugin, tag, default=default, positive=True) or default
-
-        for tag in ("min_jerk", "max_jerk"):
-            if plugin.get(tag) is not None:
-                log.warning("%s: <%s> is not supported; ignored", plugin.name, tag)
+        warn_unsupported(plugin, "min_jerk", "max_jerk")
         return MecanumParams(
             tuple(require_joints(plugin, model, f"{corner}_joint") for corner in CORNERS),
-            positive("wheelbase", 1.0),
-            positive("wheel_separation", 1.0),
-            positive("wheel_radius", 0.2),
-            positive("odom_publish_frequency", 50.0),
+            positive(plugin, "wheelbase", 1.0),
+            positive(plugin, "wheel_separation", 1.0),
+            positive(plugin, "wheel_radius", 0.2),
+            positive(plugin, "odom_publish_frequency", 50.0),
             limits(plugin, None),
         )
 
@@ -105,12 +99,12 @@ class MecanumDrive:
         self._efforts = {j: joint_effort(model, j) for corner in self.params.wheels for j in corner}
         topic = command_topic(ctx, ctx.plugin, "cmd_vel")
         self._commands = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
-        self._output = OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name)
-        self._encoders = Encoders(ctx.physics, self._name, tuple(corner[0] for corner in self.params.wheels))
-        self._every = Every.hz(self.params.odom_rate)
+        self._odometry = DeadReckoning(
+            OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
+            Encoders(ctx.physics, self._name, tuple(corner[0] for corner in self.params.wheels)),
+            self.params.odom_rate,
+        )
         self._target = self._current = (0.0, 0.0, 0.0)
-        self._odom = PlanarPose()
-        self._last_ns = 0
 
     def pre_update(self, info: UpdateInfo) -> None:
         lim = self.params.limits
@@ -124,18 +118,10 @@ class MecanumDrive:
                 self._physics.set_joint_velocity(self._name, joint, speed, self._efforts[joint])
 
     def post_update(self, info: UpdateInfo) -> None:
-        if not self._every.due(info.sim_time_ns):
-            return
-        forward, sideways, turn = self.params.twist(self._encoders.deltas())
-        self._odom.advance(forward, sideways, turn)
-        dt = (info.sim_time_ns - self._last_ns) / 1e9
-        self._last_ns = info.sim_time_ns
-        scale = 1 / dt if dt > 0 else 0.0
-        self._output.put_planar(info.sim_time_ns, self._odom, (forward * scale, sideways * scale), turn * scale)
+        rotations = self._odometry.due(info.sim_time_ns)
+        if rotations is not None:
+            self._odometry.advance(info.sim_time_ns, *self.params.twist(rotations))
 
     def reset(self, info: UpdateInfo) -> None:
         self._target = self._current = (0.0, 0.0, 0.0)
-        self._odom = PlanarPose()
-        self._encoders.restart()
-        self._every.restart()
-        self._last_ns = info.sim_time_ns
+        self._odometry.restart(info.sim_time_ns)
