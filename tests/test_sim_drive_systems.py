@@ -383,3 +383,71 @@ def test_mecanum_platform_moves_sideways_at_the_commanded_speed(tmp_path: Path) 
     assert end[2] == pytest.approx(0.0, abs=0.02)
     odom = odometry[-1].pose.pose.position
     assert math.dist((odom.x, odom.y), end[:2]) < 0.05 * 1.8
+
+
+# --- bad parameters: one line naming the plugin and the element ----------------------------------
+
+
+def _plugin(name: str, body: str) -> str:
+    library = "".join(f"-{c.lower()}" if c.isupper() else c for c in name).lstrip("-")
+    return f'<plugin name="gz::sim::systems::{name}" filename="gz-sim-{library}-system">{body}</plugin>'
+
+
+@pytest.mark.parametrize(
+    ("plugin", "message"),
+    [
+        (_plugin("ApplyJointForce", ""), r"ApplyJointForce: needs at least one <joint_name>"),
+        (_plugin("JointController", "<joint_name>elbow</joint_name>"), r"<joint_name> 'elbow': model 'bot' has no"),
+        (
+            _plugin("JointController", "<joint_name>hinge</joint_name><use_actuator_msg>true</use_actuator_msg>"),
+            r"JointController: <use_actuator_msg> is not supported",
+        ),
+        (
+            _plugin("JointPositionController", "<joint_name>hinge</joint_name><p_gain>stiff</p_gain>"),
+            r"JointPositionController: <p_gain> expected a number, got 'stiff'",
+        ),
+        (
+            _plugin("JointPositionController", "<joint_name>hinge</joint_name><joint_index>1</joint_index>"),
+            r"JointPositionController: <joint_index> must be 0",
+        ),
+        (
+            _plugin("VelocityControl", "<initial_linear>1 0</initial_linear>"),
+            r"<initial_linear> expected three numbers",
+        ),
+        (_plugin("VelocityControl", "<link_name>arm</link_name>"), r"VelocityControl: <link_name> .* not supported"),
+        (
+            _plugin("MecanumDrive", "<front_left_joint>hinge</front_left_joint>"),
+            r"needs at least one <front_right_joint>",
+        ),
+        (
+            _plugin("AckermannSteering", "<left_joint>hinge</left_joint><right_joint>hinge</right_joint>"),
+            r"AckermannSteering: needs at least one <left_steering_joint>",
+        ),
+    ],
+)
+def test_bad_parameters_are_one_line_errors_naming_plugin_and_element(
+    tmp_path: Path, plugin: str, message: str
+) -> None:
+    with pytest.raises(SystemConfigError, match=message) as error, lockstep(tmp_path, _arm(plugin)):
+        pass
+    assert "\n" not in str(error.value)
+
+
+def test_ackermann_steering_only_turns_the_wheels_to_the_commanded_angle(tmp_path: Path) -> None:
+    """steering_only: a Float64 bicycle angle a on `steer_angle`; the left (inner) and right wheels
+    settle at atan(2L·sin a / (2L·cos a ∓ w·sin a)) with w the wheel separation, as in Gazebo; no
+    wheel is driven. Gain 10/s: 2 s are 20 time constants."""
+    car = _car().replace("<steer_p_gain>", "<steering_only>true</steering_only><steer_p_gain>")
+    angle = 0.3
+    with lockstep(tmp_path, car) as rig:
+        rig.send(f"{BOT}/steer_angle", messages.float64(angle))
+        rig.step(2.0)
+        left, right = (state[0] for state in rig.joints("left_steer", "right_steer"))
+        rear = rig.joints("rear_left_axle", "rear_right_axle")
+    twice_l = 2 * WHEEL_BASE
+    expected = [
+        math.atan(twice_l * math.sin(angle) / (twice_l * math.cos(angle) + s * TRACK * math.sin(angle)))
+        for s in (-1, 1)
+    ]
+    assert (left, right) == pytest.approx(expected, abs=1e-4)
+    assert all(effort == 0.0 for *_, effort in rear)
