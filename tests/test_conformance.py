@@ -152,6 +152,64 @@ class Case:
     command: tuple[str, Any] | None = None
 
 
+# Gazebo's drive and joint systems (issue 15): the robot is `flexley_tug` in the running world.
+BOT = "model/flexley_tug"
+KNUCKLES = "".join(
+    f"""<link name="{side}_knuckle"><pose>0.25 {y} 0.075 0 0 0</pose>
+      <inertial><mass>0.2</mass><inertia><ixx>1e-4</ixx><iyy>1e-4</iyy><izz>1e-4</izz></inertia></inertial></link>
+    <joint name="{side}_steer" type="revolute"><parent>base_link</parent><child>{side}_knuckle</child>
+      <axis><xyz>0 0 1</xyz><limit><lower>-0.6</lower><upper>0.6</upper></limit></axis></joint>"""
+    for side, y in (("left", 0.2), ("right", -0.2))
+)
+ACKERMANN = (
+    KNUCKLES
+    + """<plugin name="gz::sim::systems::AckermannSteering" filename="gz-sim-ackermann-steering-system">
+  <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
+  <left_steering_joint>left_steer</left_steering_joint><right_steering_joint>right_steer</right_steering_joint>
+  <wheel_separation>0.4</wheel_separation><kingpin_width>0.35</kingpin_width><wheel_base>0.35</wheel_base>
+  <wheel_radius>0.075</wheel_radius><steer_p_gain>5</steer_p_gain>
+</plugin>"""
+)
+MECANUM = """<plugin name="gz::sim::systems::MecanumDrive" filename="gz-sim-mecanum-drive-system">
+  <front_left_joint>left_wheel_joint</front_left_joint><back_left_joint>left_wheel_joint</back_left_joint>
+  <front_right_joint>right_wheel_joint</front_right_joint><back_right_joint>right_wheel_joint</back_right_joint>
+  <wheelbase>0.35</wheelbase><wheel_separation>0.4</wheel_separation><wheel_radius>0.075</wheel_radius>
+</plugin>"""
+JOINT_CONTROLLER = """<plugin name="gz::sim::systems::JointController" filename="gz-sim-joint-controller-system">
+  <joint_name>left_wheel_joint</joint_name><use_force_commands>true</use_force_commands><p_gain>0.5</p_gain>
+</plugin>"""
+JOINT_POSITION = """<plugin name="gz::sim::systems::JointPositionController"
+  filename="gz-sim-joint-position-controller-system"><joint_name>right_wheel_joint</joint_name></plugin>"""
+APPLY_FORCE = """<plugin name="gz::sim::systems::ApplyJointForce" filename="gz-sim-apply-joint-force-system">
+  <joint_name>left_wheel_joint</joint_name></plugin>"""
+ODOMETRY = """<plugin name="gz::sim::systems::OdometryPublisher" filename="gz-sim-odometry-publisher-system">
+  <dimensions>3</dimensions><gaussian_noise>0.01</gaussian_noise></plugin>"""
+VELOCITY = """<plugin name="gz::sim::systems::VelocityControl" filename="gz-sim-velocity-control-system"/>"""
+DRIVE_CASES = {
+    (GROUP, "AckermannSteering"): Case(
+        plugins=ACKERMANN, key=f"{BOT}/odometry", command=(f"{BOT}/cmd_vel", messages.twist((0.3, 0, 0), (0, 0, 0.5)))
+    ),
+    (GROUP, "MecanumDrive"): Case(
+        plugins=MECANUM, key=f"{BOT}/odometry", command=(f"{BOT}/cmd_vel", messages.twist((0.2, 0.1, 0), (0, 0, 0.3)))
+    ),
+    (GROUP, "JointController"): Case(
+        plugins=JOINT_CONTROLLER + JOINT_STATES,
+        command=(f"{BOT}/joint/left_wheel_joint/cmd_vel", messages.float64(2.0)),
+    ),
+    (GROUP, "JointPositionController"): Case(
+        plugins=JOINT_POSITION + JOINT_STATES,
+        command=(f"{BOT}/joint/right_wheel_joint/0/cmd_pos", messages.float64(0.5)),
+    ),
+    (GROUP, "ApplyJointForce"): Case(
+        plugins=APPLY_FORCE + JOINT_STATES, command=(f"{BOT}/joint/left_wheel_joint/cmd_force", messages.float64(0.1))
+    ),
+    (GROUP, "OdometryPublisher"): Case(plugins=ODOMETRY, key=f"{BOT}/odometry"),
+    (GROUP, "VelocityControl"): Case(
+        plugins=VELOCITY, command=(f"{BOT}/cmd_vel", messages.twist((0.4, 0.0, 0.0), (0.0, 0.0, 0.5)))
+    ),
+}
+
+
 RECOGNISED = ("Physics", "Sensors", "Imu", "SceneBroadcaster", "UserCommands", "Contact")
 CASES: dict[tuple[str, str], Case] = {
     (GROUP, "DiffDrive"): Case(
@@ -162,6 +220,7 @@ CASES: dict[tuple[str, str], Case] = {
         plugins=DETACHABLE, key="detachable_joint/state", command=("attach", messages.empty())
     ),
     **{(GROUP, name): Case(world_plugins=_world_plugin(name)) for name in RECOGNISED},
+    **DRIVE_CASES,
     **{
         (SENSOR_GROUP, kind): Case(sensors=_lidar(kind), key="scanner")
         for kind in ("lidar", "gpu_lidar", "ray", "gpu_ray")

@@ -96,7 +96,9 @@ def test_turns_in_place_despite_four_wheels(physics: Physics) -> None:
         turned += math.remainder(now - heading, math.tau)
         heading = now
     assert turned == pytest.approx(0.92 * 0.5 * (4.0 - 0.3), rel=0.05)
-    assert math.dist(start[0][:2], physics.model_pose("flexley_tug")[0][:2]) < 0.03  # measured 0.010
+    # measured 0.086: it turns about a point some 6 cm off the model origin (2 × 0.057 × sin(1.7/2));
+    # PyBullet's default velocity damping, which SDF does not have, had held it to 0.010
+    assert math.dist(start[0][:2], physics.model_pose("flexley_tug")[0][:2]) < 0.12
 
 
 def test_a_wall_pushes_back_and_traction_is_bounded_by_friction(physics: Physics) -> None:

@@ -141,7 +141,7 @@ def test_odometry_integrates_an_arc_exactly() -> None:
     for i in range(101):
         odom.update(left * i / 100, right * i / 100, radius, sep)
     r = arc / turn
-    assert (odom.x, odom.y, odom.yaw) == pytest.approx((r, r, turn), abs=1e-9)
+    assert (odom.pose.x, odom.pose.y, odom.pose.yaw) == pytest.approx((r, r, turn), abs=1e-9)
 
 
 class _Twist:

@@ -31,6 +31,7 @@ Odometry = _ros.nav_msgs__msg__Odometry
 Clock = _ros.rosgraph_msgs__msg__Clock
 JointState = _ros.sensor_msgs__msg__JointState
 Empty = _ros.std_msgs__msg__Empty
+Float64 = _ros.std_msgs__msg__Float64
 Header = _ros.std_msgs__msg__Header
 CameraInfo = _ros.sensor_msgs__msg__CameraInfo
 Image = _ros.sensor_msgs__msg__Image
@@ -46,6 +47,7 @@ __all__ = [
     "CameraInfo",
     "Clock",
     "Empty",
+    "Float64",
     "Header",
     "Image",
     "Imu",
@@ -167,6 +169,11 @@ def string(text: str) -> String:
 def empty() -> Empty:
     """std_msgs/Empty (one padding byte on the wire, as in every ROS 2 middleware)."""
     return Empty(structure_needs_at_least_one_member=0)
+
+
+def float64(value: float) -> Float64:
+    """std_msgs/Float64: a joint's target position, velocity or force."""
+    return Float64(data=float(value))
 
 
 def clock(ns: int) -> Clock:

@@ -158,6 +158,7 @@ class Physics:
         self.bodies[name] = body
         self._configure_joints(body)
         self._configure_friction(body)
+        self._undamp(body)
         for link in model.links:
             for collision in link.collisions:
                 if isinstance(collision.geometry, Heightmap):
@@ -234,7 +235,8 @@ class Physics:
             mu = friction.mu if friction else SDF_DEFAULT_MU
             joint = self._wheel_joint(body.model, link.name) if friction and friction.mu != friction.mu2 else None
             if friction and joint is not None and joint.axis is not None:
-                wheels.append(Wheel(index, friction.mu, friction.mu2, _axis_in_link(joint, link.pose)))
+                fdir1 = _fdir1_angle(body.model, joint, friction.fdir1)
+                wheels.append(Wheel(index, friction.mu, friction.mu2, _axis_in_link(joint, link.pose), fdir1))
                 mu = 0.0
             pb.changeDynamics(
                 body.id, index, lateralFriction=mu, rollingFriction=0, spinningFriction=0, physicsClientId=self.client
@@ -406,6 +408,45 @@ class Physics:
             physicsClientId=self.client,
         )
 
+    # model and joint commands of the Gazebo systems (VelocityControl, ApplyJointForce, joint controllers)
+
+    def _undamp(self, body: Body) -> None:
+        """No velocity damping: SDF states none, and Gazebo applies none. PyBullet's default (0.04
+        linear and quadratic) takes 8 % of a joint's speed after 1 s at 5 rad/s, so a torque would
+        not accelerate a link as τ/I predicts."""
+        pb.changeDynamics(body.id, -1, linearDamping=0.0, angularDamping=0.0, physicsClientId=self.client)
+
+    @_changes_world
+    def set_joint_force(self, model: str, joint: str, force: float) -> None:
+        """Applies `force` (N·m or N) on a joint for the next step only, as Gazebo's JointForceCmd:
+        a controller commands it every step. The joint's friction motor keeps acting."""
+        body = self.body(model)
+        pb.setJointMotorControl2(
+            body.id, self._joint(body, joint), pb.TORQUE_CONTROL, force=force, physicsClientId=self.client
+        )
+
+    def model_motion(self, model: str) -> tuple[Transform, Vec3, Vec3]:
+        """(model frame in the world, linear velocity of its origin, angular velocity), in the world frame."""
+        body = self.body(model)
+        com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+        frame = compose(com, body.com_to_frame)
+        offset = np.subtract(frame[0], com[0])
+        velocity = np.add(linear, np.cross(angular, offset))
+        return frame, _vec3(velocity), _vec3(angular)
+
+    @_changes_world
+    def set_model_velocity(self, model: str, linear: Vec3, angular: Vec3) -> None:
+        """Sets the model frame's velocity, both vectors given in the model frame (Gazebo's
+        LinearVelocityCmd and AngularVelocityCmd): what VelocityControl commands before each step."""
+        body = self.body(model)
+        com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        frame = compose(com, body.com_to_frame)
+        rotation = np.reshape(pb.getMatrixFromQuaternion(frame[1]), (3, 3))
+        angular_world = rotation @ np.asarray(angular)
+        linear_world = rotation @ np.asarray(linear) + np.cross(angular_world, np.subtract(com[0], frame[0]))
+        pb.resetBaseVelocity(body.id, _vec3(linear_world), _vec3(angular_world), physicsClientId=self.client)
+
     @_changes_world
     def attach(self, parent: tuple[str, str], child: tuple[str, str]) -> int:
         """Fixes child (model, link) to parent (model, link) at their current relative pose."""
@@ -439,6 +480,27 @@ class Physics:
         if constraint in self.constraints:
             self.constraints.remove(constraint)
             pb.removeConstraint(constraint, physicsClientId=self.client)
+
+
+def _vec3(values: Sequence[float] | npt.NDArray[np.float64]) -> Vec3:
+    return float(values[0]), float(values[1]), float(values[2])
+
+
+def _fdir1_angle(model: Model, joint: Joint, fdir1: Vec3 | None) -> float:
+    """SDF's fdir1 of a wheel as its angle from the rolling direction on level ground. fdir1 is
+    read in the frame of the wheel joint's parent link (the chassis), where Gazebo's mecanum
+    example states it with `gz:expressed_in`: the wheel's own frame spins."""
+    if fdir1 is None or joint.axis is None:
+        return 0.0
+    up = np.array([0.0, 0.0, 1.0])
+    axle = joint.pose.matrix()[:3, :3] @ np.asarray(joint.axis.xyz)
+    along = np.cross(axle, up)
+    if np.linalg.norm(along) < 1e-9:
+        return 0.0
+    across = np.cross(up, along)
+    parent = next((link.pose for link in model.links if link.name == joint.parent), IDENTITY)
+    direction = parent.matrix()[:3, :3] @ np.asarray(fdir1)
+    return float(math.atan2(direction @ across, direction @ along))
 
 
 def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:

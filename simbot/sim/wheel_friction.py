@@ -13,6 +13,7 @@ pyramid does for SDF `mu`/`mu2`:
     F_along  = −μ  · N · clip(v_along  / v_slip, −1, 1)
     F_across = −μ2 · N · clip(v_across / v_slip, −1, 1)
 
+along and across turn by the angle of SDF's `fdir1` where a wheel states one (mecanum rollers);
 where v is the slip velocity of the wheel surface over the ground at the contact (the wheel's spin
 included, so a wheel driven faster than the ground under it pushes the robot), N the wheel's normal force
 PyBullet reported at the last step (all its contact points summed, applied at their load-weighted
@@ -27,6 +28,7 @@ and with them the friction, flicker between pairs of wheels from step to step.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,6 +56,9 @@ class Wheel:
     mu2: float
     axle: Vec3
     """The wheel's axis of rotation in its link frame."""
+    fdir1: float = 0.0
+    """Radians from the rolling direction to SDF's fdir1, about the contact normal: μ acts along
+    fdir1 and μ2 across it. A mecanum wheel's rollers give 45° with μ2 0 (Gazebo's mecanum example)."""
 
 
 def _cross(a: Vec3, b: Vec3) -> Vec3:
@@ -117,6 +122,12 @@ class WheelFriction:
             return
         along = (along[0] / norm, along[1] / norm, along[2] / norm)
         across = _cross(normal, along)
+        if wheel.fdir1:
+            c, s = math.cos(wheel.fdir1), math.sin(wheel.fdir1)
+            along, across = (
+                (c * along[0] + s * across[0], c * along[1] + s * across[1], c * along[2] + s * across[2]),
+                (c * across[0] - s * along[0], c * across[1] - s * along[1], c * across[2] - s * along[2]),
+            )
         spin = _cross(angular, (point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]))
         sx, sy, sz = linear[0] + spin[0], linear[1] + spin[1], linear[2] + spin[2]
         slip_along = (sx * along[0] + sy * along[1] + sz * along[2]) / SLIP_SPEED

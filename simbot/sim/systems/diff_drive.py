@@ -24,53 +24,11 @@ turn, a wall) `odom` drifts from the ground truth on `model/<name>/pose`.
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
 
-from simbot.bus import messages
 from simbot.description.model import Model, Plugin
 from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param
-
-ABSURD_SPEED = 100.0
-"""m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
-POSE_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
-TWIST_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
-"""Diagonals (x, y, z, roll, pitch, yaw): planar odometry knows nothing of z, roll and pitch."""
-
-
-@dataclass(frozen=True)
-class Limits:
-    """Bounds on commanded velocity and its change; None where the SDF sets none."""
-
-    min_value: float | None = None
-    max_value: float | None = None
-    min_rate: float | None = None
-    max_rate: float | None = None
-
-    def clamp(self, value: float) -> float:
-        low = -math.inf if self.min_value is None else self.min_value
-        high = math.inf if self.max_value is None else self.max_value
-        return min(max(value, low), high)
-
-    def ramp(self, current: float, target: float, dt: float) -> float:
-        """`target`, reached no faster than the acceleration limits allow."""
-        up = math.inf if self.max_rate is None else self.max_rate * dt
-        down = -math.inf if self.min_rate is None else self.min_rate * dt
-        return current + min(max(target - current, down), up)
-
-
-def _limits(plugin: Plugin, kind: str, legacy: str | None) -> Limits:
-    legacy_velocity = (f"max_{legacy}velocity",) if legacy is not None else ()
-    legacy_acceleration = (f"max_{legacy}acceleration",) if legacy is not None else ()
-    max_rate = number_param(plugin, f"max_{kind}_acceleration", *legacy_acceleration, positive=True)
-    min_rate = number_param(plugin, f"min_{kind}_acceleration")
-    return Limits(
-        number_param(plugin, f"min_{kind}_velocity"),
-        number_param(plugin, f"max_{kind}_velocity", *legacy_velocity),
-        -max_rate if min_rate is None and max_rate is not None else min_rate,
-        max_rate,
-    )
+from simbot.sim.systems.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
 
 
 @dataclass(frozen=True)
@@ -110,28 +68,16 @@ class DiffDriveParams:
             child_frame_id=param(plugin, "child_frame_id", "base_frame", default=model.canonical_link) or model.canonical_link,
             odom_rate=number_param(plugin, "odom_publish_frequency", "update_rate", default=50.0, positive=True) or 50.0,
             publish_tf=bool_param(plugin, "publish_tf", "broadcast_TF", default=True),
-            linear=_limits(plugin, "linear", ""),
-            angular=_limits(plugin, "angular", None),
+            linear=limits(plugin, "linear", ""),
+            angular=limits(plugin, "angular"),
         )  # fmt: skip
-
-
-def check_twist(msg: Any) -> str | None:
-    """Why a Twist is no command: NaN, infinite or absurd components."""
-    values = (msg.linear.x, msg.linear.y, msg.linear.z, msg.angular.x, msg.angular.y, msg.angular.z)
-    if not all(math.isfinite(v) for v in values):
-        return f"non-finite velocity {values}"
-    if abs(msg.linear.x) > ABSURD_SPEED or abs(msg.angular.z) > ABSURD_SPEED:
-        return f"absurd velocity: linear.x {msg.linear.x}, angular.z {msg.angular.z} (limit {ABSURD_SPEED})"
-    return None
 
 
 @dataclass
 class Odometry:
     """Dead reckoning from the mean encoder angle of each side: each update is an exact circular arc."""
 
-    x: float = 0.0
-    y: float = 0.0
-    yaw: float = 0.0
+    pose: PlanarPose = field(default_factory=PlanarPose)
     left: float | None = None
     right: float | None = None
 
@@ -143,14 +89,7 @@ class Odometry:
         dl, dr = (left - self.left) * radius, (right - self.right) * radius
         self.left, self.right = left, right
         distance, turn = (dl + dr) / 2, (dr - dl) / separation
-        end = self.yaw + turn
-        if abs(turn) > 1e-9:
-            self.x += distance / turn * (math.sin(end) - math.sin(self.yaw))
-            self.y -= distance / turn * (math.cos(end) - math.cos(self.yaw))
-        else:
-            self.x += distance * math.cos(self.yaw)
-            self.y += distance * math.sin(self.yaw)
-        self.yaw = math.atan2(math.sin(end), math.cos(end))
+        self.pose.advance(distance, 0.0, turn)
         return distance, turn
 
 
@@ -162,19 +101,17 @@ class DiffDrive:
         self._model, self._name = ctx.require_model("DiffDrive")
         self.params = DiffDriveParams.parse(ctx.plugin, self._model)
         self._physics = ctx.physics
-        self._efforts = {j: self._effort(j) for j in self.params.left + self.params.right}
+        self._efforts = {j: joint_effort(self._model, j) for j in self.params.left + self.params.right}
         self._commands = ctx.bus.input(self.params.topic, "geometry_msgs/msg/Twist", check_twist)
-        self._odom_pub = ctx.bus.publisher(self.params.odom_topic, messages.Odometry)
-        self._tf_pub = ctx.bus.publisher(self.params.tf_topic, messages.TFMessage) if self.params.publish_tf else None
+        tf_topic = self.params.tf_topic if self.params.publish_tf else None
+        self._output = OdometryOutput(
+            ctx.bus, self.params.odom_topic, tf_topic, self.params.frame_id, self.params.child_frame_id
+        )
         self._every = Every.hz(self.params.odom_rate)
         self._target = self._current = (0.0, 0.0)
         self._applied: tuple[float, float] | None = None  # None: the first step holds the wheels still
         self._odom = Odometry()
         self._last_ns = 0
-
-    def _effort(self, joint: str) -> float:
-        axis = self._model.joint(joint).axis
-        return axis.effort if axis is not None and axis.effort is not None else 1e16
 
     def pre_update(self, info: UpdateInfo) -> None:
         for msg in self._commands.drain():
@@ -203,32 +140,11 @@ class DiffDrive:
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
         speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
-        self._publish(now_ns, speed, rate)
+        self._output.put_planar(now_ns, self._odom.pose, (speed, 0.0), rate)
 
     def _side(self, joints: tuple[str, ...]) -> float:
         states = self._physics.joint_states(self._name, list(joints))
         return sum(s[0] for s in states) / len(states)
-
-    def _publish(self, now_ns: int, speed: float, rate: float) -> None:
-        p, o = self.params, self._odom
-        quat = (0.0, 0.0, math.sin(o.yaw / 2), math.cos(o.yaw / 2))
-        pose_cov = _diagonal(POSE_COVARIANCE)
-        twist_cov = _diagonal(TWIST_COVARIANCE)
-        odom = messages.odometry(
-            now_ns,
-            p.frame_id,
-            p.child_frame_id,
-            (o.x, o.y, 0.0),
-            quat,
-            (speed, 0.0, 0.0),
-            (0.0, 0.0, rate),
-            pose_cov,
-            twist_cov,
-        )
-        self._odom_pub.put(odom)
-        if self._tf_pub is not None:
-            transform = messages.transform_stamped(now_ns, p.frame_id, p.child_frame_id, (o.x, o.y, 0.0), quat)
-            self._tf_pub.put(messages.tf_message([transform]))
 
     def reset(self, info: UpdateInfo) -> None:
         self._target = self._current = (0.0, 0.0)
@@ -236,11 +152,3 @@ class DiffDrive:
         self._odom = Odometry()
         self._every.restart()
         self._last_ns = info.sim_time_ns
-
-
-def _diagonal(values: tuple[float, ...]) -> list[float]:
-    """A row-major 6×6 covariance with `values` on its diagonal."""
-    matrix = [0.0] * 36
-    for i, value in enumerate(values):
-        matrix[i * 7] = value
-    return matrix

@@ -1,0 +1,190 @@
+"""AckermannSteering: a car's twist → steering angles and wheel speeds; odometry from them (Gazebo's AckermannSteering).
+
+| parameter | default |
+|---|---|
+| `left_joint`, `right_joint` (repeatable: the driven wheels of each side) | required |
+| `left_steering_joint`, `right_steering_joint` | required |
+| `wheel_separation` (m, between the left and right wheels) | 1.0 |
+| `kingpin_width` (m, between the steering axes) | 0.8 |
+| `wheel_base` (m, front to rear axle) | 1.0 |
+| `wheel_radius` (m) | 0.2 |
+| `steering_limit` (rad) | 0.5 |
+| `steer_p_gain` (1/s: steering joint speed per radian of error) | 1.0 |
+| `steering_only` | false |
+| `topic` | `model/<model>/cmd_vel`; `model/<model>/steer_angle` when steering only |
+| `sub_topic` | none; else the input is `model/<model>/<sub_topic>` |
+| `odom_topic`, `tf_topic` | `model/<model>/odometry`, `model/<model>/tf` |
+| `frame_id`, `child_frame_id` | `<model>/odom`, `<model>/<canonical link>` |
+| `odom_publish_frequency` | 50 Hz |
+| `min_velocity`, `max_velocity`, `min_acceleration`, `max_acceleration` | none (bound both v and ω, as in Gazebo) |
+
+Input: geometry_msgs/Twist (v = linear.x, ω = angular.z), or with `steering_only` a
+std_msgs/Float64 steering angle. The turning radius of the rear axle's centre is R = v/ω,
+no tighter than wheel_base / sin(steering_limit) (Gazebo's bound); the steering joints turn
+toward the Ackermann angles atan(L / (R ∓ kingpin_width/2)) at `steer_p_gain` × error, and each
+side's wheels run at v (1 ∓ wheel_separation / 2R) / wheel_radius. A turn commanded at v = 0
+steers full lock and stands. Odometry integrates the first left and right wheels' rotation
+along the arc their steering angles give (the car's bicycle angle φ: cot φ = mean of the two
+cotangents), from the start pose, so it drifts where the wheels slip. Gazebo's `min_jerk`,
+`max_jerk` are ignored with a warning; `use_actuator_msg` is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from simbot.description.model import Model, Plugin
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param
+from simbot.sim.systems.drive import (
+    DeadReckoning,
+    Encoders,
+    Limits,
+    OdometryOutput,
+    check_float,
+    check_twist,
+    command_topic,
+    joint_effort,
+    limits,
+    positive,
+    refuse_actuators,
+    require_joints,
+    warn_unsupported,
+)
+
+STRAIGHT = 0.001
+"""rad/s of commanded turn below which the car drives straight (Gazebo's threshold)."""
+
+
+@dataclass(frozen=True)
+class AckermannParams:
+    left: tuple[str, ...]
+    right: tuple[str, ...]
+    left_steering: str
+    right_steering: str
+    separation: float
+    kingpin_width: float
+    wheel_base: float
+    radius: float
+    steering_limit: float
+    steer_gain: float
+    steering_only: bool
+    odom_rate: float
+    limits: Limits
+
+    @staticmethod
+    def parse(plugin: Plugin, model: Model) -> AckermannParams:
+        warn_unsupported(plugin, "min_jerk", "max_jerk")
+        steering = [require_joints(plugin, model, tag) for tag in ("left_steering_joint", "right_steering_joint")]
+        if any(len(joints) > 1 for joints in steering):
+            raise SystemConfigError(f"{plugin.name}: one <left_steering_joint> and one <right_steering_joint>")
+        limit = positive(plugin, "steering_limit", 0.5)
+        if limit >= math.pi / 2:
+            raise SystemConfigError(f"{plugin.name}: <steering_limit> must be below π/2, got {limit:g}")
+        return AckermannParams(
+            require_joints(plugin, model, "left_joint"), require_joints(plugin, model, "right_joint"),
+            steering[0][0], steering[1][0],
+            positive(plugin, "wheel_separation", 1.0), positive(plugin, "kingpin_width", 0.8),
+            positive(plugin, "wheel_base", 1.0), positive(plugin, "wheel_radius", 0.2), limit,
+            positive(plugin, "steer_p_gain", 1.0), bool_param(plugin, "steering_only", default=False),
+            positive(plugin, "odom_publish_frequency", 50.0), limits(plugin, None),
+        )  # fmt: skip
+
+    def curvature(self, v: float, w: float) -> float:
+        """1/R of the rear axle's centre for a twist, within the steering limit (0: straight)."""
+        if abs(w) < STRAIGHT:
+            return 0.0
+        tightest = math.sin(self.steering_limit) / self.wheel_base
+        if v == 0.0:
+            return math.copysign(tightest, w)
+        return max(-tightest, min(tightest, w / v))
+
+    def steering_angles(self, curvature: float, width: float) -> tuple[float, float]:
+        """(left, right) angles that turn wheels `width` apart about one centre at 1/curvature."""
+        k = curvature
+        return (
+            math.atan(self.wheel_base * k / (1.0 - k * width / 2)),
+            math.atan(self.wheel_base * k / (1.0 + k * width / 2)),
+        )
+
+
+def bicycle_curvature(left: float, right: float, wheel_base: float) -> float:
+    """The rear axle centre's 1/R that two steering angles give: tan φ / L with cot φ their mean cotangent."""
+    tl, tr = math.tan(left), math.tan(right)
+    return 0.0 if abs(tl + tr) < 1e-12 else 2.0 * tl * tr / (tl + tr) / wheel_base
+
+
+class AckermannSteering:
+    """Steers and drives a car; publishes its odometry."""
+
+    def __init__(self, ctx: SystemContext) -> None:
+        assert ctx.plugin is not None
+        model, self._name = ctx.require_model("AckermannSteering")
+        refuse_actuators(ctx.plugin)
+        self.params = p = AckermannParams.parse(ctx.plugin, model)
+        self._physics = ctx.physics
+        self._efforts = {j: joint_effort(model, j) for j in (*p.left, *p.right, p.left_steering, p.right_steering)}
+        self._odometry: DeadReckoning | None = None
+        if p.steering_only:
+            topic = command_topic(ctx, ctx.plugin, "steer_angle")
+            self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
+        else:
+            topic = command_topic(ctx, ctx.plugin, "cmd_vel")
+            self._commands = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
+            self._odometry = DeadReckoning(
+                OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
+                Encoders(ctx.physics, self._name, (p.left[0], p.right[0])),
+                p.odom_rate,
+            )
+        self._target = self._current = (0.0, 0.0)
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        for msg in self._commands.drain():
+            self._target = (msg.data, msg.data) if self.params.steering_only else (msg.linear.x, msg.angular.z)
+        dt = info.step_ns / 1e9
+        lim = self.params.limits
+        self._current = (
+            lim.ramp(self._current[0], lim.clamp(self._target[0]), dt),
+            lim.ramp(self._current[1], lim.clamp(self._target[1]), dt),
+        )
+        if self.params.steering_only:
+            self._steer_to_angle(self._current[1])
+        else:
+            self._drive(*self._current)
+
+    def _steer_to_angle(self, angle: float) -> None:
+        """Steering only: the bicycle angle, bounded by the limit, spread over the wheels `wheel_separation` apart."""
+        p = self.params
+        angle = max(-p.steering_limit, min(p.steering_limit, angle))
+        self._steer(*p.steering_angles(math.tan(angle) / p.wheel_base, p.separation))
+
+    def _drive(self, v: float, w: float) -> None:
+        p = self.params
+        k = p.curvature(v, w)
+        self._steer(*p.steering_angles(k, p.kingpin_width))
+        for joints, speed in ((p.left, v * (1 - k * p.separation / 2)), (p.right, v * (1 + k * p.separation / 2))):
+            for joint in joints:
+                self._physics.set_joint_velocity(self._name, joint, speed / p.radius, self._efforts[joint])
+
+    def _steer(self, left: float, right: float) -> None:
+        p = self.params
+        now = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
+        for joint, target, state in ((p.left_steering, left, now[0]), (p.right_steering, right, now[1])):
+            self._physics.set_joint_velocity(
+                self._name, joint, p.steer_gain * (target - state[0]), self._efforts[joint]
+            )
+
+    def post_update(self, info: UpdateInfo) -> None:
+        rotations = self._odometry.due(info.sim_time_ns) if self._odometry is not None else None
+        if self._odometry is None or rotations is None:
+            return
+        p = self.params
+        distance = (rotations[0] + rotations[1]) / 2 * p.radius
+        steering = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
+        turn = distance * bicycle_curvature(steering[0][0], steering[1][0], p.wheel_base)
+        self._odometry.advance(info.sim_time_ns, distance, 0.0, turn)
+
+    def reset(self, info: UpdateInfo) -> None:
+        self._target = self._current = (0.0, 0.0)
+        if self._odometry is not None:
+            self._odometry.restart(info.sim_time_ns)

@@ -1,0 +1,280 @@
+"""What the drive and joint systems share (DiffDrive, AckermannSteering, MecanumDrive,
+VelocityControl, OdometryPublisher, the joint controllers): command checks, parameters, velocity
+limits, wheel encoders, planar dead reckoning and the odometry/tf output with Gazebo's defaults.
+
+One owner for each piece, so that a fix to the limits or the odometry message reaches every drive.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from simbot.bus import messages
+from simbot.description.model import Model, Plugin
+from simbot.sim.physics import Physics
+from simbot.sim.system import (
+    Every,
+    SimBus,
+    SystemConfigError,
+    SystemContext,
+    bool_param,
+    number_param,
+    param,
+    scoped_key,
+)
+
+log = logging.getLogger(__name__)
+
+ABSURD_SPEED = 100.0
+"""m/s or rad/s beyond which a command is malformed, not merely fast: it is dropped, not clamped."""
+POSE_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
+TWIST_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
+"""Diagonals (x, y, z, roll, pitch, yaw): planar odometry knows nothing of z, roll and pitch."""
+Vec3 = tuple[float, float, float]
+UNLIMITED_EFFORT = 1e16
+"""N·m or N for a joint whose SDF states no effort limit: Gazebo's velocity command is exact there."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Bounds on commanded velocity and its change; None where the SDF sets none."""
+
+    min_value: float | None = None
+    max_value: float | None = None
+    min_rate: float | None = None
+    max_rate: float | None = None
+
+    def clamp(self, value: float) -> float:
+        low = -math.inf if self.min_value is None else self.min_value
+        high = math.inf if self.max_value is None else self.max_value
+        return min(max(value, low), high)
+
+    def ramp(self, current: float, target: float, dt: float) -> float:
+        """`target`, reached no faster than the acceleration limits allow."""
+        up = math.inf if self.max_rate is None else self.max_rate * dt
+        down = -math.inf if self.min_rate is None else self.min_rate * dt
+        return current + min(max(target - current, down), up)
+
+
+def limits(plugin: Plugin, kind: str | None, legacy: str | None = None) -> Limits:
+    """`min_/max_<kind>_velocity` and `_acceleration` (`min_velocity`, ... where `kind` is None, as
+    AckermannSteering and MecanumDrive name them); `legacy` an older spelling of the maxima.
+    A maximum acceleration alone bounds deceleration likewise."""
+    infix = f"{kind}_" if kind else ""
+    legacy_velocity = (f"max_{legacy}velocity",) if legacy is not None else ()
+    legacy_acceleration = (f"max_{legacy}acceleration",) if legacy is not None else ()
+    max_rate = number_param(plugin, f"max_{infix}acceleration", *legacy_acceleration, positive=True)
+    min_rate = number_param(plugin, f"min_{infix}acceleration")
+    return Limits(
+        number_param(plugin, f"min_{infix}velocity"),
+        number_param(plugin, f"max_{infix}velocity", *legacy_velocity),
+        -max_rate if min_rate is None and max_rate is not None else min_rate,
+        max_rate,
+    )
+
+
+def positive(plugin: Plugin, tag: str, default: float) -> float:
+    """A positive number parameter, `default` where the SDF gives none."""
+    value = number_param(plugin, tag, default=default, positive=True)
+    assert value is not None
+    return value
+
+
+def warn_unsupported(plugin: Plugin, *tags: str) -> None:
+    """Gazebo parameters simbot does not implement and can do without (jerk limits): a warning each."""
+    for tag in tags:
+        if plugin.get(tag) is not None:
+            log.warning("%s: <%s> is not supported; ignored", plugin.name, tag)
+
+
+def refuse_actuators(plugin: Plugin) -> None:
+    """Gazebo's `use_actuator_msg` takes gz.msgs.Actuators, which has no ROS 2 counterpart."""
+    if bool_param(plugin, "use_actuator_msg", default=False):
+        raise SystemConfigError(
+            f"{plugin.name}: <use_actuator_msg> is not supported (gz.msgs.Actuators is no ROS 2 message)"
+        )
+
+
+def check_twist(msg: Any) -> str | None:
+    """Why a Twist is no command: NaN, infinite or absurd components."""
+    values = (msg.linear.x, msg.linear.y, msg.linear.z, msg.angular.x, msg.angular.y, msg.angular.z)
+    if not all(math.isfinite(v) for v in values):
+        return f"non-finite velocity {values}"
+    if max(abs(v) for v in values) > ABSURD_SPEED:
+        return f"absurd velocity: linear {values[:3]}, angular {values[3:]} (limit {ABSURD_SPEED})"
+    return None
+
+
+def check_float(msg: Any) -> str | None:
+    """Why a Float64 is no joint command: NaN or infinite."""
+    return None if math.isfinite(msg.data) else f"non-finite value {msg.data}"
+
+
+def joint_effort(model: Model, joint: str) -> float:
+    """The joint's SDF effort limit: the most a velocity servo on it may exert."""
+    axis = model.joint(joint).axis
+    return axis.effort if axis is not None and axis.effort is not None else UNLIMITED_EFFORT
+
+
+def require_joints(plugin: Plugin, model: Model, tag: str) -> tuple[str, ...]:
+    """Every `<tag>` of the plugin (at least one), each a joint of the model."""
+    joints = tuple(plugin.get_all(tag))
+    if not joints:
+        raise SystemConfigError(f"{plugin.name}: needs at least one <{tag}>")
+    known = {j.name for j in model.joints}
+    for joint in joints:
+        if joint not in known:
+            raise SystemConfigError(f"{plugin.name}: <{tag}> {joint!r}: model {model.name!r} has no such joint")
+    return joints
+
+
+def command_topic(ctx: SystemContext, plugin: Plugin, default_leaf: str) -> str:
+    """`<topic>`, else `model/<m>/<sub_topic>`, else `model/<m>/<default_leaf>`: Gazebo's order."""
+    sub_topic = param(plugin, "sub_topic")
+    return param(plugin, "topic") or ctx.model_topic(sub_topic.strip("/") if sub_topic else default_leaf)
+
+
+def vector_param(plugin: Plugin, tag: str, default: Vec3 = (0.0, 0.0, 0.0)) -> Vec3:
+    """Three numbers (`<initial_linear>0.5 0 0</initial_linear>`); anything else is an error naming the tag."""
+    text = param(plugin, tag)
+    if text is None:
+        return default
+    try:
+        x, y, z = (float(part) for part in text.split())
+    except ValueError:
+        raise SystemConfigError(f"{plugin.name}: <{tag}> expected three numbers, got {text!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        raise SystemConfigError(f"{plugin.name}: <{tag}> must be finite, got {text!r}")
+    return x, y, z
+
+
+class Encoders:
+    """Wheel joints' rotation since the last reading: what dead reckoning integrates."""
+
+    def __init__(self, physics: Physics, model: str, joints: tuple[str, ...]) -> None:
+        self._physics, self._model, self._joints = physics, model, list(joints)
+        self._last: list[float] | None = None
+
+    def deltas(self) -> list[float]:
+        """Radians (or metres) each joint moved since the last call; zeros on the first."""
+        now = [state[0] for state in self._physics.joint_states(self._model, self._joints)]
+        last, self._last = self._last or now, now
+        return [a - b for a, b in zip(now, last)]
+
+    def restart(self) -> None:
+        self._last = None
+
+
+@dataclass
+class PlanarPose:
+    """A pose in the plane, advanced by motions given in its own frame along exact arcs."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+
+    def advance(self, forward: float, lateral: float, turn: float) -> None:
+        """Moves by (forward, lateral) metres of its own frame while turning `turn` radians: the
+        constant-twist path (an arc), exact for any step, so odometry does not drift with the rate."""
+        if abs(turn) > 1e-9:
+            s, c = math.sin(turn) / turn, (1.0 - math.cos(turn)) / turn
+            forward, lateral = forward * s - lateral * c, forward * c + lateral * s
+        cos_yaw, sin_yaw = math.cos(self.yaw), math.sin(self.yaw)
+        self.x += forward * cos_yaw - lateral * sin_yaw
+        self.y += forward * sin_yaw + lateral * cos_yaw
+        end = self.yaw + turn
+        self.yaw = math.atan2(math.sin(end), math.cos(end))
+
+    @property
+    def quaternion(self) -> tuple[float, float, float, float]:
+        return 0.0, 0.0, math.sin(self.yaw / 2), math.cos(self.yaw / 2)
+
+
+class OdometryOutput:
+    """nav_msgs/Odometry on one key and, optionally, the same frame → child transform on a tf key."""
+
+    @staticmethod
+    def from_plugin(ctx: SystemContext, plugin: Plugin, model: Model, name: str) -> OdometryOutput:
+        """`odom_topic`, `tf_topic`, `frame_id`, `child_frame_id` with Gazebo's defaults:
+        `model/<m>/odometry`, `model/<m>/tf`, `<m>/odom`, `<m>/<canonical link>`."""
+        frame = scoped_key(name)
+        return OdometryOutput(
+            ctx.bus,
+            param(plugin, "odom_topic") or ctx.model_topic("odometry"),
+            param(plugin, "tf_topic") or ctx.model_topic("tf"),
+            param(plugin, "frame_id") or f"{frame}/odom",
+            param(plugin, "child_frame_id") or f"{frame}/{model.canonical_link}",
+        )
+
+    def __init__(self, bus: SimBus, odom_topic: str, tf_topic: str | None, frame_id: str, child_frame_id: str) -> None:
+        self._odom = bus.publisher(odom_topic, messages.Odometry)
+        self._tf = bus.publisher(tf_topic, messages.TFMessage) if tf_topic is not None else None
+        self.frame_id, self.child_frame_id = frame_id, child_frame_id
+
+    def put_planar(self, now_ns: int, pose: PlanarPose, linear: tuple[float, float], turn_rate: float) -> None:
+        """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown)."""
+        self.put(
+            now_ns,
+            ((pose.x, pose.y, 0.0), pose.quaternion),
+            ((linear[0], linear[1], 0.0), (0.0, 0.0, turn_rate)),
+            diagonal(POSE_COVARIANCE),
+            diagonal(TWIST_COVARIANCE),
+        )
+
+    def put(
+        self,
+        now_ns: int,
+        pose: tuple[tuple[float, float, float], tuple[float, float, float, float]],
+        twist: tuple[tuple[float, float, float], tuple[float, float, float]],
+        pose_covariance: list[float],
+        twist_covariance: list[float],
+    ) -> messages.Odometry:
+        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`; returns what it sent."""
+        xyz, quat = pose
+        odometry = messages.odometry(
+            now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
+        )
+        self._odom.put(odometry)
+        if self._tf is not None:
+            transform = messages.transform_stamped(now_ns, self.frame_id, self.child_frame_id, xyz, quat)
+            self._tf.put(messages.tf_message([transform]))
+        return odometry
+
+
+def diagonal(values: tuple[float, ...]) -> list[float]:
+    """A row-major 6×6 covariance with `values` on its diagonal."""
+    matrix = [0.0] * 36
+    for i, value in enumerate(values):
+        matrix[i * 7] = value
+    return matrix
+
+
+class DeadReckoning:
+    """Wheel-encoder odometry at its own rate: integrates each motion, publishes pose and mean twist."""
+
+    def __init__(self, output: OdometryOutput, encoders: Encoders, rate_hz: float) -> None:
+        self._output, self._encoders = output, encoders
+        self._every = Every.hz(rate_hz)
+        self.pose = PlanarPose()
+        self._last_ns = 0
+
+    def due(self, now_ns: int) -> list[float] | None:
+        """The encoders' rotation since the last update when one is due, else None."""
+        return self._encoders.deltas() if self._every.due(now_ns) else None
+
+    def advance(self, now_ns: int, forward: float, lateral: float, turn: float) -> None:
+        """Moves by a motion of the robot's own frame and publishes; the twist is its mean since the last."""
+        self.pose.advance(forward, lateral, turn)
+        dt = (now_ns - self._last_ns) / 1e9
+        self._last_ns = now_ns
+        rate = 1 / dt if dt > 0 else 0.0
+        self._output.put_planar(now_ns, self.pose, (forward * rate, lateral * rate), turn * rate)
+
+    def restart(self, now_ns: int) -> None:
+        self.pose = PlanarPose()
+        self._encoders.restart()
+        self._every.restart()
+        self._last_ns = now_ns

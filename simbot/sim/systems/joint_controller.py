@@ -1,0 +1,91 @@
+"""JointController: a joint's velocity as commanded (Gazebo's JointController).
+
+| parameter | default |
+|---|---|
+| `joint_name` (repeatable: identical joints, driven alike) | required |
+| `topic` | `model/<model>/joint/<first joint_name>/cmd_vel` |
+| `sub_topic` | none; else the input is `model/<model>/<sub_topic>` |
+| `initial_velocity` | 0 |
+| `use_force_commands` | false |
+| `p_gain`, `i_gain`, `d_gain` (force mode) | 1, 0, 0 |
+| `i_max`, `i_min`, `cmd_max`, `cmd_min`, `cmd_offset` (force mode) | 1, −1, 1000, −1000, 0 |
+| `disable_braking` (force mode) | false |
+
+Input: std_msgs/Float64, rad/s (m/s for a prismatic joint). Velocity mode commands the velocity
+directly, as Gazebo's JointVelocityCmd, with at most the joint's SDF effort. Force mode applies
+a PID's force on the error of the first joint's velocity to every joint; with `disable_braking`
+the joint coasts while it runs faster than commanded in the commanded direction.
+`use_actuator_msg` (gz.msgs.Actuators) has no ROS 2 message here and is refused.
+"""
+
+from __future__ import annotations
+
+import math
+
+from simbot.sim.system import SystemContext, UpdateInfo, bool_param, number_param, scoped_key
+from simbot.sim.systems.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
+from simbot.sim.systems.pid import Pid, PidGains
+
+
+class CommandedJoints:
+    """What both joint controllers share: the joints, their effort limits, the command input and its
+    target (Gazebo's default key `model/<m>/joint/<first joint>/<leaf>`)."""
+
+    def __init__(self, ctx: SystemContext, system: str, leaf: str, initial_tag: str) -> None:
+        assert ctx.plugin is not None
+        plugin = ctx.plugin
+        model, self.model = ctx.require_model(system)
+        refuse_actuators(plugin)
+        self.joints = require_joints(plugin, model, "joint_name")
+        self._efforts = [joint_effort(model, joint) for joint in self.joints]
+        topic = command_topic(ctx, plugin, f"joint/{scoped_key(self.joints[0])}/{leaf}")
+        self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
+        self._initial = number_param(plugin, initial_tag, default=0.0) or 0.0
+        self._physics = ctx.physics
+        self.target = self._initial
+
+    def update(self) -> float:
+        """The target after the commands that arrived."""
+        for msg in self._commands.drain():
+            self.target = msg.data
+        return self.target
+
+    def first(self) -> tuple[float, float, float]:
+        """(position, velocity, effort) of the first joint, which the controller measures."""
+        return self._physics.joint_states(self.model, [self.joints[0]])[0]
+
+    def set_velocity(self, velocity: float) -> None:
+        for joint, effort in zip(self.joints, self._efforts):
+            self._physics.set_joint_velocity(self.model, joint, velocity, effort)
+
+    def push(self, force: float) -> None:
+        for joint in self.joints:
+            self._physics.set_joint_force(self.model, joint, force)
+
+    def reset(self) -> None:
+        self.target = self._initial
+
+
+class JointController:
+    """Holds the commanded velocity on its joints, directly or through a PID on force."""
+
+    def __init__(self, ctx: SystemContext) -> None:
+        assert ctx.plugin is not None
+        self._joints = CommandedJoints(ctx, "JointController", "cmd_vel", "initial_velocity")
+        self._force_mode = bool_param(ctx.plugin, "use_force_commands", default=False)
+        self._no_braking = bool_param(ctx.plugin, "disable_braking", default=False)
+        self._pid = Pid(PidGains.parse(ctx.plugin, 1.0, 0.0, 0.0))
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        target = self._joints.update()
+        if not self._force_mode:
+            self._joints.set_velocity(target)
+            return
+        error = self._joints.first()[1] - target
+        if self._no_braking and (target == 0.0 or math.copysign(1.0, target) * error > 0.0):
+            return
+        self._joints.push(self._pid.update(error, info.step_ns / 1e9))
+
+    def reset(self, info: UpdateInfo) -> None:
+        self._joints.reset()
+        self._pid.reset()
