@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import wraps
 from pathlib import Path
-from typing import Concatenate, ParamSpec, TypeVar
+from typing import Any, Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -362,6 +362,47 @@ class Physics:
         )
         return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
 
+    # sensors' queries: contacts, joint wrenches (read-only, but for the one load-time hook)
+
+    def link_contacts(self, model: str, link: str) -> list[ContactPoint]:
+        """The points where `link` touches other bodies after the last step, with the forces on it."""
+        body = self.body(model)
+        points = pb.getContactPoints(bodyA=body.id, linkIndexA=self._link(body, link), physicsClientId=self.client)
+        return [self._contact_point(point) for point in points]
+
+    def _contact_point(self, point: tuple[Any, ...]) -> ContactPoint:
+        """One of PyBullet's contact points, its other body by name (model, link; "" for a body built
+        outside a model, a heightfield); the normal on B points from B towards A, the sensor's link."""
+        a, b, normal, friction_1, friction_2 = (np.asarray(point[i], dtype=float) for i in (5, 6, 7, 11, 13))
+        force = point[9] * normal + point[10] * friction_1 + point[12] * friction_2
+        return ContactPoint(
+            self._names_of(point[2], point[4]), _vec((a + b) / 2), _vec(normal), -float(point[8]), _vec(force)
+        )
+
+    def _names_of(self, body_id: int, index: int) -> tuple[str, str]:
+        for body in self.bodies.values():
+            if body.id == body_id:
+                return body.name, next((name for name, i in body.links.items() if i == index), "")
+        return "", ""
+
+    @_changes_world
+    def measure_joint_wrench(self, model: str, joint: str) -> None:
+        """Switches on PyBullet's reaction force sensor of a joint, which `joint_wrench` reads: a
+        force/torque sensor asks for it when it is built, before the first step."""
+        body = self.body(model)
+        pb.enableJointForceTorqueSensor(body.id, self._joint(body, joint), True, physicsClientId=self.client)
+
+    def joint_wrench(self, model: str, joint: str) -> tuple[Vec3, Vec3, Vec3]:
+        """(force, torque, point): what the parent applied to the child through `joint` in the last
+        step, in the world frame, the torque about `point`, the child's centre of mass (where PyBullet
+        reports it). Needs `measure_joint_wrench` first."""
+        body = self.body(model)
+        index = self._joint(body, joint)
+        reaction = pb.getJointState(body.id, index, physicsClientId=self.client)[2]
+        com, orn = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)[:2]
+        rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        return _vec(rotation @ reaction[:3]), _vec(rotation @ reaction[3:]), _vec(com)
+
     def moving_bodies(self) -> list[str]:
         """Names of the models that can move (not static)."""
         return [name for name, body in self.bodies.items() if not body.model.static]
@@ -439,6 +480,26 @@ class Physics:
         if constraint in self.constraints:
             self.constraints.remove(constraint)
             pb.removeConstraint(constraint, physicsClientId=self.client)
+
+
+@dataclass(frozen=True)
+class ContactPoint:
+    """A point where a link touches another body (`Physics.link_contacts`), in the world frame."""
+
+    other: tuple[str, str]
+    """(model, link) touched."""
+    position: Vec3
+    normal: Vec3
+    """Unit, from the other body towards the link."""
+    depth: float
+    """Penetration, positive where the two overlap."""
+    force: Vec3
+    """On the link: normal force and friction."""
+
+
+def _vec(values: Sequence[float] | npt.NDArray[np.float64]) -> Vec3:
+    x, y, z = values
+    return float(x), float(y), float(z)
 
 
 def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:
