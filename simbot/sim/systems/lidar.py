@@ -172,8 +172,10 @@ class Lidar(Sampled):
             )
         )
         if self._points.has_subscribers:
-            cloud = ranges[: fan.cloud_rows, :, None] * fan.directions[: fan.cloud_rows]
-            self._points.put(messages.lidar_points(now_ns, self._frame, np.where(np.isfinite(cloud), cloud, np.nan)))
+            returned = np.where(np.isfinite(ranges[: fan.cloud_rows]), ranges[: fan.cloud_rows], np.nan)
+            self._points.put(
+                messages.lidar_points(now_ns, self._frame, returned[:, :, None] * fan.directions[: fan.cloud_rows])
+            )
         self.published(now_ns)
 
     def scan(self) -> npt.NDArray[np.float64]:
