@@ -372,11 +372,19 @@ class Physics:
 
     def _contact_point(self, point: tuple[Any, ...]) -> ContactPoint:
         """One of PyBullet's contact points, its other body by name (model, link; "" for a body built
-        outside a model, a heightfield); the normal on B points from B towards A, the sensor's link."""
-        a, b, normal, friction_1, friction_2 = (np.asarray(point[i], dtype=float) for i in (5, 6, 7, 11, 13))
-        force = point[9] * normal + point[10] * friction_1 + point[12] * friction_2
+        outside a model, a heightfield). PyBullet turns the normal round when it swaps the pair to put
+        the asked body first, but not the friction directions, which it builds as a right-handed
+        (normal, dir1, dir2): where they are left-handed with the reported normal, the pair was swapped
+        and the friction forces on the asked body are the opposite of the reported ones."""
+        a, b, normal, dir_1, dir_2 = (np.asarray(point[i], dtype=float) for i in (5, 6, 7, 11, 13))
+        swapped = float(np.dot(dir_2, np.cross(normal, dir_1))) < 0
+        friction = (point[10] * dir_1 + point[12] * dir_2) * (-1.0 if swapped else 1.0)
         return ContactPoint(
-            self._names_of(point[2], point[4]), _vec((a + b) / 2), _vec(normal), -float(point[8]), _vec(force)
+            self._names_of(point[2], point[4]),
+            _vec((a + b) / 2),
+            _vec(normal),
+            -float(point[8]),
+            _vec(point[9] * normal + friction),
         )
 
     def _names_of(self, body_id: int, index: int) -> tuple[str, str]:
