@@ -1,4 +1,7 @@
-"""Reading a `<sensor>`'s own SDF elements. The description layer keeps each `<sensor>` whole (its
+"""What sensor modules share: reading a `<sensor>`'s own SDF elements, gz-sensors' noise, and the
+frame every simple sensor reads.
+
+Reading a `<sensor>`'s own SDF elements. The description layer keeps each `<sensor>` whole (its
 children as `Param` trees, as it keeps plugins), and each sensor module parses what it needs into
 its own frozen parameter dataclass through `SdfElement`: a new sensor kind is one module, and the
 SDF reader knows nothing of lidars or cameras.
@@ -12,12 +15,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.description.model import Param, Sensor
-from simbot.sim.system import SystemConfigError
+from simbot.sim.system import Sampled, SystemConfigError, SystemContext, UpdateInfo, sensor_frame, sensor_rate
 
 
 @dataclass(frozen=True)
@@ -156,3 +160,27 @@ class ChannelNoise:
     def covariance(self) -> npt.NDArray[np.float64]:
         """The channels' diagonal covariance, row-major (an IMU's or magnetometer's 3×3)."""
         return np.diag(self.variances()).reshape(-1)
+
+
+class FramedSensor(Sampled):
+    """A sensor that reads its own frame each sample (its pose, its motion, the joint it is on) and adds
+    per-channel noise: altimeter, magnetometer, air pressure, navsat, force/torque. It keeps where the
+    frame is (`where`: model, link, pose in the link), the noise, the frame id and the publisher on
+    Gazebo's `kind` of key; a reset redraws the noise's bias, as a new run would."""
+
+    def __init__(self, ctx: SystemContext, channels: Sequence[Noise], kind: str, msgtype: type[Any]) -> None:
+        model, link, sensor = ctx.require_sensor()
+        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
+        self.physics = ctx.physics
+        self.where = (model, link.name, sensor.pose)
+        self.noise = ChannelNoise(channels, ctx.rng)
+        self.frame = sensor_frame(sensor)
+        self.publisher = ctx.bus.publisher(ctx.sensor_topic(kind), msgtype)
+
+    def publish(self, info: UpdateInfo, message: Any) -> None:
+        self.publisher.put(message)
+        self.published(info.sim_time_ns)
+
+    def reset(self, info: UpdateInfo) -> None:
+        super().reset(info)
+        self.noise.draw_bias()

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Atmosphere, Sensor
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.system import SystemContext, UpdateInfo
 
 EARTH_RADIUS = 6356766.0
 """m, the radius geopotential height is reckoned with (US Standard Atmosphere 1976)."""
@@ -61,29 +61,18 @@ class AirPressureParams:
         return AirPressureParams(element.number("reference_altitude", 0.0), element.noise_of("pressure"))
 
 
-class AirPressure(Sampled):
+class AirPressure(FramedSensor):
     """sensor_msgs/FluidPressure at the sensor's rate, stamped with the sim time of the sample."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, link, sensor = ctx.require_sensor()
-        self.params = AirPressureParams.from_sdf(sensor)
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self._physics = ctx.physics
-        self._where = (model, link.name, sensor.pose)
+        self.params = AirPressureParams.from_sdf(ctx.require_sensor()[2])
+        super().__init__(ctx, (self.params.noise,), "air_pressure", messages.FluidPressure)
         self._atmosphere = ctx.world.atmosphere
-        self._noise = ChannelNoise((self.params.noise,), ctx.rng)
-        self._frame = sensor_frame(sensor)
-        self._pub = ctx.bus.publisher(ctx.sensor_topic("air_pressure"), messages.FluidPressure)
+        self._variance = float(self.noise.variances()[0])
 
     def post_update(self, info: UpdateInfo) -> None:
         if not self.due(info):
             return
-        height = self.params.reference_altitude + self._physics.frame_pose(*self._where)[0][2]
-        (pressure,) = self._noise((pressure_at(height, self._atmosphere),))
-        variance = float(self._noise.variances()[0])
-        self._pub.put(messages.fluid_pressure(info.sim_time_ns, self._frame, pressure, variance))
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self._noise.draw_bias()
+        height = self.params.reference_altitude + self.physics.frame_pose(*self.where)[0][2]
+        (pressure,) = self.noise((pressure_at(height, self._atmosphere),))
+        self.publish(info, messages.fluid_pressure(info.sim_time_ns, self.frame, pressure, self._variance))

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.system import SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)
@@ -38,28 +38,17 @@ class AltimeterParams:
         return AltimeterParams(element.noise_of("vertical_position"), element.noise_of("vertical_velocity"))
 
 
-class Altimeter(Sampled):
+class Altimeter(FramedSensor):
     """ros_gz_interfaces/Altimeter at the sensor's rate, stamped with the sim time of the sample."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, link, sensor = ctx.require_sensor()
-        self.params = AltimeterParams.from_sdf(sensor)
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self._physics = ctx.physics
-        self._where = (model, link.name, sensor.pose)
-        self._reference = self._physics.frame_pose(*self._where)[0][2]
-        self._noise = ChannelNoise((self.params.position_noise, self.params.velocity_noise), ctx.rng)
-        self._frame = sensor_frame(sensor)
-        self._pub = ctx.bus.publisher(ctx.sensor_topic("altimeter"), messages.Altimeter)
+        self.params = spec = AltimeterParams.from_sdf(ctx.require_sensor()[2])
+        super().__init__(ctx, (spec.position_noise, spec.velocity_noise), "altimeter", messages.Altimeter)
+        self._reference = self.physics.frame_pose(*self.where)[0][2]
 
     def post_update(self, info: UpdateInfo) -> None:
         if not self.due(info):
             return
-        (position, _), velocity, _ = self._physics.frame_motion(*self._where)
-        height, speed = self._noise((position[2] - self._reference, velocity[2]))
-        self._pub.put(messages.altimeter(info.sim_time_ns, self._frame, height, speed, self._reference))
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self._noise.draw_bias()
+        (position, _), velocity, _ = self.physics.frame_motion(*self.where)
+        height, speed = self.noise((position[2] - self._reference, velocity[2]))
+        self.publish(info, messages.altimeter(info.sim_time_ns, self.frame, height, speed, self._reference))

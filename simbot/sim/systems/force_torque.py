@@ -30,8 +30,8 @@ from simbot.bus import messages
 from simbot.description.model import Joint, Model, Sensor
 from simbot.description.poses import Pose
 from simbot.rotations import quaternion_to_matrix
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemConfigError, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 FRAMES = ("child", "parent", "sensor")
 DIRECTIONS = ("child_to_parent", "parent_to_child")
@@ -70,40 +70,30 @@ def _joint(model: Model | None, sensor: Sensor) -> Joint:
     return joint
 
 
-class ForceTorque(Sampled):
+class ForceTorque(FramedSensor):
     """geometry_msgs/WrenchStamped at the sensor's rate, stamped with the sim time of the sample."""
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
         self.params = ForceTorqueParams.from_sdf(sensor)
         joint = _joint(ctx.model, sensor)
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self._physics = ctx.physics
-        self._model, self._joint = model, joint.name
-        self._physics.measure_joint_wrench(model, joint.name)
-        child_pose = link.pose.inverse()
-        self._origin = (model, link.name, child_pose @ joint.pose)
+        super().__init__(ctx, self.params.noise, "forcetorque", messages.WrenchStamped)
+        self._joint = joint.name
+        self.physics.measure_joint_wrench(model, joint.name)
+        self._origin = (model, link.name, link.pose.inverse() @ joint.pose)
         self._orientation = {
             "child": (model, link.name, Pose()),
             "parent": (model, joint.parent, Pose()),
-            "sensor": (model, link.name, sensor.pose),
+            "sensor": self.where,
         }[self.params.frame]
         self._sign = -1.0 if self.params.measure_direction == "child_to_parent" else 1.0
-        self._noise = ChannelNoise(self.params.noise, ctx.rng)
-        self._frame = sensor_frame(sensor)
-        self._pub = ctx.bus.publisher(ctx.sensor_topic("forcetorque"), messages.WrenchStamped)
 
     def post_update(self, info: UpdateInfo) -> None:
         if not self.due(info):
             return
-        force, torque_at_com, com = (np.asarray(v) for v in self._physics.joint_wrench(self._model, self._joint))
-        origin = np.asarray(self._physics.frame_pose(*self._origin)[0])
+        force, torque_at_com, com = (np.asarray(v) for v in self.physics.joint_wrench(self.where[0], self._joint))
+        origin = np.asarray(self.physics.frame_pose(*self._origin)[0])
         torque = torque_at_com + np.cross(com - origin, force)
-        to_frame = quaternion_to_matrix(self._physics.frame_pose(*self._orientation)[1]).T
-        measured = self._noise(self._sign * np.concatenate([to_frame @ force, to_frame @ torque]))
-        self._pub.put(messages.wrench_stamped(info.sim_time_ns, self._frame, measured[:3], measured[3:]))
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self._noise.draw_bias()
+        to_frame = quaternion_to_matrix(self.physics.frame_pose(*self._orientation)[1]).T
+        measured = self.noise(self._sign * np.concatenate([to_frame @ force, to_frame @ torque]))
+        self.publish(info, messages.wrench_stamped(info.sim_time_ns, self.frame, measured[:3], measured[3:]))

@@ -24,8 +24,8 @@ import numpy as np
 from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.system import SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)
@@ -41,28 +41,17 @@ class MagnetometerParams:
         return MagnetometerParams((x, y, z))
 
 
-class Magnetometer(Sampled):
+class Magnetometer(FramedSensor):
     """sensor_msgs/MagneticField at the sensor's rate, stamped with the sim time of the sample."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, link, sensor = ctx.require_sensor()
-        self.params = MagnetometerParams.from_sdf(sensor)
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self._physics = ctx.physics
-        self._where = (model, link.name, sensor.pose)
+        self.params = MagnetometerParams.from_sdf(ctx.require_sensor()[2])
+        super().__init__(ctx, self.params.noise, "magnetometer", messages.MagneticField)
         self._field = np.asarray(ctx.world.magnetic_field, dtype=float)
-        self._noise = ChannelNoise(self.params.noise, ctx.rng)
-        self._frame = sensor_frame(sensor)
-        self._pub = ctx.bus.publisher(ctx.sensor_topic("magnetometer"), messages.MagneticField)
 
     def post_update(self, info: UpdateInfo) -> None:
         if not self.due(info):
             return
-        _, quat = self._physics.frame_pose(*self._where)
-        local = self._noise(quaternion_to_matrix(quat).T @ self._field)
-        self._pub.put(messages.magnetic_field(info.sim_time_ns, self._frame, local, self._noise.variances()))
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self._noise.draw_bias()
+        _, quat = self.physics.frame_pose(*self.where)
+        local = self.noise(quaternion_to_matrix(quat).T @ self._field)
+        self.publish(info, messages.magnetic_field(info.sim_time_ns, self.frame, local, self.noise.variances()))

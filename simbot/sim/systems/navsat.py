@@ -34,8 +34,8 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor, SphericalCoordinates
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemConfigError, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 WGS84_A = 6378137.0
 """m, the ellipsoid's equatorial radius."""
@@ -107,11 +107,11 @@ class NavSatParams:
         return NavSatParams(element.noise_of("horizontal"), element.noise_of("vertical"))
 
 
-class NavSat(Sampled):
+class NavSat(FramedSensor):
     """sensor_msgs/NavSatFix at the sensor's rate, stamped with the sim time of the fix."""
 
     def __init__(self, ctx: SystemContext) -> None:
-        model, link, sensor = ctx.require_sensor()
+        sensor = ctx.require_sensor()[2]
         self.params = spec = NavSatParams.from_sdf(sensor)
         origin = ctx.world.spherical_coordinates
         if origin.surface_model != "EARTH_WGS84":
@@ -119,25 +119,15 @@ class NavSat(Sampled):
                 f"sensor {sensor.name}: the world's <spherical_coordinates><surface_model> "
                 f"{origin.surface_model!r} is not supported (EARTH_WGS84 only)"
             )
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self._physics = ctx.physics
-        self._where = (model, link.name, sensor.pose)
+        channels = (spec.horizontal_noise, spec.horizontal_noise, spec.vertical_noise)
+        super().__init__(ctx, channels, "navsat", messages.NavSatFix)
         self._geodesy = Geodesy(origin)
-        self._noise = ChannelNoise((spec.horizontal_noise, spec.horizontal_noise, spec.vertical_noise), ctx.rng)
-        variances = self._noise.variances()
+        variances = self.noise.variances()
         self._variances = variances if variances.any() else None
-        self._frame = sensor_frame(sensor)
-        self._pub = ctx.bus.publisher(ctx.sensor_topic("navsat"), messages.NavSatFix)
 
     def post_update(self, info: UpdateInfo) -> None:
         if not self.due(info):
             return
-        position, _ = self._physics.frame_pose(*self._where)
-        enu = self._noise(self._geodesy.world_to_enu @ np.asarray(position))
-        fix = self._geodesy.enu_to_geodetic(enu)
-        self._pub.put(messages.nav_sat_fix(info.sim_time_ns, self._frame, fix, self._variances))
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self._noise.draw_bias()
+        position, _ = self.physics.frame_pose(*self.where)
+        fix = self._geodesy.enu_to_geodetic(self.noise(self._geodesy.world_to_enu @ np.asarray(position)))
+        self.publish(info, messages.nav_sat_fix(info.sim_time_ns, self.frame, fix, self._variances))
