@@ -183,7 +183,7 @@ LIDAR_HEIGHT = 0.5  # the sensor 0.5 m above the probe's frame, itself at z 0.5:
 H_SAMPLES, H_MAX = 41, 0.5
 
 
-def lidar(name: str, vertical: int) -> str:
+def lidar(name: str, vertical: int, horizontal: int = H_SAMPLES) -> str:
     """A noiseless lidar `name` with `vertical` rows over ±0.2 rad (1: planar, in the horizontal plane)."""
     rows = (
         f"<vertical><samples>{vertical}</samples><min_angle>-0.2</min_angle><max_angle>0.2</max_angle></vertical>"
@@ -191,7 +191,7 @@ def lidar(name: str, vertical: int) -> str:
         else ""
     )
     body = (
-        f"<lidar><scan><horizontal><samples>{H_SAMPLES}</samples><min_angle>-{H_MAX}</min_angle>"
+        f"<lidar><scan><horizontal><samples>{horizontal}</samples><min_angle>-{H_MAX}</min_angle>"
         f"<max_angle>{H_MAX}</max_angle></horizontal>{rows}</scan><range><min>0.1</min><max>10</max></range></lidar>"
     )
     return sensor(name, "gpu_lidar", body, f"0 0 {LIDAR_HEIGHT} 0 0 0")
@@ -230,6 +230,16 @@ def test_even_rows_cast_the_middle_plane_apart(tmp_path: Path) -> None:
     # the sensor is 1.25 m up: the top row (+0.2 rad) passes over the 2 m wall's top only if
     # 1.25 + 1.9·tan(0.2) > 2, which it is not: every ray hits, on the face
     assert np.isfinite(cloud["x"]).all() and np.abs(cloud["x"] - WALL_FACE_X).max() < 1e-5
+
+
+def test_more_rays_than_one_pybullet_batch(tmp_path: Path) -> None:
+    """9 × 2001 = 18009 rays, over PyBullet's 16384 a batch: cast in parts, every point still on the wall
+    where its own ray meets it (a ray lost or shifted at a part's edge would misplace the rest)."""
+    with probe(tmp_path, lidar("odd", 9, 2001)) as sim:
+        cloud = messages.lidar_points_array(sim.sample("odd/points"))
+    azimuth = np.linspace(-H_MAX, H_MAX, 2001)[None, :]
+    assert cloud.shape == (9, 2001) and np.abs(cloud["x"] - WALL_FACE_X).max() < 1e-5
+    assert np.abs(cloud["y"] - WALL_FACE_X * np.tan(azimuth)).max() < 1e-5
 
 
 def test_rays_that_hit_nothing_are_nan_points(tmp_path: Path) -> None:

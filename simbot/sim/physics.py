@@ -356,10 +356,20 @@ class Physics:
             pb.setCollisionFilterGroupMask(body.id, index, RAY_BLIND_GROUP, -1, physicsClientId=self.client)
 
     def cast_rays(self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing."""
-        hits = pb.rayTestBatch(
-            starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client
-        )
+        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
+        in batches under PyBullet's most (a 3-D lidar casts more): it refuses more than 16384 rays and
+        answers exactly 16384 with one result short."""
+        batch = pb.MAX_RAY_INTERSECTION_BATCH_SIZE - 1
+        hits = [
+            hit
+            for first in range(0, len(starts), batch)
+            for hit in pb.rayTestBatch(
+                starts[first : first + batch],
+                ends[first : first + batch],
+                collisionFilterMask=~RAY_BLIND_GROUP,
+                physicsClientId=self.client,
+            )
+        ]
         return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
 
     # sensors' queries: contacts, joint wrenches (read-only, but for the one load-time hook)
