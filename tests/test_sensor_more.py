@@ -412,12 +412,19 @@ def test_force_torque_reads_the_weight_a_joint_holds(tmp_path: Path) -> None:
     assert held.header.frame_id == "held"
 
 
-def test_force_torque_turns_with_the_child_frame(tmp_path: Path) -> None:
-    """The child link turned by π/2 about x (its y axis up): the weight reads along its −y."""
-    extra = load("held", 0.5, "").replace("<pose>0 0.5 0.5 0 0 0</pose>", f"<pose>0 0.5 0.5 {math.pi / 2} 0 0</pose>")
-    with probe(tmp_path, extra=extra) as sim:
-        held = sim.sample("held")
-    assert vector(held.wrench.force) == pytest.approx([0.0, -LOAD_KG * G, 0.0], abs=1e-3)
+def test_force_torque_turns_with_the_child_or_the_sensor_frame(tmp_path: Path) -> None:
+    """The child link turned by π/2 about x (its y axis up): the weight reads along its −y. A sensor
+    turned by π/2 about z in `sensor` frame: the lever's twist, +y in the world, reads along its +x."""
+    held = load("held", 0.5, "").replace("<pose>0 0.5 0.5 0 0 0</pose>", f"<pose>0 0.5 0.5 {math.pi / 2} 0 0</pose>")
+    pulled = load("pulled", -0.5, "<force_torque><frame>sensor</frame></force_torque>").replace(
+        'type="force_torque"><pose>0 0 0 0 0 0</pose>', f'type="force_torque"><pose>0 0 0 0 0 {math.pi / 2}</pose>'
+    )
+    with probe(tmp_path, extra=held + pulled) as sim:
+        t = sim.step(10)
+        turned, sensed = sim.at("held", t), sim.at("pulled", t)
+    assert vector(turned.wrench.force) == pytest.approx([0.0, -LOAD_KG * G, 0.0], abs=1e-3)
+    assert vector(sensed.wrench.force) == pytest.approx([0.0, 0.0, -LOAD_KG * G], abs=1e-3)
+    assert vector(sensed.wrench.torque) == pytest.approx([LOAD_KG * G * ARM, 0.0, 0.0], abs=1e-3)
 
 
 # --- contact ---------------------------------------------------------------------------------
