@@ -78,6 +78,36 @@ def test_clock_and_empty_golden_bytes() -> None:
     assert encode(messages.empty()) == EMPTY_GOLDEN
 
 
+ALTIMETER_GOLDEN = bytes.fromhex(
+    "00 01 00 00"  # encapsulation: CDR little-endian
+    "02 00 00 00 03 00 00 00"  # header.stamp: sec 2, nanosec 3
+    "02 00 00 00 61 00 00 00"  # header.frame_id: length 2, 'a' NUL, padding to 8
+    "00 00 00 00 00 00 f4 3f"  # vertical_position = 1.25 (float64)
+    "00 00 00 00 00 00 e0 bf"  # vertical_velocity = -0.5
+    "00 00 00 00 00 00 34 40"  # vertical_reference = 20.0
+)
+
+
+def test_gazebos_altimeter_golden_bytes() -> None:
+    """ros_gz_interfaces/Altimeter, registered beside ROS 2 Humble's types: the header, then three float64."""
+    assert encode(messages.altimeter(2_000_000_003, "a", 1.25, -0.5, 20.0)) == ALTIMETER_GOLDEN
+    assert decode(ALTIMETER_GOLDEN, "ros_gz_interfaces/msg/Altimeter").vertical_reference == 20.0
+
+
+def test_a_lidar_point_is_packed_as_gazebo_packs_it() -> None:
+    """x y z intensity float32 then ring uint16: 18 bytes a point, no padding; row r has ring r."""
+    msg = messages.lidar_points(0, "velo", np.array([[[1.0, -2.0, 0.5]], [[0.0, 0.0, 0.0]]], dtype=np.float32))
+    assert (msg.point_step, msg.row_step, msg.height, msg.width) == (18, 18, 2, 1)
+    assert bytes(msg.data[18:]) == bytes.fromhex(
+        "00 00 00 00"  # x = 0.0
+        "00 00 00 00"  # y = 0.0
+        "00 00 00 00"  # z = 0.0
+        "00 00 00 00"  # intensity = 0.0
+        "01 00"  # ring = 1 (uint16)
+    )
+    assert bytes(msg.data[:4]) == bytes.fromhex("00 00 80 3f")  # x = 1.0
+
+
 def _every_constructor() -> dict[str, Any]:
     ns = 12_345_678_901
     quat = (0.0, 0.0, math.sin(0.3), math.cos(0.3))
@@ -111,6 +141,21 @@ def _every_constructor() -> dict[str, Any]:
         "joint_state": messages.joint_state(
             ns, ["front_left_wheel_joint", "front_right_wheel_joint"], [0.5, -1.5], [2.0, 2.5], []
         ),
+        "magnetic_field": messages.magnetic_field(ns, "mag", (5.5e-6, 2.3e-5, -4.2e-5), (1e-14, 1e-14, 4e-14)),
+        "fluid_pressure": messages.fluid_pressure(ns, "baro", 101325.0, 0.25),
+        "nav_sat_fix": messages.nav_sat_fix(ns, "gps", (47.3, 8.5, 400.0), (4.0, 4.0, 9.0)),
+        "wrench_stamped": messages.wrench_stamped(ns, "ft", (0.0, 0.0, -19.6), (0.0, 5.88, 0.0)),
+        "altimeter": messages.altimeter(ns, "alt", 1.25, -0.5, 20.0),
+        "contacts": messages.contacts(
+            ns,
+            "bump",
+            [
+                messages.ContactPair(
+                    "a::b::c", "g::l::c", [(0.1, 0.2, 0.0)] * 2, [(0, 0, 1)] * 2, [1e-4, 2e-4], [(0, 0, 9.8)] * 2
+                )
+            ],
+        ),
+        "lidar_points": messages.lidar_points(ns, "velo", np.arange(2 * 3 * 3, dtype=np.float32).reshape(2, 3, 3)),
     }
 
 

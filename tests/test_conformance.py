@@ -135,6 +135,51 @@ DETACHABLE = """<plugin name="gz::sim::systems::DetachableJoint" filename="gz-si
 </plugin>"""
 
 
+def _sensor(kind: str, body: str, name: str | None = None) -> str:
+    """A 50 Hz sensor of `kind` on its own key (its name), with `body`: its own element."""
+    name = name or kind
+    return f'<sensor name="{name}" type="{kind}"><update_rate>50</update_rate><topic>{name}</topic>{body}</sensor>'
+
+
+def _axes(*tags: str) -> str:
+    """Noisy `<x>` `<y>` `<z>` under each of `tags` (or bare when none)."""
+    axes = "".join(f"<{a}>{_noise(0.01)}</{a}>" for a in "xyz")
+    return "".join(f"<{t}>{axes}</{t}>" for t in tags) if tags else axes
+
+
+LIDAR_3D = _lidar("gpu_lidar", "scanner3d").replace(
+    "</horizontal>",
+    "</horizontal><vertical><samples>4</samples><min_angle>-0.2</min_angle><max_angle>0.2</max_angle></vertical>",
+)
+ALTIMETER = _sensor(
+    "altimeter",
+    f"<altimeter><vertical_position>{_noise(0.01)}</vertical_position>"
+    f"<vertical_velocity>{_noise(0.01)}</vertical_velocity></altimeter>",
+)
+AIR_PRESSURE = _sensor(
+    "air_pressure",
+    f"<air_pressure><reference_altitude>100</reference_altitude><pressure>{_noise(1.0)}</pressure></air_pressure>",
+)
+NAVSAT_WORLD = """<spherical_coordinates><surface_model>EARTH_WGS84</surface_model><latitude_deg>47.3</latitude_deg>
+  <longitude_deg>8.5</longitude_deg><elevation>400</elevation><heading_deg>30</heading_deg></spherical_coordinates>"""
+
+
+def _navsat(kind: str) -> str:
+    tag = "gps" if kind == "gps" else "navsat"
+    sensing = (
+        f"<position_sensing><horizontal>{_noise(0.5)}</horizontal><vertical>{_noise(1.0)}</vertical></position_sensing>"
+    )
+    return _sensor(kind, f"<{tag}>{sensing}</{tag}>", "fix")
+
+
+FORCE_TORQUE = f"""<link name="mast"><pose>-0.1 0 0.3 0 0 0</pose>
+  <inertial><mass>1</mass><inertia><ixx>0.01</ixx><iyy>0.01</iyy><izz>0.01</izz></inertia></inertial></link>
+<joint name="mast_joint" type="fixed"><parent>base_link</parent><child>mast</child>
+  {_sensor("force_torque", f"<force_torque><frame>child</frame>{_axes('force', 'torque')}</force_torque>", "wrench")}
+</joint>"""
+CONTACT = _sensor("contact", "<contact><collision>skid</collision></contact>", "bump")
+
+
 def _world_plugin(name: str) -> str:
     library = "".join(f"-{c.lower()}" if c.isupper() else c for c in name).lstrip("-")
     return f'<plugin name="gz::sim::systems::{name}" filename="gz-sim-{library}-system"/>'
@@ -235,6 +280,18 @@ CASES: dict[tuple[str, str], Case] = {
         (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points")
         for kind in ("rgbd", "rgbd_camera")
     },
+    # the sensors of issue 15 item 7: each with noise on every channel it has
+    (SENSOR_GROUP, "altimeter"): Case(sensors=ALTIMETER, key="altimeter"),
+    (SENSOR_GROUP, "magnetometer"): Case(
+        sensors=_sensor("magnetometer", f"<magnetometer>{_axes()}</magnetometer>"), key="magnetometer"
+    ),
+    (SENSOR_GROUP, "air_pressure"): Case(sensors=AIR_PRESSURE, key="air_pressure"),
+    **{
+        (SENSOR_GROUP, kind): Case(world_plugins=NAVSAT_WORLD, sensors=_navsat(kind), key="fix")
+        for kind in ("navsat", "gps")
+    },
+    (SENSOR_GROUP, "force_torque"): Case(plugins=FORCE_TORQUE, key="wrench"),
+    (SENSOR_GROUP, "contact"): Case(sensors=CONTACT, key="bump"),
 }
 """One SDF per entry point. A new entry point fails `test_entry_point_is_deterministic` until it has one here."""
 
@@ -297,6 +354,14 @@ def test_entry_point_is_deterministic(group: str, name: str, tmp_path: Path) -> 
     assert first.keys() == second.keys()
     for key in first:
         assert first[key] == second[key], f"{key}: the runs differ"
+
+
+def test_a_3d_lidar_publishes_its_cloud_deterministically(tmp_path: Path) -> None:
+    """A 4-row lidar: the middle-plane scan and the cloud on `<topic>/points`, the same in two runs."""
+    case = Case(sensors=LIDAR_3D, key="scanner3d/points")
+    first, second = run(tmp_path / "first", case, SEED), run(tmp_path / "second", case, SEED)
+    assert len(first["scanner3d"]) >= 2 and len(first["scanner3d/points"]) >= 2
+    assert first == second
 
 
 def test_every_case_is_a_registered_entry_point() -> None:

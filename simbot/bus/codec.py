@@ -18,9 +18,64 @@ from __future__ import annotations
 from typing import Any
 
 from rosbags.interfaces import Msgdef
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-TYPESTORE = get_typestore(Stores.ROS2_HUMBLE)
+ROS_GZ_INTERFACES = {
+    "ros_gz_interfaces/msg/Entity": """
+uint8 NONE=0
+uint8 LIGHT=1
+uint8 MODEL=2
+uint8 LINK=3
+uint8 VISUAL=4
+uint8 COLLISION=5
+uint8 SENSOR=6
+uint8 JOINT=7
+uint64 id
+string name
+uint8 type
+""",
+    "ros_gz_interfaces/msg/JointWrench": """
+std_msgs/Header header
+std_msgs/String body_1_name
+std_msgs/UInt32 body_1_id
+std_msgs/String body_2_name
+std_msgs/UInt32 body_2_id
+geometry_msgs/Wrench body_1_wrench
+geometry_msgs/Wrench body_2_wrench
+""",
+    "ros_gz_interfaces/msg/Contact": """
+ros_gz_interfaces/Entity collision1
+ros_gz_interfaces/Entity collision2
+geometry_msgs/Vector3[] positions
+geometry_msgs/Vector3[] normals
+float64[] depths
+ros_gz_interfaces/JointWrench[] wrenches
+""",
+    "ros_gz_interfaces/msg/Contacts": """
+std_msgs/Header header
+ros_gz_interfaces/Contact[] contacts
+""",
+    "ros_gz_interfaces/msg/Altimeter": """
+std_msgs/Header header
+float64 vertical_position
+float64 vertical_velocity
+float64 vertical_reference
+""",
+}
+"""The messages of Gazebo's ROS 2 interface package (ros_gz_interfaces) that simbot publishes and
+the ROS 2 Humble typestore lacks: field for field as the package defines them, so ros_gz_bridge's
+subscribers read simbot's CDR unchanged."""
+
+
+def _typestore() -> Any:
+    """ROS 2 Humble's message types, and ros_gz_interfaces' (the one place types are registered)."""
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    for name, text in ROS_GZ_INTERFACES.items():
+        store.register(get_types_from_msg(text, name))
+    return store
+
+
+TYPESTORE = _typestore()
 CDR_LE = b"\x00\x01"
 HEADER_SIZE = 4
 MAX_PADDING = 7
@@ -35,7 +90,7 @@ class EncodeError(ValueError):
 
 
 class UnknownMessageType(ValueError):
-    """A type name that the ROS 2 Humble typestore does not know."""
+    """A type name that the typestore (ROS 2 Humble's and ros_gz_interfaces') does not know."""
 
 
 def _one_line(text: object) -> str:
@@ -48,7 +103,7 @@ def message_type(typename: str) -> type[Any]:
         return TYPESTORE.types[typename]
     except KeyError:
         raise UnknownMessageType(
-            f"unknown ROS 2 message type {typename!r} (not in the ROS 2 Humble typestore)"
+            f"unknown ROS 2 message type {typename!r} (neither ROS 2 Humble's nor ros_gz_interfaces')"
         ) from None
 
 

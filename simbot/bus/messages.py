@@ -9,11 +9,14 @@ Times are integer nanoseconds throughout, as the sim clock keeps them: no float 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from rosbags.typesys.stores import ros2_humble as _ros
+
+from simbot.bus.codec import TYPESTORE
 
 # The typestore's own classes (codec.TYPESTORE holds the same ones), under their ROS names.
 Time = _ros.builtin_interfaces__msg__Time
@@ -42,17 +45,36 @@ PointField = _ros.sensor_msgs__msg__PointField
 RegionOfInterest = _ros.sensor_msgs__msg__RegionOfInterest
 String = _ros.std_msgs__msg__String
 TFMessage = _ros.tf2_msgs__msg__TFMessage
+FluidPressure = _ros.sensor_msgs__msg__FluidPressure
+MagneticField = _ros.sensor_msgs__msg__MagneticField
+NavSatFix = _ros.sensor_msgs__msg__NavSatFix
+NavSatStatus = _ros.sensor_msgs__msg__NavSatStatus
+UInt32 = _ros.std_msgs__msg__UInt32
+Wrench = _ros.geometry_msgs__msg__Wrench
+WrenchStamped = _ros.geometry_msgs__msg__WrenchStamped
+# Gazebo's own (registered in codec.TYPESTORE)
+Altimeter = TYPESTORE.types["ros_gz_interfaces/msg/Altimeter"]
+Contact = TYPESTORE.types["ros_gz_interfaces/msg/Contact"]
+Contacts = TYPESTORE.types["ros_gz_interfaces/msg/Contacts"]
+Entity = TYPESTORE.types["ros_gz_interfaces/msg/Entity"]
+JointWrench = TYPESTORE.types["ros_gz_interfaces/msg/JointWrench"]
 
 __all__ = [
+    "Altimeter",
     "CameraInfo",
     "Clock",
+    "ContactPair",
+    "Contacts",
     "Empty",
     "Float64",
     "Header",
     "Image",
+    "FluidPressure",
     "Imu",
     "JointState",
     "LaserScan",
+    "MagneticField",
+    "NavSatFix",
     "Odometry",
     "PointCloud2",
     "PointField",
@@ -63,17 +85,25 @@ __all__ = [
     "TransformStamped",
     "Twist",
     "Vector3",
+    "WrenchStamped",
+    "altimeter",
     "camera_info",
     "clock",
+    "contacts",
     "depth_image",
     "depth_pixels",
     "empty",
+    "fluid_pressure",
     "header",
     "image",
     "image_pixels",
     "imu",
     "joint_state",
     "laser_scan",
+    "lidar_points",
+    "lidar_points_array",
+    "magnetic_field",
+    "nav_sat_fix",
     "odometry",
     "point_cloud",
     "point_cloud_array",
@@ -86,6 +116,7 @@ __all__ = [
     "transform_stamped",
     "twist",
     "vector3",
+    "wrench_stamped",
 ]
 
 NS_PER_S = 1_000_000_000
@@ -421,4 +452,154 @@ def camera_info(ns: int, frame: str, width: int, height: int, fx: float, fy: flo
         binning_x=0,
         binning_y=0,
         roi=RegionOfInterest(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+    )
+
+
+LIDAR_POINT_FIELDS = (
+    ("x", 0, PointField.FLOAT32),
+    ("y", 4, PointField.FLOAT32),
+    ("z", 8, PointField.FLOAT32),
+    ("intensity", 12, PointField.FLOAT32),
+    ("ring", 16, PointField.UINT16),
+)
+"""A lidar's cloud as Gazebo's gpu_lidar packs it: x y z intensity float32, ring uint16, 18 bytes a point, unaligned."""
+LIDAR_POINT_DTYPE = np.dtype(
+    {"names": ["x", "y", "z", "intensity", "ring"], "formats": ["<f4"] * 4 + ["<u2"], "offsets": [0, 4, 8, 12, 16]}
+)
+
+
+def lidar_points(ns: int, frame: str, xyz: npt.NDArray[np.floating[Any]], intensity: Floats = ()) -> PointCloud2:
+    """sensor_msgs/PointCloud2 of a 3-D lidar, organised V×H (a row per vertical angle, its ring number);
+    NaN coordinates where a ray returned nothing; intensity 0 where none is given."""
+    if xyz.ndim != 3 or xyz.shape[2] != 3:
+        raise ValueError(f"lidar points: expected V×H×3 coordinates, got {xyz.shape}")
+    rows, columns = xyz.shape[:2]
+    points = np.zeros((rows, columns), dtype=LIDAR_POINT_DTYPE)
+    for i, axis in enumerate("xyz"):
+        points[axis] = xyz[:, :, i]
+    if len(intensity):
+        points["intensity"] = np.asarray(intensity, dtype=np.float32).reshape(rows, columns)
+    points["ring"] = np.arange(rows, dtype=np.uint16)[:, None]
+    return PointCloud2(
+        header=header(ns, frame),
+        height=rows,
+        width=columns,
+        fields=[PointField(name=n, offset=o, datatype=t, count=1) for n, o, t in LIDAR_POINT_FIELDS],
+        is_bigendian=False,
+        point_step=LIDAR_POINT_DTYPE.itemsize,
+        row_step=LIDAR_POINT_DTYPE.itemsize * columns,
+        data=points.reshape(-1).view(np.uint8).copy(),
+        is_dense=bool(np.isfinite(xyz).all()),
+    )
+
+
+def lidar_points_array(msg: PointCloud2) -> npt.NDArray[np.void]:
+    """The V×H structured array (x, y, z, intensity, ring) of a cloud `lidar_points` made (its inverse)."""
+    fields = tuple((f.name, int(f.offset), int(f.datatype)) for f in msg.fields)
+    if fields != LIDAR_POINT_FIELDS or int(msg.point_step) != LIDAR_POINT_DTYPE.itemsize:
+        raise ValueError(f"fields {fields} with point step {msg.point_step}: not a lidar cloud {LIDAR_POINT_FIELDS}")
+    data = np.ascontiguousarray(np.asarray(msg.data, dtype=np.uint8))
+    return data.view(LIDAR_POINT_DTYPE).reshape(int(msg.height), int(msg.width))
+
+
+def _diagonal(variances: Floats) -> npt.NDArray[np.float64]:
+    return np.diag(_float_array(variances, "variances", 3)).reshape(-1)
+
+
+def magnetic_field(ns: int, frame: str, tesla_xyz: Floats, variances: Floats = (0.0, 0.0, 0.0)) -> MagneticField:
+    """sensor_msgs/MagneticField in tesla, with each axis' variance on the covariance's diagonal (0: unknown)."""
+    return MagneticField(
+        header=header(ns, frame),
+        magnetic_field=vector3(*_three(tesla_xyz, "magnetic field")),
+        magnetic_field_covariance=_diagonal(variances),
+    )
+
+
+def fluid_pressure(ns: int, frame: str, pascal: float, variance: float = 0.0) -> FluidPressure:
+    """sensor_msgs/FluidPressure in pascal (variance 0: unknown)."""
+    return FluidPressure(header=header(ns, frame), fluid_pressure=float(pascal), variance=float(variance))
+
+
+def nav_sat_fix(ns: int, frame: str, lat_lon_alt: Floats, variances: Floats | None = None) -> NavSatFix:
+    """sensor_msgs/NavSatFix: a GPS fix at latitude and longitude (degrees) and altitude (metres above the
+    WGS 84 ellipsoid); east, north and up variances when known (covariance type DIAGONAL_KNOWN), else UNKNOWN."""
+    latitude, longitude, altitude = _three(lat_lon_alt, "latitude, longitude, altitude")
+    known = variances is not None
+    return NavSatFix(
+        header=header(ns, frame),
+        status=NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS),
+        latitude=latitude,
+        longitude=longitude,
+        altitude=altitude,
+        position_covariance=_diagonal(variances if variances is not None else (0.0, 0.0, 0.0)),
+        position_covariance_type=(
+            NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN if known else NavSatFix.COVARIANCE_TYPE_UNKNOWN
+        ),
+    )
+
+
+def _wrench(force_xyz: Floats, torque_xyz: Floats) -> Wrench:
+    return Wrench(force=vector3(*_three(force_xyz, "force")), torque=vector3(*_three(torque_xyz, "torque")))
+
+
+def wrench_stamped(ns: int, frame: str, force_xyz: Floats, torque_xyz: Floats) -> WrenchStamped:
+    """geometry_msgs/WrenchStamped: newtons and newton-metres."""
+    return WrenchStamped(header=header(ns, frame), wrench=_wrench(force_xyz, torque_xyz))
+
+
+def altimeter(ns: int, frame: str, position: float, velocity: float, reference: float) -> Any:
+    """ros_gz_interfaces/Altimeter: height over the reference and vertical velocity (m, m/s), the reference (m)."""
+    return Altimeter(
+        header=header(ns, frame),
+        vertical_position=float(position),
+        vertical_velocity=float(velocity),
+        vertical_reference=float(reference),
+    )
+
+
+@dataclass(frozen=True)
+class ContactPair:
+    """Where two collisions touch: the points (world), normals (unit, pushing collision1 away from
+    collision2), penetration depths, and the force on collision1 at each point (N)."""
+
+    collision1: str
+    collision2: str
+    positions: Sequence[Floats]
+    normals: Sequence[Floats]
+    depths: Sequence[float]
+    forces: Sequence[Floats]
+
+
+def contacts(ns: int, frame: str, pairs: Iterable[ContactPair]) -> Any:
+    """ros_gz_interfaces/Contacts as ros_gz_bridge writes Gazebo's: a Contact per pair of collisions
+    (scoped names `model::link::collision`), a JointWrench per point (body 2's wrench the opposite)."""
+    stamp = header(ns, frame)
+    entity_type = Entity.COLLISION
+    return Contacts(
+        header=stamp,
+        contacts=[
+            Contact(
+                collision1=Entity(id=0, name=pair.collision1, type=entity_type),
+                collision2=Entity(id=0, name=pair.collision2, type=entity_type),
+                positions=[vector3(*_three(p, "contact position")) for p in pair.positions],
+                normals=[vector3(*_three(n, "contact normal")) for n in pair.normals],
+                depths=_float_array(pair.depths, "depths"),
+                wrenches=[_joint_wrench(stamp, pair, force) for force in pair.forces],
+            )
+            for pair in pairs
+        ],
+    )
+
+
+def _joint_wrench(stamp: Header, pair: ContactPair, force: Floats) -> Any:
+    on_1 = np.asarray(_three(force, "contact force"))
+    none = (0.0, 0.0, 0.0)
+    return JointWrench(
+        header=stamp,
+        body_1_name=String(data=pair.collision1),
+        body_1_id=UInt32(data=0),
+        body_2_name=String(data=pair.collision2),
+        body_2_id=UInt32(data=0),
+        body_1_wrench=_wrench(on_1, none),
+        body_2_wrench=_wrench(-on_1, none),
     )

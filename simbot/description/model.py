@@ -205,6 +205,8 @@ class Joint:
     child: str
     pose: Pose = IDENTITY
     axis: Axis | None = None
+    sensors: tuple[Sensor, ...] = ()
+    """A joint's `<sensor>`s (force_torque), posed in its child link's frame."""
 
 
 @dataclass(frozen=True)
@@ -235,8 +237,13 @@ class Model:
         raise KeyError(f"model {self.name!r} has no joint {name!r}")
 
     def sensors(self) -> list[tuple[Link, Sensor]]:
-        """Every sensor with the link that carries it."""
-        return [(link, sensor) for link in self.links for sensor in link.sensors]
+        """Every sensor with the link that carries it; a joint's sensors with the joint's child link."""
+        on_links = [(link, sensor) for link in self.links for sensor in link.sensors]
+        return on_links + [(self.link(joint.child), sensor) for joint in self.joints for sensor in joint.sensors]
+
+    def joint_of(self, sensor: Sensor) -> Joint | None:
+        """The joint a sensor belongs to (a force_torque sensor), None for a link's sensor."""
+        return next((joint for joint in self.joints if sensor in joint.sensors), None)
 
 
 @dataclass(frozen=True)
@@ -265,6 +272,32 @@ class Scene:
 
 
 @dataclass(frozen=True)
+class SphericalCoordinates:
+    """Where the world's origin is on the Earth (SDF `<spherical_coordinates>`); the world's x axis
+    points `heading_deg` counter-clockwise from east (gz-math's convention), z up."""
+
+    surface_model: str = "EARTH_WGS84"
+    world_frame_orientation: str = "ENU"
+    latitude_deg: float = 0.0
+    longitude_deg: float = 0.0
+    elevation: float = 0.0
+    heading_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Atmosphere:
+    """SDF `<atmosphere>` (adiabatic): sea-level temperature (K) and pressure (Pa), lapse (K/m)."""
+
+    temperature: float = 288.15
+    pressure: float = 101325.0
+    temperature_gradient: float = -0.0065
+
+
+EARTH_MAGNETIC_FIELD: Vec3 = (5.5645e-6, 22.8758e-6, -42.3884e-6)
+"""SDF's default `<magnetic_field>`, tesla, in the world frame."""
+
+
+@dataclass(frozen=True)
 class World:
     name: str
     physics: Physics = field(default_factory=Physics)
@@ -274,6 +307,9 @@ class World:
     models: tuple[Model, ...] = ()
     plugins: tuple[Plugin, ...] = ()
     source: Path | None = None
+    spherical_coordinates: SphericalCoordinates = field(default_factory=SphericalCoordinates)
+    magnetic_field: Vec3 = EARTH_MAGNETIC_FIELD
+    atmosphere: Atmosphere = field(default_factory=Atmosphere)
 
     def model(self, name: str) -> Model:
         """The model called `name`; KeyError names it when absent."""

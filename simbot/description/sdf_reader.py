@@ -24,6 +24,8 @@ import numpy as np
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
+    EARTH_MAGNETIC_FIELD,
+    Atmosphere,
     Axis,
     Box,
     Capsule,
@@ -49,6 +51,7 @@ from simbot.description.model import (
     Scene,
     Sensor,
     Sphere,
+    SphericalCoordinates,
     Visual,
     World,
 )
@@ -162,9 +165,11 @@ class _Frames:
         self.resolved[name] = result
         return result
 
-    def in_link(self, link: str, element: Element) -> Pose:
-        """The pose of `element` (a collision, visual or sensor) in the frame of `link`."""
+    def in_link(self, link: str, element: Element, default: str | None = None) -> Pose:
+        """The pose of `element` (a collision, visual or sensor) in the frame of `link`; its pose is
+        relative to `default` (a joint's sensor: the joint) when it names no frame, else to the link."""
         pose, relative_to = _pose(self.reader, element)
+        relative_to = relative_to or default
         if relative_to is None or relative_to == link:
             return pose
         return self.in_model(link, element).inverse() @ self.in_model(relative_to, element) @ pose
@@ -443,7 +448,13 @@ def _read_joint(
     if axis is None and needs_axis:
         raise reader.error(element, f"joint {name!r} of type {kind} needs an <axis>")
     return Joint(
-        name, kind, parent, child, pose, _read_axis(reader, version, frames, pose, axis) if needs_axis else None
+        name,
+        kind,
+        parent,
+        child,
+        pose,
+        _read_axis(reader, version, frames, pose, axis) if needs_axis else None,
+        tuple(_read_sensor(reader, frames, child, e, relative_to=name) for e in element.findall("sensor")),
     )
 
 
@@ -484,13 +495,16 @@ def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_
 # ---------------------------------------------------------------- sensors and plugins
 
 
-def _read_sensor(reader: Reader, frames: _Frames, link: str, element: Element) -> Sensor:
-    """The fields every sensor has; the rest kept whole for the sensor's own module to read."""
+def _read_sensor(
+    reader: Reader, frames: _Frames, link: str, element: Element, relative_to: str | None = None
+) -> Sensor:
+    """The fields every sensor has; the rest kept whole for the sensor's own module to read. Posed in
+    `link`'s frame; its `<pose>` is relative to `relative_to` (a joint's sensor: the joint) by default."""
     frame_name = next((reader.text(element, tag) for tag in FRAME_ID_TAGS if element.find(tag) is not None), None)
     return Sensor(
         name=reader.attr(element, "name"),
         type=reader.attr(element, "type"),
-        pose=frames.in_link(link, element),
+        pose=frames.in_link(link, element, relative_to),
         update_rate=reader.number(element, "update_rate", 0.0),
         always_on=reader.flag(element, "always_on", False),
         topic=reader.text(element, "topic"),
@@ -538,6 +552,38 @@ def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> W
         models=tuple(models),
         plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
         source=reader.file,
+        spherical_coordinates=_read_spherical_coordinates(reader, element.find("spherical_coordinates")),
+        magnetic_field=reader.vector(element, "magnetic_field", 3, EARTH_MAGNETIC_FIELD),  # type: ignore[arg-type]
+        atmosphere=_read_atmosphere(reader, element.find("atmosphere")),
+    )
+
+
+def _read_spherical_coordinates(reader: Reader, element: Element | None) -> SphericalCoordinates:
+    """The world origin on the Earth; only Gazebo's ENU world frame has a meaning here."""
+    if element is None:
+        return SphericalCoordinates()
+    defaults = SphericalCoordinates()
+    orientation = reader.text(element, "world_frame_orientation") or defaults.world_frame_orientation
+    if orientation != "ENU":
+        raise reader.error(element, f"world_frame_orientation {orientation!r} is not supported (ENU only, as Gazebo)")
+    return SphericalCoordinates(
+        surface_model=reader.text(element, "surface_model") or defaults.surface_model,
+        world_frame_orientation=orientation,
+        latitude_deg=reader.number(element, "latitude_deg", defaults.latitude_deg),
+        longitude_deg=reader.number(element, "longitude_deg", defaults.longitude_deg),
+        elevation=reader.number(element, "elevation", defaults.elevation),
+        heading_deg=reader.number(element, "heading_deg", defaults.heading_deg),
+    )
+
+
+def _read_atmosphere(reader: Reader, element: Element | None) -> Atmosphere:
+    if element is None:
+        return Atmosphere()
+    defaults = Atmosphere()
+    return Atmosphere(
+        temperature=reader.number(element, "temperature", defaults.temperature),
+        pressure=reader.number(element, "pressure", defaults.pressure),
+        temperature_gradient=reader.number(element, "temperature_gradient", defaults.temperature_gradient),
     )
 
 

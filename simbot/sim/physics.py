@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import wraps
 from pathlib import Path
-from typing import Concatenate, ParamSpec, TypeVar
+from typing import Any, Concatenate, ParamSpec, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -358,11 +358,70 @@ class Physics:
             pb.setCollisionFilterGroupMask(body.id, index, RAY_BLIND_GROUP, -1, physicsClientId=self.client)
 
     def cast_rays(self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing."""
-        hits = pb.rayTestBatch(
-            starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client
-        )
+        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
+        in batches under PyBullet's most (a 3-D lidar casts more): it refuses more than 16384 rays and
+        answers exactly 16384 with one result short."""
+        batch = pb.MAX_RAY_INTERSECTION_BATCH_SIZE - 1
+        hits = [
+            hit
+            for first in range(0, len(starts), batch)
+            for hit in pb.rayTestBatch(
+                starts[first : first + batch],
+                ends[first : first + batch],
+                collisionFilterMask=~RAY_BLIND_GROUP,
+                physicsClientId=self.client,
+            )
+        ]
         return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
+
+    # sensors' queries: contacts, joint wrenches (read-only, but for the one load-time hook)
+
+    def link_contacts(self, model: str, link: str) -> list[ContactPoint]:
+        """The points where `link` touches other bodies after the last step, with the forces on it."""
+        body = self.body(model)
+        points = pb.getContactPoints(bodyA=body.id, linkIndexA=self._link(body, link), physicsClientId=self.client)
+        return [self._contact_point(point) for point in points]
+
+    def _contact_point(self, point: tuple[Any, ...]) -> ContactPoint:
+        """One of PyBullet's contact points, its other body by name (model, link; "" for a body built
+        outside a model, a heightfield). PyBullet turns the normal round when it swaps the pair to put
+        the asked body first, but not the friction directions, which it builds as a right-handed
+        (normal, dir1, dir2): where they are left-handed with the reported normal, the pair was swapped
+        and the friction forces on the asked body are the opposite of the reported ones."""
+        a, b, normal, dir_1, dir_2 = (np.asarray(point[i], dtype=float) for i in (5, 6, 7, 11, 13))
+        swapped = float(np.dot(dir_2, np.cross(normal, dir_1))) < 0
+        friction = (point[10] * dir_1 + point[12] * dir_2) * (-1.0 if swapped else 1.0)
+        return ContactPoint(
+            self._names_of(point[2], point[4]),
+            _vec3((a + b) / 2),
+            _vec3(normal),
+            -float(point[8]),
+            _vec3(point[9] * normal + friction),
+        )
+
+    def _names_of(self, body_id: int, index: int) -> tuple[str, str]:
+        for body in self.bodies.values():
+            if body.id == body_id:
+                return body.name, next((name for name, i in body.links.items() if i == index), "")
+        return "", ""
+
+    @_changes_world
+    def measure_joint_wrench(self, model: str, joint: str) -> None:
+        """Switches on PyBullet's reaction force sensor of a joint, which `joint_wrench` reads: a
+        force/torque sensor asks for it when it is built, before the first step."""
+        body = self.body(model)
+        pb.enableJointForceTorqueSensor(body.id, self._joint(body, joint), True, physicsClientId=self.client)
+
+    def joint_wrench(self, model: str, joint: str) -> tuple[Vec3, Vec3, Vec3]:
+        """(force, torque, point): what the parent applied to the child through `joint` in the last
+        step, in the world frame, the torque about `point`, the child's centre of mass (where PyBullet
+        reports it). Needs `measure_joint_wrench` first."""
+        body = self.body(model)
+        index = self._joint(body, joint)
+        reaction = pb.getJointState(body.id, index, physicsClientId=self.client)[2]
+        com, orn = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)[:2]
+        rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        return _vec3(rotation @ reaction[:3]), _vec3(rotation @ reaction[3:]), _vec3(com)
 
     def moving_bodies(self) -> list[str]:
         """Names of the models that can move (not static)."""
@@ -501,6 +560,21 @@ def _fdir1_angle(model: Model, joint: Joint, fdir1: Vec3 | None) -> float:
     parent = next((link.pose for link in model.links if link.name == joint.parent), IDENTITY)
     direction = parent.matrix()[:3, :3] @ np.asarray(fdir1)
     return float(math.atan2(direction @ across, direction @ along))
+
+
+@dataclass(frozen=True)
+class ContactPoint:
+    """A point where a link touches another body (`Physics.link_contacts`), in the world frame."""
+
+    other: tuple[str, str]
+    """(model, link) touched."""
+    position: Vec3
+    normal: Vec3
+    """Unit, from the other body towards the link."""
+    depth: float
+    """Penetration, positive where the two overlap."""
+    force: Vec3
+    """On the link: normal force and friction."""
 
 
 def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:

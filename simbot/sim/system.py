@@ -243,13 +243,15 @@ class SystemContext:
 
     def sensor_topic(self, kind: str) -> str:
         """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
-        (`scan`, `image`, `imu`, `points`, ...)."""
+        (`scan`, `image`, `imu`, `points`, ...); a joint's sensor: `.../joint/<j>/sensor/<s>/<kind>`."""
         name, link, sensor = self.require_sensor()
         stated = (sensor.topic or "").strip().strip("/")
         if stated:
             return stated
-        scope = (self.world.name, name, link.name, sensor.name)
-        return "world/{}/model/{}/link/{}/sensor/{}/".format(*map(scoped_key, scope)) + kind
+        joint = self.model.joint_of(sensor) if self.model else None
+        owner = f"joint/{scoped_key(joint.name)}" if joint else f"link/{scoped_key(link.name)}"
+        scope = (self.world.name, name)
+        return "world/{}/model/{}/".format(*map(scoped_key, scope)) + f"{owner}/sensor/{scoped_key(sensor.name)}/{kind}"
 
     def require_rendering(self) -> Rendering:
         """The rendering system a camera registers with."""

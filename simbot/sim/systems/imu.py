@@ -27,17 +27,15 @@ import numpy.typing as npt
 from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
-from simbot.sim.sensor_params import Noise, SdfElement
+from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
 from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate, sensor_topic
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""
 
 
-def _axes(element: SdfElement | None) -> Axes:
-    if element is None:
-        return (Noise(), Noise(), Noise())
-    x, y, z = ((element.child_or_empty(axis).noise() or Noise()).applied for axis in "xyz")
+def _axes(element: SdfElement) -> Axes:
+    x, y, z = (element.noise_of(axis) for axis in "xyz")
     return (x, y, z)
 
 
@@ -51,31 +49,9 @@ class ImuParams:
     @staticmethod
     def from_sdf(sensor: Sensor) -> ImuParams:
         imu = SdfElement.of(sensor).child_or_empty("imu")
-        return ImuParams(_axes(imu.child("angular_velocity")), _axes(imu.child("linear_acceleration")))
-
-
-class AxisNoise:
-    """Gaussian noise of three axes, with a bias that holds until reset."""
-
-    def __init__(self, axes: Axes, rng: np.random.Generator) -> None:
-        self._rng = rng
-        used = axes
-        self.mean = np.array([n.mean for n in used])
-        self.stddev = np.array([n.stddev for n in used])
-        self._bias_mean = np.array([n.bias_mean for n in used])
-        self._bias_stddev = np.array([n.bias_stddev for n in used])
-        self.bias = np.zeros(3)
-        self.draw_bias()
-
-    def draw_bias(self) -> None:
-        size = self._rng.normal(self._bias_mean, self._bias_stddev)
-        self.bias = size * self._rng.choice((-1.0, 1.0), 3)
-
-    def __call__(self, value: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        return value + self.mean + self.bias + self._rng.normal(0.0, 1.0, 3) * self.stddev
-
-    def covariance(self) -> npt.NDArray[np.float64]:
-        return np.diag(self.stddev**2).reshape(-1)
+        return ImuParams(
+            _axes(imu.child_or_empty("angular_velocity")), _axes(imu.child_or_empty("linear_acceleration"))
+        )
 
 
 class Imu(Sampled):
@@ -88,8 +64,8 @@ class Imu(Sampled):
         self._physics = ctx.physics
         self._where = (model, link.name, sensor.pose)
         self._gravity = np.asarray(ctx.world.gravity, dtype=float)
-        self._gyro = AxisNoise(spec.angular_velocity_noise, ctx.rng)
-        self._accel = AxisNoise(spec.linear_acceleration_noise, ctx.rng)
+        self._gyro = ChannelNoise(spec.angular_velocity_noise, ctx.rng)
+        self._accel = ChannelNoise(spec.linear_acceleration_noise, ctx.rng)
         self._covariances = (np.zeros(9), self._gyro.covariance(), self._accel.covariance())
         self._frame = sensor_frame(sensor)
         self._last: tuple[int, npt.NDArray[np.float64]] | None = None

@@ -1,12 +1,21 @@
-"""Planar lidar (SDF `gpu_lidar`, `lidar`, `ray`, `gpu_ray`): one PyBullet ray batch per scan.
+"""Lidar, planar or 3-D (SDF `gpu_lidar`, `lidar`, `ray`, `gpu_ray`): one PyBullet ray batch per scan.
 
-Every ray of a scan is cast at the same sim instant from the sensor's world pose, starting at
-range_min so nothing inside the housing is seen. The robot carrying the lidar is invisible to
+Every ray of a scan (horizontal × vertical samples) is cast at the same sim instant from the
+sensor's world pose, starting at range_min so nothing inside the housing is seen. The robot carrying the lidar is invisible to
 its rays (physics.blind_rays_to), as a real lidar's own chassis is below or behind its window.
 A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF's gaussian
 noise, quantised to the range resolution and kept within [range_min, range_max].
 `time_increment` is 0 because the rays really are simultaneous: a consumer that de-skews by it
 would otherwise move points that did not move.
+
+Two outputs, as Gazebo's lidars give them: sensor_msgs/LaserScan on the topic, one plane: the
+middle of the vertical fan, (min_angle + max_angle)/2, which is a row of the fan when the vertical
+samples are odd and one more row of rays when they are even; and sensor_msgs/PointCloud2 on
+`<topic>/points`, organised as Gazebo packs it: a row per vertical angle from min_angle up (its
+`ring`), a column per horizontal angle, fields x y z intensity (float32) and ring (uint16), 18
+bytes a point, in the sensor frame; NaN coordinates where a ray returned nothing, intensity 0
+(simbot models no retro-reflectance). The cloud is built only while someone subscribes to it;
+the rays and their noise are the same either way, so a subscriber never changes the scan.
 
 SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
 
@@ -14,7 +23,7 @@ SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
 | --- | --- | --- |
 | `<scan><horizontal><samples>` | 1 | rays per scan (at least 1) |
 | `<scan><horizontal><min_angle>`, `<max_angle>` | 0, 0 | first and last ray, radians |
-| `<scan><vertical><samples>`, `<min_angle>`, `<max_angle>` | 1, 0, 0 | a LaserScan holds one plane: the middle one is cast |
+| `<scan><vertical><samples>`, `<min_angle>`, `<max_angle>` | 1, 0, 0 | rows of the 3-D fan (1: planar, at min_angle) |
 | `<range><min>`, `<range><max>` | required | rays start at min; no hit within max reads +inf |
 | `<range><resolution>` | 0 | ranges are quantised to it (0: not quantised) |
 | `<noise>` (`type`, `mean`, `stddev`) | none | gaussian noise per ray |
@@ -23,7 +32,6 @@ SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass
 
@@ -43,8 +51,6 @@ from simbot.sim.system import (
     sensor_rate,
     sensor_topic,
 )
-
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -91,21 +97,32 @@ class LidarParams:
         return params
 
 
-def ray_directions(spec: LidarParams) -> tuple[npt.NDArray[np.float64], float]:
-    """Unit vectors of every ray in the sensor frame (x forward, z up), and the angle increment."""
-    h = spec.horizontal
-    angles = np.linspace(h.min_angle, h.max_angle, h.samples)
+@dataclass(frozen=True)
+class Fan:
+    """The rays of one scan: unit directions (rows × horizontal × 3, sensor frame: x forward, z up),
+    how many leading rows the cloud holds, the row the LaserScan reads, and its angle increment."""
+
+    directions: npt.NDArray[np.float64]
+    cloud_rows: int
+    scan_row: int
+    increment: float
+
+
+def ray_fan(spec: LidarParams) -> Fan:
+    """Every ray of a scan: the vertical rows, and the middle plane as an extra row where no row is it."""
+    h, v = spec.horizontal, spec.vertical
+    azimuths = np.linspace(h.min_angle, h.max_angle, h.samples)
     increment = (h.max_angle - h.min_angle) / (h.samples - 1) if h.samples > 1 else 0.0
-    elevation = (
-        spec.vertical.min_angle
-        if spec.vertical.samples <= 1
-        else (spec.vertical.min_angle + spec.vertical.max_angle) / 2
-    )
-    cos_e = math.cos(elevation)
+    elevations = np.linspace(v.min_angle, v.max_angle, v.samples) if v.samples > 1 else np.array([v.min_angle])
+    scan_row = elevations.size // 2
+    if elevations.size % 2 == 0:  # no middle row: the LaserScan's plane is cast as one more
+        elevations, scan_row = np.append(elevations, (v.min_angle + v.max_angle) / 2), elevations.size
+    cos_e, sin_e = np.cos(elevations)[:, None], np.sin(elevations)[:, None]
     directions = np.stack(
-        [np.cos(angles) * cos_e, np.sin(angles) * cos_e, np.full_like(angles, math.sin(elevation))], axis=1
+        [cos_e * np.cos(azimuths), cos_e * np.sin(azimuths), np.broadcast_to(sin_e, (elevations.size, h.samples))],
+        axis=2,
     )
-    return directions, increment
+    return Fan(directions, max(v.samples, 1), scan_row, increment)
 
 
 def _check(name: str, spec: LidarParams) -> None:
@@ -117,16 +134,13 @@ def _check(name: str, spec: LidarParams) -> None:
         raise SystemConfigError(
             f"sensor {name}: <range> needs 0 ≤ min < max, got min {spec.range_min} max {spec.range_max}"
         )
-    if spec.vertical.samples > 1:
-        log.warning(
-            "sensor %s: %d vertical samples; a LaserScan holds one plane, the middle one is published",
-            name,
-            spec.vertical.samples,
-        )
+    if spec.vertical.samples < 1:
+        raise SystemConfigError(f"sensor {name}: <vertical><samples> must be at least 1, got {spec.vertical.samples}")
 
 
 class Lidar(Sampled):
-    """sensor_msgs/LaserScan at the sensor's rate, stamped with the sim time the rays were cast."""
+    """sensor_msgs/LaserScan, and the cloud on `/points`, at the sensor's rate, stamped with the sim
+    time the rays were cast."""
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
@@ -137,34 +151,43 @@ class Lidar(Sampled):
         self._physics = ctx.physics
         self._physics.blind_rays_to(model)
         self._rng = ctx.rng
-        self._directions, increment = ray_directions(self.params)
+        self._fan = ray_fan(self.params)
         h = self.params.horizontal
         self._frame = sensor_frame(sensor)
-        self._angles = (h.min_angle, h.max_angle, increment)
+        self._angles = (h.min_angle, h.max_angle, self._fan.increment)
         self._times = (0.0, 1.0 / rate)
-        self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.LaserScan)
+        topic = sensor_topic(sensor)
+        self._pub = ctx.bus.publisher(topic, messages.LaserScan)
+        self._points = ctx.bus.publisher(f"{topic}/points", messages.PointCloud2)
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
         if not self.due(info):
             return
-        spec = self.params
+        spec, fan = self.params, self._fan
+        ranges = self.scan()
         self._pub.put(
             messages.laser_scan(
-                now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), self.scan()
+                now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), ranges[fan.scan_row]
             )
         )
+        if self._points.has_subscribers:
+            returned = np.where(np.isfinite(ranges[: fan.cloud_rows]), ranges[: fan.cloud_rows], np.nan)
+            self._points.put(
+                messages.lidar_points(now_ns, self._frame, returned[:, :, None] * fan.directions[: fan.cloud_rows])
+            )
         self.published(now_ns)
 
     def scan(self) -> npt.NDArray[np.float64]:
-        """The ranges the lidar reads now: true distances, noise, quantisation, +inf for no return."""
+        """The ranges the lidar reads now, a row per ray row of the fan: true distances, noise,
+        quantisation, +inf for no return."""
         spec = self.params
         position, quat = self._physics.frame_pose(self._model, self._link, self._pose)
-        directions = self._directions @ quaternion_to_matrix(quat).T
+        directions = self._fan.directions.reshape(-1, 3) @ quaternion_to_matrix(quat).T
         origin = np.asarray(position)
         fractions = self._physics.cast_rays(origin + directions * spec.range_min, origin + directions * spec.range_max)
         ranges = spec.range_min + fractions * (spec.range_max - spec.range_min)
-        return self._measured(ranges)
+        return self._measured(ranges).reshape(self._fan.directions.shape[:2])
 
     def _measured(self, ranges: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         spec = self.params
