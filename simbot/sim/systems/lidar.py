@@ -6,7 +6,8 @@ its rays (physics.blind_rays_to), as a real lidar's own chassis is below or behi
 A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF's gaussian
 noise, quantised to the range resolution and kept within [range_min, range_max].
 `time_increment` is 0 because the rays really are simultaneous: a consumer that de-skews by it
-would otherwise move points that did not move.
+would otherwise move points that did not move. The key is `<topic>`, else Gazebo's
+`world/<w>/model/<m>/link/<l>/sensor/<s>/scan`.
 
 SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
 
@@ -41,7 +42,6 @@ from simbot.sim.system import (
     UpdateInfo,
     sensor_frame,
     sensor_rate,
-    sensor_topic,
 )
 
 log = logging.getLogger(__name__)
@@ -142,7 +142,7 @@ class Lidar(Sampled):
         self._frame = sensor_frame(sensor)
         self._angles = (h.min_angle, h.max_angle, increment)
         self._times = (0.0, 1.0 / rate)
-        self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.LaserScan)
+        self._pub = ctx.bus.publisher(ctx.sensor_topic("scan"), messages.LaserScan)
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
