@@ -3,7 +3,8 @@
 tests/fixtures/gazebo/two_vehicles.sdf holds two differential-drive vehicles whose DiffDrive and
 IMU state no topic, as gz-sim's diff_drive.sdf does. Each takes the keys Gazebo Sim gives under
 its own model name, so a command to one moves that one only, and their odometry, tf and IMU
-stay apart; world state reports each vehicle's IMU under its scoped name.
+stay apart; world state reports each vehicle's IMU under its scoped name. A rig with one sensor
+of each kind and the other model systems, none stating a topic, announces Gazebo's keys.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import pytest
 from server_helpers import ODOMETRY, TF_MESSAGE, SimServer, planar_distance, running_server
 
 from simbot.bus import messages
+from simbot.bus.graph import discover
 from simbot.description import load_world
 from simbot.description.model import Param, Plugin
 from simbot.sim.systems.diff_drive import DiffDriveParams
@@ -91,3 +93,47 @@ def test_gazebo_defaults_and_a_stated_topic_wins() -> None:
     stated = Plugin(plugin.name, plugin.filename, (*plugin.params, Param("topic", "/drive")))
     assert DiffDriveParams.parse(stated, model, "renamed").topic == "/drive"
     assert DiffDriveParams.parse(stated, model, "renamed").odom_topic == "model/renamed/odometry"
+
+
+RIG = """<?xml version="1.0"?>
+<sdf version="1.9"><world name="keys"><model name="rig"><static>true</static><pose>0 0 1 0 0 0</pose>
+  <link name="body">
+    {sensors}
+  </link>
+  <plugin filename="gz-sim-joint-state-publisher-system" name="gz::sim::systems::JointStatePublisher"/>
+  <plugin filename="gz-sim-detachable-joint-system" name="gz::sim::systems::DetachableJoint">
+    <parent_link>body</parent_link><child_model>cart</child_model><child_link>base</child_link>
+  </plugin>
+</model></world></sdf>"""
+CAMERA = "<camera><image><width>8</width><height>6</height></image></camera>"
+SENSORS = {
+    "camera": CAMERA,
+    "depth_camera": CAMERA,
+    "rgbd_camera": CAMERA,
+    "gpu_lidar": "<lidar><scan><horizontal><samples>3</samples></horizontal></scan><range><min>0.1</min><max>5</max></range></lidar>",
+    "imu": "",
+}
+"""One sensor of each kind, none stating a topic; each is named after its kind."""
+
+
+def test_every_system_and_sensor_without_a_topic_takes_gazebos_key(tmp_path: Path) -> None:
+    """The keys the server announces for a model `rig` in world `keys` whose systems and sensors state no topic."""
+    sensors = "".join(f'<sensor name="{kind}" type="{kind}">{body}</sensor>' for kind, body in SENSORS.items())
+    world = tmp_path / "keys.sdf"
+    world.write_text(RIG.format(sensors=sensors))
+    with running_server(str(world), extra=("--robot", "none", "--render-workers", "1")) as sim:
+        prefix = f"{sim.namespace}/"
+        announced = {(e.kind, e.key.removeprefix(prefix)) for e in discover(sim.node.session, sim.namespace)}
+    scope = "world/keys/model/rig/link/body/sensor"
+    expected = {
+        ("pub", "world/keys/model/rig/joint_state"),
+        ("sub", "model/rig/detachable_joint/attach"),
+        ("sub", "model/rig/detachable_joint/detach"),
+        ("pub", "model/cart/detachable_joint/state"),
+        *(("pub", f"{scope}/camera/{leaf}") for leaf in ("image", "camera_info")),
+        *(("pub", f"{scope}/depth_camera/{leaf}") for leaf in ("depth_image", "camera_info")),
+        *(("pub", f"{scope}/rgbd_camera/{leaf}") for leaf in ("image", "depth_image", "points", "camera_info")),
+        ("pub", f"{scope}/gpu_lidar/scan"),
+        ("pub", f"{scope}/imu/imu"),
+    }
+    assert expected <= announced, sorted(expected - announced)
