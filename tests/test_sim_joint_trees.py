@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from conftest import settled_physics
 
 from simbot.description import DescriptionError, load_world, model_to_urdf
 from simbot.description.model import Joint, Model
@@ -27,14 +28,7 @@ def pair() -> Model:
 
 @pytest.fixture(scope="module")
 def settled() -> Iterator[Physics]:
-    world = load_world(WORLD)
-    physics = Physics(world)
-    for model in world.models:
-        physics.add_model(model)
-    for _ in range(SETTLE_STEPS):
-        physics.step()
-    yield physics
-    physics.close()
+    yield from settled_physics(WORLD, SETTLE_STEPS)
 
 
 def test_each_tree_is_a_model_and_the_main_one_keeps_name_and_plugins() -> None:
