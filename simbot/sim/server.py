@@ -111,7 +111,7 @@ class Server:
         self._settings = config.sensor_settings()
         self.rendering = Rendering(self.physics, self._settings, world_light(self.world))
         self.sensors: dict[str, object] = {}
-        systems = self._systems(robot)
+        systems = self._systems(with_robot=robot is not None)
         self.sim = Simulation(self.physics, systems, config.mode)
         reporting = {name: s for name, s in self.sensors.items() if isinstance(s, Reporting)}
         self.control = WorldControl(node, self.world.name, self.sim, self.bus, reporting)
@@ -140,7 +140,7 @@ class Server:
             self.rendering,
         )
 
-    def _systems(self, robot: Model | None) -> list[object]:
+    def _systems(self, with_robot: bool) -> list[object]:
         """World plugins, then each model's plugins and sensors, then the server's own publishers
         (the robot's description and static frames only where there is a robot)."""
         systems: list[object] = []
@@ -159,8 +159,8 @@ class Server:
             systems.append(self.rendering)
         world_ctx = self._context()
         systems += [ClockPublisher(world_ctx), PosePublisher(world_ctx)]
-        if robot is not None:
-            systems.append(RobotStatePublisher(self._context(robot, ROBOT_NAME)))
+        if with_robot:  # its main tree of joints: what a URDF can hold (see Physics.add_model)
+            systems.append(RobotStatePublisher(self._context(self.physics.body(ROBOT_NAME).model, ROBOT_NAME)))
         return systems
 
     def _sensors(self) -> dict[str, object]:
