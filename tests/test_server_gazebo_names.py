@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from server_helpers import ODOMETRY, TF_MESSAGE, SimServer, planar_distance, running_server
+from server_helpers import ODOMETRY, POSE_STAMPED, TF_MESSAGE, SimServer, planar_distance, pose_of, running_server
 
 from simbot.bus import messages
 from simbot.bus.graph import discover
@@ -54,6 +54,7 @@ def test_one_vehicle_drives_on_its_own_key_and_the_other_stays(sim: SimServer) -
     acceleration limit costs 0.125 m) and vehicle_green not at all; odometry and tf of each
     vehicle come on its own keys, in its own frames; each IMU publishes on its own key."""
     odom = {v: sim.subscribe(f"model/{v}/odometry", ODOMETRY) for v in VEHICLES}
+    truth = {v: sim.subscribe(f"model/{v}/pose", POSE_STAMPED) for v in VEHICLES}
     tf = {v: sim.subscribe(f"model/{v}/tf", TF_MESSAGE) for v in VEHICLES}
     imu = {v: sim.subscribe(imu_key(v), IMU) for v in VEHICLES}
     sim.step(SETTLE_STEPS)
@@ -65,6 +66,9 @@ def test_one_vehicle_drives_on_its_own_key_and_the_other_stays(sim: SimServer) -
     moved = {v: planar_distance(start[v][0], end[v][0]) for v in VEHICLES}
     assert moved["vehicle_blue"] == pytest.approx(EXPECTED_M, rel=0.02), moved
     assert moved["vehicle_green"] < 1e-3, moved
+    for vehicle in VEHICLES:  # ground truth on model/<m>/pose, as world state has it
+        published = pose_of(truth[vehicle].wait_stamp(round((SETTLE_STEPS / 1000 + DRIVE_S) * 1e9)).pose)[0]
+        assert published == pytest.approx(end[vehicle][0], abs=1e-6)
     assert abs(end["vehicle_blue"][0][1] - start["vehicle_blue"][0][1]) < 0.02  # straight along x
     for vehicle in VEHICLES:
         last = odom[vehicle].wait_stamp(round((SETTLE_STEPS / 1000 + DRIVE_S) * 1e9))
