@@ -9,9 +9,9 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
 - `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
   factor, every model's pose, each sensor's figures by its scoped name `model/link/sensor` (its
-  achieved rate in messages per sim second, frames skipped), the payloads each input key has received (counted on arrival, so a
-  client can tell that its command is in before it asks for steps), and the dropped-input
-  counters with their last reasons.
+  achieved rate in messages per sim second, frames skipped), the payloads each input key has
+  received (counted on arrival, so a client can tell that its command is in before it asks for
+  steps), and the dropped-input counters with their last reasons.
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 Requests are polled by the simulation loop between steps, never acted on in a bus callback.

@@ -110,8 +110,9 @@ class Server:
         self._seed = config.seed
         self._settings = config.sensor_settings()
         self.rendering = Rendering(self.physics, self._settings, world_light(self.world))
-        self.sensors: dict[str, object] = {}
-        systems = self._systems(with_robot=robot is not None)
+        plugins = self._plugins()
+        self.sensors = self._sensors()
+        systems = [*plugins, *self.sensors.values(), *self._own_systems(with_robot=robot is not None)]
         self.sim = Simulation(self.physics, systems, config.mode)
         reporting = {name: s for name, s in self.sensors.items() if isinstance(s, Reporting)}
         self.control = WorldControl(node, self.world.name, self.sim, self.bus, reporting)
@@ -140,9 +141,8 @@ class Server:
             self.rendering,
         )
 
-    def _systems(self, with_robot: bool) -> list[object]:
-        """World plugins, then each model's plugins and sensors, then the server's own publishers
-        (the robot's description and static frames only where there is a robot)."""
+    def _plugins(self) -> list[object]:
+        """A system for each world plugin, then for each model's plugins."""
         systems: list[object] = []
         placed: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.world.plugins]
         for body_name, body in self.physics.bodies.items():
@@ -153,10 +153,12 @@ class Server:
                 systems.append(factory(self._context(model, name, plugin)))
                 if (stated := plugin_priority(plugin)) is not None:
                     setattr(systems[-1], "priority", stated)  # noqa: B010 (any class may be a system; the SDF overrides its priority)
-        self.sensors = self._sensors()
-        systems += self.sensors.values()
-        if self.rendering.cameras:
-            systems.append(self.rendering)
+        return systems
+
+    def _own_systems(self, with_robot: bool) -> list[object]:
+        """The rendering (where there are cameras), clock and poses; the robot's description and
+        static frames only where there is a robot."""
+        systems: list[object] = [self.rendering] if self.rendering.cameras else []
         world_ctx = self._context()
         systems += [ClockPublisher(world_ctx), PosePublisher(world_ctx)]
         if with_robot:  # its main tree of joints: what a URDF can hold (see Physics.add_model)

@@ -6,11 +6,11 @@ and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same 
 other outputs.
 
 Images are stamped in the camera's optical frame (z forward, x right, y down; tf_static places
-it), as ROS expects of camera data. Every frame goes out with its `camera_info` under the same
-stamp (the image key: `<topic>`, else Gazebo's `world/<w>/model/<m>/link/<l>/sensor/<s>/image`,
-`.../depth_image` for a depth camera; image_transport's CameraSubscriber, RViz and exact-time synchronisers pair them by
-stamp); while only camera_info is subscribed, it goes out at the camera's rate without
-rendering. camera_info holds the true pinhole intrinsics: fx = fy = (w/2)/tan(hfov/2), principal
+it), as ROS expects of camera data. Its image key is `<topic>`, else Gazebo's
+`world/<w>/model/<m>/link/<l>/sensor/<s>/image` (`.../depth_image` for a depth camera). Every
+frame goes out with its `camera_info` under the same stamp (image_transport's CameraSubscriber,
+RViz and exact-time synchronisers pair them by stamp); while only camera_info is subscribed, it
+goes out at the camera's rate without rendering. camera_info holds the true pinhole intrinsics: fx = fy = (w/2)/tan(hfov/2), principal
 point at the image centre ((w−1)/2, (h−1)/2 in ROS's pixel-centre coordinates, where the
 symmetric frustum puts it). Its key is the image key's sibling, as Gazebo names it: the last
 segment replaced by `camera_info` (`a/b/image` → `a/b/camera_info`), or `<key>/camera_info` for a
