@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from simbot.description import load_world
+from simbot.sim.physics import Physics
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOT_SDF = REPO / "urdf" / "flexley_tug.sdf"
@@ -37,3 +41,15 @@ def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[
     return subprocess.run(
         [sys.executable, "-m", "simbot.cli", *args], capture_output=True, text=True, cwd=cwd, timeout=120
     )
+
+
+def settled_physics(world_file: Path, steps: int) -> Iterator[Physics]:
+    """A module fixture's body: every model of `world_file` in PyBullet, stepped `steps` times, closed after."""
+    world = load_world(world_file)
+    physics = Physics(world)
+    for model in world.models:
+        physics.add_model(model)
+    for _ in range(steps):
+        physics.step()
+    yield physics
+    physics.close()

@@ -189,8 +189,9 @@ def on_bus(sim: SimServer, *topics: str) -> Iterator[dict[str, Collector[bytes]]
 def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:
     """Sim time and the images each camera has published, from the world state."""
     state = sim.state()
+    cameras = {scoped.rsplit("/", 1)[-1]: figures for scoped, figures in state["sensors"].items()}
     return state["sim_time"], {
-        name: figures["messages"] for name, figures in state["sensors"].items() if name.startswith("camera_")
+        name: figures["messages"] for name, figures in cameras.items() if name.startswith("camera_")
     }
 
 

@@ -160,8 +160,9 @@ def test_odometry_and_ground_truth_poses_are_where_the_robot_and_trolley_stand(t
 def test_the_docking_state_and_the_camera_sizes_are_shown(table: tuple[str, Any, Any]) -> None:
     rows = table[1]
     assert rows["detachable_joint/state"][1] == "detached"
-    for camera in CAMERAS:
-        assert rows[camera][1].startswith("160x120; "), rows[camera]
+    for camera in CAMERAS:  # the world state's sensors, by scoped name
+        row = rows[f"flexley_tug/base_link/{camera}"]
+        assert row[1].startswith("160x120; "), row
 
 
 def test_the_panorama_size_is_its_camera_infos(table: tuple[str, Any, Any]) -> None:

@@ -258,11 +258,15 @@ DRIVE_CASES = {
 RECOGNISED = ("Physics", "Sensors", "Imu", "SceneBroadcaster", "UserCommands", "Contact")
 CASES: dict[tuple[str, str], Case] = {
     (GROUP, "DiffDrive"): Case(
-        plugins=DIFF_DRIVE, key="odom", command=("cmd_vel", messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.5)))
+        plugins=DIFF_DRIVE,
+        key="model/flexley_tug/odometry",
+        command=("model/flexley_tug/cmd_vel", messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.5))),
     ),
-    (GROUP, "JointStatePublisher"): Case(plugins=JOINT_STATES, key="joint_states"),
+    (GROUP, "JointStatePublisher"): Case(plugins=JOINT_STATES, key="world/conformance/model/flexley_tug/joint_state"),
     (GROUP, "DetachableJoint"): Case(
-        plugins=DETACHABLE, key="detachable_joint/state", command=("attach", messages.empty())
+        plugins=DETACHABLE,
+        key="model/cart/detachable_joint/state",
+        command=("model/flexley_tug/detachable_joint/attach", messages.empty()),
     ),
     **{(GROUP, name): Case(world_plugins=_world_plugin(name)) for name in RECOGNISED},
     **DRIVE_CASES,

@@ -119,10 +119,10 @@ def test_images_are_stamped_with_the_sim_time_they_show(sim: SimServer) -> None:
 
 def test_nobody_subscribed_nothing_rendered(sim: SimServer) -> None:
     """No image subscriber: frames are neither rendered nor counted; camera_info alone renders nothing."""
-    before = sim.state()["sensors"]["camera_back"]["messages"]
+    before = sim.state()["sensors"]["flexley_tug/base_link/camera_back"]["messages"]
     _first_frames(sim, ("camera_back/camera_info",), CAMERA_INFO)
     sim.step(500)
-    assert sim.state()["sensors"]["camera_back"]["messages"] == before
+    assert sim.state()["sensors"]["flexley_tug/base_link/camera_back"]["messages"] == before
 
 
 def test_rates_over_ten_seconds_in_lockstep() -> None:
@@ -140,7 +140,7 @@ def test_rates_over_ten_seconds_in_lockstep() -> None:
             stamps = [stamp_ns(m) for m in frames if start * 1e9 < stamp_ns(m) <= end_ns]
             assert abs(len(stamps) - 300) <= 1, f"{topic}: {len(stamps)} frames in 10 s"
             assert (frames[0].width, frames[0].height) == (80, 60)
-        figures = sim.state()["sensors"]["camera_front"]
+        figures = sim.state()["sensors"]["flexley_tug/base_link/camera_front"]
         assert figures["rate_hz"] == pytest.approx(30.0, abs=0.5) and figures["skipped"] == 0, figures
 
 
@@ -156,7 +156,7 @@ def test_in_real_time_the_cameras_render_as_sets_sharing_a_stamp() -> None:
         for topic, seen in stamps.items():
             missing = [s for s in settled if s not in seen]
             assert not missing, f"{topic} lacks the frames stamped {missing} that camera_front has"
-        skipped = sim.state()["sensors"]["camera_back"]["skipped"]
+        skipped = sim.state()["sensors"]["flexley_tug/base_link/camera_back"]["skipped"]
         assert skipped > 0, "one worker kept six cameras at 30 Hz: the test no longer shows sets being skipped together"
 
 
@@ -195,7 +195,7 @@ def test_camera_rate_option_and_the_renderer_in_world_state() -> None:
         assert len([m for m in frames if start < stamp_ns(m) <= start + 1_000_000_000]) == 10
         red = _red(messages.image_pixels(frames[-1]))
         assert red[60, 80], "the red box is not at the image centre"
-        assert sim.state()["sensors"]["camera_front"]["renderer"] == ("tiny" if NO_EGL else "gl")
+        assert sim.state()["sensors"]["flexley_tug/base_link/camera_front"]["renderer"] == ("tiny" if NO_EGL else "gl")
 
 
 def test_auto_falls_back_to_tiny_with_one_log_line_where_no_egl_context_opens(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -205,7 +205,7 @@ def test_auto_falls_back_to_tiny_with_one_log_line_where_no_egl_context_opens(mo
         images = sim.subscribe("camera_front", IMAGE)
         sim.prime(images, chunk=100, timeout=60.0)
         assert _red(messages.image_pixels(images.messages()[-1]))[60, 80]
-        assert sim.state()["sensors"]["camera_front"]["renderer"] == "tiny"
+        assert sim.state()["sensors"]["flexley_tug/base_link/camera_front"]["renderer"] == "tiny"
         assert sim.stderr().count("cameras render with TinyRenderer: no OpenGL 3.3 EGL context") == 1, sim.stderr()
 
 
@@ -245,9 +245,9 @@ def test_a_killed_render_worker_stops_the_cameras_not_the_simulation() -> None:
         (worker,) = _render_workers(sim.process.pid)
         os.kill(worker, signal.SIGKILL)
         wait_until = sim.state()["sim_time"]
-        while "error" not in sim.state()["sensors"]["camera_front"]:
+        while "error" not in sim.state()["sensors"]["flexley_tug/base_link/camera_front"]:
             assert sim.state()["sim_time"] < wait_until + 10.0, "no camera error reported within 10 s of sim time"
-        assert "died" in sim.state()["sensors"]["camera_front"]["error"]
+        assert "died" in sim.state()["sensors"]["flexley_tug/base_link/camera_front"]["error"]
         odom = sim.subscribe("odom", "nav_msgs/msg/Odometry")
         odom.wait_count(25, timeout=10.0, what="odom after the worker died")  # 50 Hz: half a second
         assert sim.alive() and sim.state()["real_time_factor"] > 0.5

@@ -319,7 +319,7 @@ def test_rates_over_ten_seconds(sim: SimServer) -> None:
         counts
     )
     assert counts["imu_scan"] == pytest.approx(2000, abs=1), counts
-    sensors = sim.state()["sensors"]
+    sensors = {scoped.rsplit("/", 1)[-1]: v for scoped, v in sim.state()["sensors"].items()}  # by sensor name
     assert sensors["lidar_front"]["rate_hz"] == pytest.approx(5.0, abs=1.0)
     assert sensors["lidar_back"]["rate_hz"] == pytest.approx(5.0, abs=1.0)
     assert sensors["imu_sensor"]["rate_hz"] == pytest.approx(200.0, abs=1.0)
@@ -448,7 +448,7 @@ def test_reference_robot_publishes_lidars_and_imu(reference: Path) -> None:
             name: sum(1 for m in c.messages() if t0 < stamp_ns(m) <= t1)
             for name, c in (("lidar_front", front), ("lidar_back", back), ("imu_scan", imu))
         }
-        sensors = sim.state()["sensors"]
+        sensors = {scoped.rsplit("/", 1)[-1]: v for scoped, v in sim.state()["sensors"].items()}  # by sensor name
     assert counts == {
         "lidar_front": pytest.approx(10, abs=1),
         "lidar_back": pytest.approx(10, abs=1),

@@ -50,7 +50,7 @@ def world() -> Iterator[Controlled]:
     stop = threading.Event()
     with node_pair() as pair:
         sim = Simulation(physics, [], Mode.LOCKSTEP)
-        control = WorldControl(pair.server, WORLD, sim, SimBus(pair.server))
+        control = WorldControl(pair.server, WORLD, sim, SimBus(pair.server), {})
         loop = threading.Thread(target=sim.run, args=(stop, control.poll), daemon=True)
         loop.start()
         try:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 import pytest
+from conftest import settled_physics
 
 from simbot.description import load_model, load_world
 from simbot.description.resources import asset
@@ -27,14 +28,7 @@ CONTACT_SLOP = 1e-4
 @pytest.fixture(scope="module")
 def shapes() -> Iterator[Physics]:
     """tests/fixtures/gazebo/shapes.sdf, settled for 3 s."""
-    world = load_world(FIXTURES / "shapes.sdf")
-    physics = Physics(world)
-    for model in world.models:
-        physics.add_model(model)
-    for _ in range(SETTLE_STEPS):
-        physics.step()
-    yield physics
-    physics.close()
+    yield from settled_physics(FIXTURES / "shapes.sdf", SETTLE_STEPS)
 
 
 @pytest.mark.parametrize(

@@ -57,7 +57,7 @@ def test_an_unknown_plugin_is_a_warning_naming_it(caplog: pytest.LogCaptureFixtu
 def test_diff_drive_reads_gazebo_and_reference_names() -> None:
     """`frame_id`/`child_frame_id` (gz-sim) and `odometry_frame`/`base_frame` (the original robot) both work."""
     model = load_model(ROBOT_SDF)
-    ours = DiffDriveParams.parse(model.plugins[0], model)
+    ours = DiffDriveParams.parse(model.plugins[0], model, "flexley_tug")
     assert (ours.frame_id, ours.child_frame_id, ours.odom_rate, len(ours.left)) == ("odom", "base_footprint", 50.0, 2)
     joints = {"left_joint": "front_left_wheel_joint", "right_joint": "front_right_wheel_joint"}
     legacy = _plugin(
@@ -69,7 +69,7 @@ def test_diff_drive_reads_gazebo_and_reference_names() -> None:
         wheel_radius="0.075",
         **joints,
     )
-    params = DiffDriveParams.parse(legacy, model)
+    params = DiffDriveParams.parse(legacy, model, "flexley_tug")
     assert (params.frame_id, params.child_frame_id, params.odom_rate) == ("odom2", "base_link", 20.0)
 
 
@@ -108,7 +108,7 @@ def test_diff_drive_reads_gazebo_and_reference_names() -> None:
 )
 def test_bad_diff_drive_parameters_name_the_parameter(params: dict[str, str], message: str) -> None:
     with pytest.raises(SystemConfigError, match=message):
-        DiffDriveParams.parse(_plugin("gz::sim::systems::DiffDrive", **params), load_model(ROBOT_SDF))
+        DiffDriveParams.parse(_plugin("gz::sim::systems::DiffDrive", **params), load_model(ROBOT_SDF), "flexley_tug")
 
 
 def test_number_param_rejects_non_finite() -> None:

@@ -31,7 +31,7 @@ import logging
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -238,6 +238,50 @@ def _tree(model: Model) -> tuple[str, dict[str, list[Joint]]]:
             "model",
         )
     return roots[0], children
+
+
+def joint_trees(model: Model) -> list[Model]:
+    """`model` as one model per tree of its joints: `[model]` when it is one tree, as URDF needs.
+
+    Gazebo simulates links that no joint joins as free bodies of one model (gz-sim's
+    `nested_model.sdf`, `graded_buoyancy.sdf`); a URDF holds one tree. So the tree that holds the
+    canonical link (else the first link) keeps the model's name and plugins, and each other tree
+    becomes a model of its own in the same frame, named by its root's scoped name
+    (`model::root`), without plugins. A model with a cycle stays whole, for `_tree` to refuse."""
+    groups = _groups_by_root(model)
+    if len(groups) <= 1:
+        return [model]
+    main = next((root for root, links in groups.items() if model.canonical_link in links), next(iter(groups)))
+    return [
+        _part(model, root, links, root == main) for root, links in sorted(groups.items(), key=lambda g: g[0] != main)
+    ]
+
+
+def _groups_by_root(model: Model) -> dict[str, set[str]]:
+    """Link names by the root their parent joints lead to (`world` for a tree fixed to it), in
+    file order; empty where the joints make a cycle."""
+    parent_of = {joint.child: joint.parent for joint in model.joints}
+    groups: dict[str, set[str]] = {}
+    for link in model.links:
+        root, seen = link.name, {link.name}
+        while root in parent_of:
+            root = parent_of[root]
+            if root in seen:
+                return {}
+            seen.add(root)
+        groups.setdefault(root, set()).add(link.name)
+    return groups
+
+
+def _part(model: Model, root: str, names: set[str], main: bool) -> Model:
+    """The tree of `model` rooted at `root` holding the links `names` (see `joint_trees`)."""
+    links = tuple(link for link in model.links if link.name in names)
+    if main:
+        canonical, name, plugins = model.canonical_link, model.name, model.plugins
+    else:
+        canonical, name, plugins = (root if root in names else links[0].name), f"{model.name}::{root}", ()
+    joints = tuple(joint for joint in model.joints if joint.child in names)
+    return replace(model, name=name, canonical_link=canonical, links=links, joints=joints, plugins=plugins)
 
 
 def urdf_root(model: Model) -> str:

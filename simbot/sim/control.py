@@ -8,10 +8,10 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
 - `world/<name>/set_pose`: `{"name": "trolley", "position": {"x": 1, "y": 0, "z": 0},
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
 - `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
-  factor, every model's pose, each sensor's figures (its achieved rate in messages per sim
-  second, frames skipped), the payloads each input key has received (counted on arrival, so a
-  client can tell that its command is in before it asks for steps), and the dropped-input
-  counters with their last reasons.
+  factor, every model's pose, each sensor's figures by its scoped name `model/link/sensor` (its
+  achieved rate in messages per sim second, frames skipped), the payloads each input key has
+  received (counted on arrival, so a client can tell that its command is in before it asks for
+  steps), and the dropped-input counters with their last reasons.
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 Requests are polled by the simulation loop between steps, never acted on in a bus callback.
@@ -20,7 +20,7 @@ Requests are polled by the simulation loop between steps, never acted on in a bu
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from simbot.bus import BadRequest, Node, Request
@@ -39,8 +39,10 @@ Handler = Callable[[Request, dict[str, Any]], None]
 class WorldControl:
     """The three queryables of one world."""
 
-    def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus) -> None:
+    def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus, sensors: Mapping[str, Reporting]) -> None:
         self.sim = sim
+        self.sensors = dict(sensors)
+        """The sensors `state` reports, by scoped name: two models may each hold a sensor `camera`."""
         self.bus = bus
         self.drops = bus.drops
         self._handlers: dict[str, tuple[Any, Handler]] = {
@@ -106,7 +108,7 @@ class WorldControl:
             "mode": self.sim.mode.value,
             "real_time_factor": self.sim.rtf.value(),
             "models": models,
-            "sensors": {s.name: s.report() for s in self.sim.systems if isinstance(s, Reporting)},
+            "sensors": {name: sensor.report() for name, sensor in self.sensors.items()},
             "received": {i.key: i.received for i in self.bus.inputs},
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),

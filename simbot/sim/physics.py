@@ -24,7 +24,7 @@ from simbot.description import model_to_urdf
 from simbot.description.generated_meshes import heightmap_heights
 from simbot.description.model import Collision, Heightmap, Joint, Link, Model, World
 from simbot.description.poses import IDENTITY, Pose
-from simbot.description.urdf_writer import link_frame, urdf_root
+from simbot.description.urdf_writer import joint_trees, link_frame, urdf_root
 from simbot.sim.bullet import pb
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 
@@ -140,8 +140,19 @@ class Physics:
 
     @_changes_world
     def add_model(self, model: Model, name: str | None = None, pose: Pose | None = None) -> Body:
-        """Loads `model` (through its URDF) as `name` at `pose` (default: the model's own pose)."""
+        """Loads `model` (through its URDF) as `name` at `pose` (default: the model's own pose).
+
+        A model whose links form several joint trees is loaded as one body per tree (see
+        `joint_trees`): the main one is `name` and is returned; each other is `name::<its root>`."""
         name = name or model.name
+        main, *others = joint_trees(model)
+        body = self._add_tree(main, name, pose)
+        for part in others:
+            self._add_tree(part, name + part.name.removeprefix(model.name), pose)
+        return body
+
+    def _add_tree(self, model: Model, name: str, pose: Pose | None) -> Body:
+        """One tree of joints as one PyBullet body."""
         if name in self.bodies:
             raise ValueError(f"a model named {name!r} is already in the world")
         urdf_text = model_to_urdf(model, generated_dir=Path(self._tmp.name))

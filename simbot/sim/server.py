@@ -1,8 +1,10 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
-    simbot-server [--world NAME|PATH] [--robot PATH] [--spawn X Y Z YAW] [--namespace NS]
+    simbot-server [--world NAME|PATH] [--robot PATH|none] [--spawn X Y Z YAW] [--namespace NS]
                   [--mode realtime|fast|lockstep] [--seed N] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
+
+`--robot none` runs the world alone, with the models it holds or includes.
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
 config) is one line on stderr and exit code 2. SIGINT and SIGTERM end it cleanly.
@@ -31,7 +33,16 @@ from simbot.sim.physics import Physics
 from simbot.sim.registry import lookup, sensor_lookup
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import SensorSettings, SimBus, SystemConfigError, SystemContext, plugin_priority, scoped_rng
+from simbot.sim.system import (
+    Reporting,
+    SensorSettings,
+    SimBus,
+    SystemConfigError,
+    SystemContext,
+    plugin_priority,
+    scoped_key,
+    scoped_rng,
+)
 from simbot.sim.systems.clock_publisher import ClockPublisher
 from simbot.sim.systems.pose_publisher import PosePublisher
 from simbot.sim.systems.rendering import Rendering, world_light
@@ -43,12 +54,15 @@ EXIT_USAGE = 2
 ROBOT_NAME = "flexley_tug"
 """The robot's name in the running world, whatever its SDF calls it (SPEC §1)."""
 DEFAULT_SPAWN = (-2.5, 0.0, 0.1, 0.0)
+NO_ROBOT = "none"
+"""`--robot none`: the world alone."""
 
 
 @dataclass(frozen=True)
 class ServerConfig:
     world: Path
-    robot: Path
+    robot: Path | None
+    """The robot's SDF, URDF or xacro; None: the world alone (`--robot none`)."""
     spawn: tuple[float, float, float, float] = DEFAULT_SPAWN
     mode: Mode = Mode.REALTIME
     seed: int = 0
@@ -84,20 +98,24 @@ class Server:
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
         self.world: World = load_world(config.world)
-        robot = load_robot(config.robot)
+        robot = load_robot(config.robot) if config.robot is not None else None
         self.physics = Physics(self.world)
         for model in self.world.models:
             self.physics.add_model(model)
-        x, y, z, yaw = config.spawn
-        self.physics.add_model(robot, ROBOT_NAME, Pose((x, y, z), (0.0, 0.0, yaw)))
+        if robot is not None:
+            x, y, z, yaw = config.spawn
+            self.physics.add_model(robot, ROBOT_NAME, Pose((x, y, z), (0.0, 0.0, yaw)))
         self.physics.save_initial_state()
         self.bus = SimBus(node)
         self._seed = config.seed
         self._settings = config.sensor_settings()
         self.rendering = Rendering(self.physics, self._settings, world_light(self.world))
-        systems = self._systems(robot)
+        plugins = self._plugins()
+        self.sensors = self._sensors()
+        systems = [*plugins, *self.sensors.values(), *self._own_systems(with_robot=robot is not None)]
         self.sim = Simulation(self.physics, systems, config.mode)
-        self.control = WorldControl(node, self.world.name, self.sim, self.bus)
+        reporting = {name: s for name, s in self.sensors.items() if isinstance(s, Reporting)}
+        self.control = WorldControl(node, self.world.name, self.sim, self.bus, reporting)
 
     def _context(
         self,
@@ -123,8 +141,8 @@ class Server:
             self.rendering,
         )
 
-    def _systems(self, robot: Model) -> list[object]:
-        """World plugins, then each model's plugins and sensors, then the server's own publishers."""
+    def _plugins(self) -> list[object]:
+        """A system for each world plugin, then for each model's plugins."""
         systems: list[object] = []
         placed: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.world.plugins]
         for body_name, body in self.physics.bodies.items():
@@ -135,24 +153,31 @@ class Server:
                 systems.append(factory(self._context(model, name, plugin)))
                 if (stated := plugin_priority(plugin)) is not None:
                     setattr(systems[-1], "priority", stated)  # noqa: B010 (any class may be a system; the SDF overrides its priority)
-        systems += self._sensors()
-        if self.rendering.cameras:
-            systems.append(self.rendering)
-        robot_ctx = self._context(robot, ROBOT_NAME)
-        systems += [ClockPublisher(robot_ctx), PosePublisher(robot_ctx), RobotStatePublisher(robot_ctx)]
         return systems
 
-    def _sensors(self) -> list[object]:
-        """A system for each `<sensor>` of each model; if one fails, those already started stop."""
-        sensors: list[object] = []
+    def _own_systems(self, with_robot: bool) -> list[object]:
+        """The rendering (where there are cameras), clock and poses; the robot's description and
+        static frames only where there is a robot."""
+        systems: list[object] = [self.rendering] if self.rendering.cameras else []
+        world_ctx = self._context()
+        systems += [ClockPublisher(world_ctx), PosePublisher(world_ctx)]
+        if with_robot:  # its main tree of joints: what a URDF can hold (see Physics.add_model)
+            systems.append(RobotStatePublisher(self._context(self.physics.body(ROBOT_NAME).model, ROBOT_NAME)))
+        return systems
+
+    def _sensors(self) -> dict[str, object]:
+        """A system for each `<sensor>` of each model, by scoped name `model/link/sensor` (two models may
+        hold sensors of one name); if one fails, those already started stop."""
+        sensors: dict[str, object] = {}
         try:
             for body_name, body in self.physics.bodies.items():
                 for link, sensor in body.model.sensors():
                     factory = sensor_lookup(sensor)
                     if factory is not None:
-                        sensors.append(factory(self._context(body.model, body_name, sensor=(link, sensor))))
+                        scoped = "/".join(map(scoped_key, (body_name, link.name, sensor.name)))
+                        sensors[scoped] = factory(self._context(body.model, body_name, sensor=(link, sensor)))
         except BaseException:
-            Simulation.close_all(sensors)
+            Simulation.close_all(list(sensors.values()))
             raise
         return sensors
 
@@ -161,13 +186,12 @@ class Server:
         self.sim.run(stop, self.control.poll, self.print_status if status else None)
 
     def print_status(self) -> None:
-        (x, y, _), quat = self.physics.model_pose(ROBOT_NAME)
         mode = "paused" if self.sim.paused else self.sim.mode.value
-        print(
-            f"sim {self.sim.clock.now_ns / 1e9:9.3f} s | rtf {self.sim.rtf.value():5.2f} | {mode} | "
-            f"{ROBOT_NAME} x {x:+7.3f} y {y:+7.3f} yaw {math.degrees(yaw_of(quat)):+7.1f}°",
-            flush=True,
-        )
+        line = f"sim {self.sim.clock.now_ns / 1e9:9.3f} s | rtf {self.sim.rtf.value():5.2f} | {mode}"
+        if ROBOT_NAME in self.physics.bodies:
+            (x, y, _), quat = self.physics.model_pose(ROBOT_NAME)
+            line += f" | {ROBOT_NAME} x {x:+7.3f} y {y:+7.3f} yaw {math.degrees(yaw_of(quat)):+7.1f}°"
+        print(line, flush=True)
 
     def close(self) -> None:
         self.sim.close()
@@ -181,7 +205,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--world", default="warehouse", help="world file, or a built-in world: warehouse (default), empty"
     )
-    parser.add_argument("--robot", type=Path, help="robot SDF, URDF or xacro (default: simbot's Flexley Tug)")
+    parser.add_argument(
+        "--robot",
+        help="robot SDF, URDF or xacro (default: simbot's Flexley Tug); none: the world alone, with the models it holds",
+    )
     parser.add_argument(
         "--spawn",
         nargs=4,
@@ -249,7 +276,9 @@ def _count(text: str) -> int:
 
 
 def _config(args: argparse.Namespace) -> ServerConfig:
-    robot = args.robot if args.robot is not None else asset("urdf/flexley_tug.sdf")
+    robot = (
+        asset("urdf/flexley_tug.sdf") if args.robot is None else None if args.robot == NO_ROBOT else Path(args.robot)
+    )
     sensors = SensorSettings(
         renderer=args.renderer,
         camera_size=args.camera_size,
@@ -278,7 +307,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             log.info(
                 "world %s, robot %s, %s mode, namespace %r",
                 server.world.name,
-                config.robot.name,
+                config.robot.name if config.robot is not None else NO_ROBOT,
                 config.mode.value,
                 node.namespace,
             )

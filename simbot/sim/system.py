@@ -239,11 +239,12 @@ class SystemContext:
     def model_topic(self, leaf: str) -> str:
         """Gazebo's default key of a model's system: `model/<model>/<leaf>` (a nested `a::b` as `a/b`)."""
         _, name = self.require_model(leaf)
-        return f"model/{scoped_key(name)}/{leaf}"
+        return model_topic(name, leaf)
 
     def sensor_topic(self, kind: str) -> str:
         """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
-        (`scan`, `image`, `imu`, `points`, ...); a joint's sensor: `.../joint/<j>/sensor/<s>/<kind>`."""
+        (`scan`, `image`, `imu`, `points`, ...; an empty kind, as Gazebo's RGBD camera has, ends at `<s>`);
+        a joint's sensor: `.../joint/<j>/sensor/<s>/<kind>`."""
         name, link, sensor = self.require_sensor()
         stated = (sensor.topic or "").strip().strip("/")
         if stated:
@@ -251,7 +252,8 @@ class SystemContext:
         joint = self.model.joint_of(sensor) if self.model else None
         owner = f"joint/{scoped_key(joint.name)}" if joint else f"link/{scoped_key(link.name)}"
         scope = (self.world.name, name)
-        return "world/{}/model/{}/".format(*map(scoped_key, scope)) + f"{owner}/sensor/{scoped_key(sensor.name)}/{kind}"
+        prefix = "world/{}/model/{}/".format(*map(scoped_key, scope)) + f"{owner}/sensor/{scoped_key(sensor.name)}"
+        return f"{prefix}/{kind}" if kind else prefix
 
     def require_rendering(self) -> Rendering:
         """The rendering system a camera registers with."""
@@ -274,9 +276,9 @@ def scoped_key(name: str) -> str:
     return "/".join(part for part in name.split("::") if part)
 
 
-def sensor_topic(sensor: Sensor) -> str:
-    """The sensor's `<topic>` as a ROS topic without the leading slash, or its name."""
-    return (sensor.topic or "").strip().strip("/") or sensor.name
+def model_topic(model: str, leaf: str) -> str:
+    """Gazebo's default key of a system of the model running as `model`: `model/<model>/<leaf>`."""
+    return f"model/{scoped_key(model)}/{leaf}"
 
 
 def sensor_frame(sensor: Sensor) -> str:

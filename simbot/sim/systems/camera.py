@@ -6,10 +6,11 @@ and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same 
 other outputs.
 
 Images are stamped in the camera's optical frame (z forward, x right, y down; tf_static places
-it), as ROS expects of camera data. Every frame goes out with its `camera_info` under the same
-stamp (image_transport's CameraSubscriber, RViz and exact-time synchronisers pair them by
-stamp); while only camera_info is subscribed, it goes out at the camera's rate without
-rendering. camera_info holds the true pinhole intrinsics: fx = fy = (w/2)/tan(hfov/2), principal
+it), as ROS expects of camera data. Its image key is `<topic>`, else Gazebo's
+`world/<w>/model/<m>/link/<l>/sensor/<s>/image` (`.../depth_image` for a depth camera). Every
+frame goes out with its `camera_info` under the same stamp (image_transport's CameraSubscriber,
+RViz and exact-time synchronisers pair them by stamp); while only camera_info is subscribed, it
+goes out at the camera's rate without rendering. camera_info holds the true pinhole intrinsics: fx = fy = (w/2)/tan(hfov/2), principal
 point at the image centre ((w−1)/2, (h−1)/2 in ROS's pixel-centre coordinates, where the
 symmetric frustum puts it). Its key is the image key's sibling, as Gazebo names it: the last
 segment replaced by `camera_info` (`a/b/image` → `a/b/camera_info`), or `<key>/camera_info` for a
@@ -47,7 +48,6 @@ from simbot.sim.system import (
     UpdateInfo,
     sensor_frame,
     sensor_rate,
-    sensor_topic,
 )
 
 CHANNELS = {"R8G8B8": 3, "RGB_INT8": 3, "L8": 1, "L_INT8": 1}
@@ -116,6 +116,8 @@ class Camera(Sampled):
 
     depth = False
     """Whether the camera renders depth (a subclass that publishes depth sets it)."""
+    kind = "image"
+    """The last segment of Gazebo's default key (`world/<w>/model/<m>/link/<l>/sensor/<s>/image`)."""
     color = True
 
     def __init__(self, ctx: SystemContext) -> None:
@@ -138,7 +140,7 @@ class Camera(Sampled):
         super().__init__(sensor.name, ctx.settings.camera_rate or sensor_rate(sensor, DEFAULT_RATE_HZ))
         self.where = (model, link.name, sensor.pose)
         self.frame_id = optical_frame(sensor_frame(sensor))
-        topic = sensor_topic(sensor)
+        topic = ctx.sensor_topic(self.kind)
         self.outputs = self.advertise(ctx.bus, topic)
         self._info = ctx.bus.publisher(self.info_key(topic), messages.CameraInfo)
         self.rendering = ctx.require_rendering()

@@ -19,6 +19,7 @@ class DepthCamera(Camera):
 
     depth = True
     color = False
+    kind = "depth_image"
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
         return [

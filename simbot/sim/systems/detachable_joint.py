@@ -4,11 +4,12 @@
 |---|---|
 | `parent_link` | required |
 | `child_model`, `child_link` | required |
-| `attach_topic` | `attach` |
-| `detach_topic` | `detach` |
-| `output_topic` | `detachable_joint/state` (`attached` / `detached`, on change and to late joiners) |
+| `attach_topic` | `model/<model>/detachable_joint/attach` |
+| `detach_topic` (or `topic`) | `model/<model>/detachable_joint/detach` |
+| `output_topic` | `model/<child_model>/detachable_joint/state` (`attached` / `detached`, on change and to late joiners) |
 
-Unlike Gazebo's, it starts detached: the tug must drive under the trolley first.
+The default keys are Gazebo Sim's. Unlike Gazebo's, it starts detached: the tug must drive under
+the trolley first.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 import logging
 
 from simbot.bus import messages
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, model_topic, param
 
 log = logging.getLogger(__name__)
 
@@ -40,13 +41,12 @@ class DetachableJoint:
         self._parent = (self._name, parent_link)
         self._child = (child_model, child_link)
         self._physics = ctx.physics
-        self._attach = ctx.bus.input(param(plugin, "attach_topic", default="attach") or "attach", EMPTY)
-        self._detach = ctx.bus.input(param(plugin, "detach_topic", default="detach") or "detach", EMPTY)
-        self._state = ctx.bus.publisher(
-            param(plugin, "output_topic", default="detachable_joint/state") or "detachable_joint/state",
-            messages.String,
-            latched=True,
-        )
+        attach = param(plugin, "attach_topic") or ctx.model_topic("detachable_joint/attach")
+        detach = param(plugin, "detach_topic", "topic") or ctx.model_topic("detachable_joint/detach")
+        state = param(plugin, "output_topic") or model_topic(child_model, "detachable_joint/state")
+        self._attach = ctx.bus.input(attach, EMPTY)
+        self._detach = ctx.bus.input(detach, EMPTY)
+        self._state = ctx.bus.publisher(state, messages.String, latched=True)
         self._joint: int | None = None
         self._publish()
 

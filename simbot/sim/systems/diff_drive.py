@@ -6,17 +6,20 @@ SDF parameters (Gazebo's names first; the older names the original robot uses st
 |---|---|
 | `left_joint`, `right_joint` (repeatable: every wheel on a side is driven) | required |
 | `wheel_separation`, `wheel_radius` | required |
-| `topic` | `cmd_vel` |
-| `odom_topic` | `odom` |
-| `tf_topic` | `tf` |
-| `frame_id` / `odometry_frame` | `odom` |
-| `child_frame_id` / `base_frame` | the model's canonical link |
+| `topic` | `model/<model>/cmd_vel` |
+| `odom_topic` | `model/<model>/odometry` |
+| `tf_topic` | `model/<model>/tf` |
+| `frame_id` / `odometry_frame` | `<model>/odom` |
+| `child_frame_id` / `base_frame` | `<model>/<canonical link>` |
 | `odom_publish_frequency` / `update_rate` | 50 Hz |
 | `publish_tf` / `broadcast_TF` | true |
 | `max_linear_velocity` (`max_velocity`), `min_linear_velocity` | none |
 | `max_angular_velocity`, `min_angular_velocity` | none |
 | `max_linear_acceleration` (`max_acceleration`), `min_linear_acceleration` | none |
 | `max_angular_acceleration`, `min_angular_acceleration` | none |
+
+The defaults are Gazebo Sim's, with `<model>` the model's name in the running world: two
+vehicles of one world keep apart keys and tf trees (`vehicle_blue/odom` → `vehicle_blue/chassis`).
 
 Odometry comes from the wheel encoders only, as on the real robot: when the wheels slip (a skid
 turn, a wall) `odom` drifts from the ground truth on `model/<name>/pose`.
@@ -27,7 +30,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param
+from simbot.sim.system import (
+    Every,
+    SystemConfigError,
+    SystemContext,
+    UpdateInfo,
+    bool_param,
+    model_topic,
+    number_param,
+    param,
+    scoped_key,
+)
 from simbot.sim.systems.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
 
 
@@ -48,7 +61,9 @@ class DiffDriveParams:
     angular: Limits
 
     @staticmethod
-    def parse(plugin: Plugin, model: Model) -> DiffDriveParams:
+    def parse(plugin: Plugin, model: Model, name: str) -> DiffDriveParams:
+        """The plugin's parameters; `name` is the model's name in the running world, which Gazebo's
+        default keys and frames carry."""
         left, right = tuple(plugin.get_all("left_joint")), tuple(plugin.get_all("right_joint"))
         if not left or not right:
             raise SystemConfigError(f"{plugin.name}: needs at least one <left_joint> and one <right_joint>")
@@ -59,13 +74,14 @@ class DiffDriveParams:
         radius = number_param(plugin, "wheel_radius", positive=True)
         if separation is None or radius is None:
             raise SystemConfigError(f"{plugin.name}: <wheel_separation> and <wheel_radius> are required")
+        frame = scoped_key(name)
         return DiffDriveParams(
             left, right, separation, radius,
-            topic=param(plugin, "topic", default="cmd_vel") or "cmd_vel",
-            odom_topic=param(plugin, "odom_topic", default="odom") or "odom",
-            tf_topic=param(plugin, "tf_topic", default="tf") or "tf",
-            frame_id=param(plugin, "frame_id", "odometry_frame", default="odom") or "odom",
-            child_frame_id=param(plugin, "child_frame_id", "base_frame", default=model.canonical_link) or model.canonical_link,
+            topic=param(plugin, "topic") or model_topic(name, "cmd_vel"),
+            odom_topic=param(plugin, "odom_topic") or model_topic(name, "odometry"),
+            tf_topic=param(plugin, "tf_topic") or model_topic(name, "tf"),
+            frame_id=param(plugin, "frame_id", "odometry_frame") or f"{frame}/odom",
+            child_frame_id=param(plugin, "child_frame_id", "base_frame") or f"{frame}/{model.canonical_link}",
             odom_rate=number_param(plugin, "odom_publish_frequency", "update_rate", default=50.0, positive=True) or 50.0,
             publish_tf=bool_param(plugin, "publish_tf", "broadcast_TF", default=True),
             linear=limits(plugin, "linear", ""),
@@ -99,7 +115,7 @@ class DiffDrive:
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
         self._model, self._name = ctx.require_model("DiffDrive")
-        self.params = DiffDriveParams.parse(ctx.plugin, self._model)
+        self.params = DiffDriveParams.parse(ctx.plugin, self._model, self._name)
         self._physics = ctx.physics
         self._efforts = {j: joint_effort(self._model, j) for j in self.params.left + self.params.right}
         self._commands = ctx.bus.input(self.params.topic, "geometry_msgs/msg/Twist", check_twist)

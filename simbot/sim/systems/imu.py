@@ -6,7 +6,8 @@ by their interval, the mean acceleration over it, as a real IMU's output filter 
 sample after start or reset has no interval and takes a = 0 (the world starts at rest).
 Orientation is the frame's in the world (ENU), as Gazebo's IMU reports it by default.
 Noise per axis, as gz-sensors applies it: mean + a bias drawn once per run (N(bias_mean,
-bias_stddev), random sign) + white N(0, stddev); covariances carry the variances.
+bias_stddev), random sign) + white N(0, stddev); covariances carry the variances. The key is
+`<topic>`, else Gazebo's `world/<w>/model/<m>/link/<l>/sensor/<s>/imu`.
 
 SDF parameters (under `<imu>`; `ImuParams`):
 
@@ -28,7 +29,7 @@ from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
 from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate, sensor_topic
+from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""
@@ -69,7 +70,7 @@ class Imu(Sampled):
         self._covariances = (np.zeros(9), self._gyro.covariance(), self._accel.covariance())
         self._frame = sensor_frame(sensor)
         self._last: tuple[int, npt.NDArray[np.float64]] | None = None
-        self._pub = ctx.bus.publisher(sensor_topic(sensor), messages.Imu)
+        self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns

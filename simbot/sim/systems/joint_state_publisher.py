@@ -1,16 +1,16 @@
-"""JointStatePublisher: the position, velocity and effort of a model's joints on `joint_states`.
+"""JointStatePublisher: the position, velocity and effort of a model's joints as sensor_msgs/JointState.
 
 | parameter | default |
 |---|---|
 | `joint_name` (repeatable) | every movable joint of the model |
-| `topic` | `joint_states` |
-| `update_rate` | 30 Hz |
+| `topic` | `world/<world>/model/<model>/joint_state` (Gazebo's) |
+| `update_rate` | 30 Hz (Gazebo's publishes every step) |
 """
 
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, number_param, param
+from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, number_param, param, scoped_key
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 DEFAULT_RATE_HZ = 30.0
@@ -30,9 +30,8 @@ class JointStatePublisher:
                 raise SystemConfigError(f"{ctx.plugin.name}: model {model.name!r} has no movable joint {name!r}")
         self._joints = list(names)
         self._physics = ctx.physics
-        self._pub = ctx.bus.publisher(
-            param(ctx.plugin, "topic", default="joint_states") or "joint_states", messages.JointState
-        )
+        default = f"world/{scoped_key(ctx.world.name)}/{ctx.model_topic('joint_state')}"
+        self._pub = ctx.bus.publisher(param(ctx.plugin, "topic") or default, messages.JointState)
         self._every = Every.hz(
             number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ
         )

@@ -6,7 +6,8 @@ its rays (physics.blind_rays_to), as a real lidar's own chassis is below or behi
 A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF's gaussian
 noise, quantised to the range resolution and kept within [range_min, range_max].
 `time_increment` is 0 because the rays really are simultaneous: a consumer that de-skews by it
-would otherwise move points that did not move.
+would otherwise move points that did not move. The key is `<topic>`, else Gazebo's
+`world/<w>/model/<m>/link/<l>/sensor/<s>/scan`.
 
 Two outputs, as Gazebo's lidars give them: sensor_msgs/LaserScan on the topic, one plane: the
 middle of the vertical fan, (min_angle + max_angle)/2, which is a row of the fan when the vertical
@@ -49,7 +50,6 @@ from simbot.sim.system import (
     UpdateInfo,
     sensor_frame,
     sensor_rate,
-    sensor_topic,
 )
 
 
@@ -156,7 +156,7 @@ class Lidar(Sampled):
         self._frame = sensor_frame(sensor)
         self._angles = (h.min_angle, h.max_angle, self._fan.increment)
         self._times = (0.0, 1.0 / rate)
-        topic = sensor_topic(sensor)
+        topic = ctx.sensor_topic("scan")
         self._pub = ctx.bus.publisher(topic, messages.LaserScan)
         self._points = ctx.bus.publisher(f"{topic}/points", messages.PointCloud2)
 

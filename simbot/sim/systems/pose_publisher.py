@@ -1,9 +1,10 @@
-"""Ground truth: `model/<name>/pose` (geometry_msgs/PoseStamped in `world`) for every dynamic model."""
+"""Ground truth: `model/<name>/pose` (geometry_msgs/PoseStamped in `world`) for every dynamic model
+(a body `a::b`, a further joint tree of model `a`, on `model/a/b/pose`)."""
 
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemContext, UpdateInfo
+from simbot.sim.system import Every, SystemContext, UpdateInfo, model_topic
 
 POSE_RATE = 50.0
 """Hz of sim time: as often as odometry, so the two can be compared sample by sample."""
@@ -15,7 +16,7 @@ class PosePublisher:
     def __init__(self, ctx: SystemContext) -> None:
         self._physics = ctx.physics
         dynamic = [name for name, body in ctx.physics.bodies.items() if not body.model.static]
-        self._pubs = {name: ctx.bus.publisher(f"model/{name}/pose", messages.PoseStamped) for name in dynamic}
+        self._pubs = {name: ctx.bus.publisher(model_topic(name, "pose"), messages.PoseStamped) for name in dynamic}
         self._every = Every.hz(POSE_RATE)
 
     def post_update(self, info: UpdateInfo) -> None:

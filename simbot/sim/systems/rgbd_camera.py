@@ -1,5 +1,6 @@
 """RGBD camera (SDF `rgbd_camera`, also `rgbd`): colour, depth and an organised point cloud from
-one render, as Gazebo's RGBD camera publishes them under its topic:
+one render, as Gazebo's RGBD camera publishes them under its topic (`<topic>`, else Gazebo's
+`world/<w>/model/<m>/link/<l>/sensor/<s>`):
 
 | key | type |
 | --- | --- |
@@ -23,6 +24,8 @@ class RgbdCamera(Camera):
 
     depth = True
     color = True
+    kind = ""
+    """Gazebo's default key of an RGBD camera is the sensor's scoped name; its products lie under it."""
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
         frame = self.frame_id
