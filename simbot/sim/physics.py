@@ -7,6 +7,7 @@ body's centre of mass; the offset is undone here once).
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import tempfile
@@ -41,9 +42,19 @@ surface that states none, a pair where one side states μ behaves as ODE's min(�
 FIXED_CONSTRAINT_FORCE = 1e6
 """Newtons a detachable joint may exert: rigid for anything the tug can pull."""
 
-RAY_BLIND_GROUP = 1 << 10
-"""Collision group of the bodies a sensor's rays pass through (its own robot). PyBullet's own
-groups are 1 (dynamic) and 2 (static); a body in this group alone still collides with both."""
+RAY_GROUP_BITS = range(10, 31)
+"""Collision-group bits that tell robots apart for rays. PyBullet's own groups are 1 (dynamic) and
+2 (static), Bullet's up to 32 (bit 5); a body in groups of these bits alone, with mask −1, still
+collides with all."""
+
+
+def ray_groups() -> Iterator[int]:
+    """Each robot's ray group: two bits of RAY_GROUP_BITS, a pair no other robot has (210 robots).
+    No pair holds another, so a ray mask that clears one robot's bits keeps a bit of every other's:
+    a sensor is blind to its own robot and sees every other one. As cheap as dropping hits on the own
+    body from rayTestBatch's results (measured: the same for 720 rays among ten tugs) and exact, where
+    a dropped hit would hide whatever lies beyond it."""
+    return ((1 << a) | (1 << b) for a, b in itertools.combinations(RAY_GROUP_BITS, 2))
 
 
 class PhysicsReadOnly(RuntimeError):
@@ -118,6 +129,8 @@ class Physics:
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _saved_state: int | None = None
+    _ray_groups: dict[str, int] = field(default_factory=dict)
+    _free_ray_groups: Iterator[int] = field(default_factory=ray_groups)
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
     def __post_init__(self) -> None:
@@ -349,17 +362,27 @@ class Physics:
         )  # v + ω × r
         return pose, velocity, (float(wx), float(wy), float(wz))
 
-    def blind_rays_to(self, model: str) -> None:
-        """Rays cast with `cast_rays` pass through `model` (a sensor never sees its own robot)."""
-        body = self.body(model)
-        for index in body.links.values():
-            pb.setCollisionFilterGroupMask(body.id, index, RAY_BLIND_GROUP, -1, physicsClientId=self.client)
+    def blind_rays_to(self, model: str) -> int:
+        """Gives `model` a ray group of its own (once; call it before stepping, as a sensor's setup
+        does): rays cast `blind_to` it pass through it and hit every other body. Returns the group."""
+        group = self._ray_groups.get(model)
+        if group is None:
+            body = self.body(model)
+            group = next(self._free_ray_groups, None)
+            if group is None:
+                raise ValueError(f"model {model!r}: more robots carry ray sensors than there are ray groups")
+            for index in body.links.values():
+                pb.setCollisionFilterGroupMask(body.id, index, group, -1, physicsClientId=self.client)
+            self._ray_groups[model] = group
+        return group
 
-    def cast_rays(self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing."""
-        hits = pb.rayTestBatch(
-            starts.tolist(), ends.tolist(), collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=self.client
-        )
+    def cast_rays(
+        self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], blind_to: str | None = None
+    ) -> npt.NDArray[np.float64]:
+        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
+        the rays pass through the model `blind_to` (the sensor's own robot) and no other."""
+        mask = ~self.blind_rays_to(blind_to) if blind_to is not None else -1
+        hits = pb.rayTestBatch(starts.tolist(), ends.tolist(), collisionFilterMask=mask, physicsClientId=self.client)
         return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
 
     def moving_bodies(self) -> list[str]:
