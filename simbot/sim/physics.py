@@ -11,6 +11,7 @@ import itertools
 import logging
 import math
 import tempfile
+import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ import numpy.typing as npt
 
 from simbot.description import model_to_urdf
 from simbot.description.generated_meshes import heightmap_heights
-from simbot.description.model import Collision, Heightmap, Joint, Link, Model, World
+from simbot.description.model import Collision, Heightmap, Joint, Link, Model, Sphere, World
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import link_frame, urdf_root
 from simbot.sim.bullet import pb
@@ -113,7 +114,8 @@ class Body:
     com_to_frame: Transform
     """The SDF model frame seen from PyBullet's base (centre of mass) frame."""
     urdf: str
-    """The URDF PyBullet loaded (what `robot_description` publishes)."""
+    """The model's URDF (what `robot_description` publishes); PyBullet loads it as it is, or with its
+    ball castors fixed (`Physics.fixed_castors`), every link and joint at the same index."""
 
 
 @dataclass
@@ -121,6 +123,9 @@ class Physics:
     """A PyBullet world built from an SDF world description; stepped at the world's step size."""
 
     world: World
+    fixed_castors: bool = False
+    """Load ball castors fixed (`ball_castors`): half the tug's degrees of freedom gone, the same
+    physics, but not the same trajectories step for step (off until the tests bound their chaos)."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
     constraints: set[int] = field(default_factory=set)
@@ -158,8 +163,9 @@ class Physics:
         if name in self.bodies:
             raise ValueError(f"a model named {name!r} is already in the world")
         urdf_text = model_to_urdf(model, generated_dir=Path(self._tmp.name))
+        castors = ball_castors(model)
         urdf = Path(self._tmp.name) / f"{name}.urdf"
-        urdf.write_text(urdf_text)
+        urdf.write_text(_with_fixed_joints(urdf_text, castors) if self.fixed_castors else urdf_text)
         root = urdf_root(model)
         frame = pose_to_transform(pose if pose is not None else model.pose)
         root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
@@ -171,6 +177,7 @@ class Physics:
         self.bodies[name] = body
         self._configure_joints(body)
         self._configure_friction(body)
+        self._configure_castors(body, castors)
         for link in model.links:
             for collision in link.collisions:
                 if isinstance(collision.geometry, Heightmap):
@@ -268,6 +275,20 @@ class Physics:
                 contactDamping=damping,
                 physicsClientId=self.client,
             )
+
+    def _configure_castors(self, body: Body, castors: frozenset[str]) -> None:
+        """A ball castor's sphere passes no friction (an ideal castor's ball spins instead, and so must
+        a fixed one) and makes no contact until it touches: hanging 2 cm up, within Bullet's 2 cm
+        contact margin, it would otherwise put 8 idle contacts per tug into the solver every step."""
+        for joint in body.model.joints:
+            if joint.name in castors:
+                pb.changeDynamics(
+                    body.id,
+                    body.links[joint.child],
+                    lateralFriction=0.0,
+                    contactProcessingThreshold=0.0,
+                    physicsClientId=self.client,
+                )
 
     @staticmethod
     def _wheel_joint(model: Model, link: str) -> Joint | None:
@@ -462,6 +483,50 @@ class Physics:
         if constraint in self.constraints:
             self.constraints.remove(constraint)
             pb.removeConstraint(constraint, physicsClientId=self.client)
+
+
+def ball_castors(model: Model) -> frozenset[str]:
+    """The model's ball castors: ball joints whose child ends its chain, carries no sensor and
+    collides only as spheres centred on the joint, with no joint friction or damping.
+
+    Turning such a sphere about its centre moves nothing a collision sees, and with a massless
+    gimbal the ball passes no tangential force: it is a frictionless sphere, and may be loaded fixed
+    in place, its three gimbal joints out of PyBullet's multibody, whose cost per contact grows with
+    the degrees of freedom (the tug's 12 castor joints are half of them: benchmarks/bench_fleet.py).
+    """
+    parents = {joint.parent for joint in model.joints}
+    links = {link.name: link for link in model.links}
+    return frozenset(
+        joint.name
+        for joint in model.joints
+        if joint.type == "ball"
+        and joint.child not in parents
+        and (joint.axis is None or joint.axis.friction == joint.axis.damping == 0.0)
+        and _sphere_on(links[joint.child], joint.pose)
+    )
+
+
+def _sphere_on(link: Link, centre: Pose) -> bool:
+    """Whether `link` collides, only as spheres centred on `centre` (model frame), and carries no sensor."""
+    if link.sensors or not link.collisions:
+        return False
+    for collision in link.collisions:
+        at = (link.pose @ collision.pose).xyz
+        if not isinstance(collision.geometry, Sphere) or math.dist(at, centre.xyz) > 1e-9:
+            return False
+    return True
+
+
+def _with_fixed_joints(urdf: str, joints: frozenset[str]) -> str:
+    """The URDF with the parts of `joints` (a ball joint's are JOINT__yaw, ...) made fixed; links
+    and joints keep their order, so their PyBullet indices stay those of the published URDF."""
+    if not joints:
+        return urdf
+    root = ET.fromstring(urdf)
+    for joint in root.iter("joint"):
+        if joint.get("name", "").split("__", 1)[0] in joints:
+            joint.set("type", "fixed")
+    return ET.tostring(root, encoding="unicode")
 
 
 def _axis_in_link(joint: Joint, link_pose: Pose) -> tuple[float, float, float]:
