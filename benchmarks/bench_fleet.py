@@ -11,7 +11,9 @@ CPU time, the servers wall time (what real time means):
 3. simbot's loader with `fixed_castors` (each ball castor one rigid frictionless sphere);
 4. `Physics.step`: simbot's loader plus its wheel-friction model, what the server steps;
 5. `simbot-server` in real time and in fast mode with N tugs (two lidars and an IMU each publishing,
-   cameras idle: nobody subscribes), measured through world control's sim time. The tugs' SDF
+   cameras idle: nobody subscribes), measured through world control's sim time: the real-time
+   factor it holds (wall time, on this machine as loaded as it is) and fast mode's sim seconds per
+   CPU second of the server process (what it would hold on a core of its own; ≥ 1 is real time). The tugs' SDF
    states its topics, so all N publish on the same keys: a measure of rate, not of a fleet's bus.
 
     python benchmarks/bench_fleet.py [--fleets 1,5,10,20] [--seconds S] [--repeats R]
@@ -30,6 +32,7 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
+from bench_sensors import cpu_seconds
 from bench_server import free_port
 
 from simbot.bus import BusOptions, Node
@@ -44,6 +47,7 @@ SPACING_M = 1.0
 """Tugs side by side along y, 0.5 m apart (the chassis is 0.5 m wide)."""
 SPAWN_Z = 0.1
 SETTLE_STEPS = 300
+SETTLE_S = 2.0
 WORLD = "empty"
 
 
@@ -136,8 +140,9 @@ def _ready(node: Node, proc: subprocess.Popen[bytes]) -> None:
     raise RuntimeError("the server's world control did not answer within 120 s")
 
 
-def server_rtf(n: int, mode: str, seconds: float) -> float:
-    """Sim seconds per wall second of `simbot-server --mode MODE` with N tugs, after a second to settle."""
+def server_rtf(n: int, mode: str, seconds: float) -> tuple[float, float]:
+    """(sim seconds per wall second, per CPU second of the server process) of `simbot-server --mode
+    MODE` with N tugs over `seconds`, after SETTLE_S (real time first catches up what loading lost)."""
     port, namespace = free_port(), f"bench_{uuid.uuid4().hex[:8]}"
     endpoint = f"tcp/127.0.0.1:{port}"
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
@@ -147,14 +152,18 @@ def server_rtf(n: int, mode: str, seconds: float) -> float:
         try:
             with Node(BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=30.0), "client") as node:
                 _ready(node, proc)
-                time.sleep(1.0)
-                sim0, wall0 = node.call(f"world/{WORLD}/state", {})["sim_time"], time.perf_counter()
+                time.sleep(SETTLE_S)
+                sim0, wall0, cpu0 = _sim_time(node), time.perf_counter(), cpu_seconds(proc.pid)
                 time.sleep(seconds)
-                sim1, wall1 = node.call(f"world/{WORLD}/state", {})["sim_time"], time.perf_counter()
-            return float(sim1 - sim0) / (wall1 - wall0)
+                sim1, wall1, cpu1 = _sim_time(node), time.perf_counter(), cpu_seconds(proc.pid)
+            return (sim1 - sim0) / (wall1 - wall0), (sim1 - sim0) / (cpu1 - cpu0)
         finally:
             proc.terminate()
             proc.wait(30)
+
+
+def _sim_time(node: Node) -> float:
+    return float(node.call(f"world/{WORLD}/state", {})["sim_time"])
 
 
 def main() -> None:
@@ -167,7 +176,7 @@ def main() -> None:
     parser.add_argument("--no-server", action="store_true", help="the bare loops only")
     args = parser.parse_args()
     print("| tugs | plain URDF, bare loop | cost per tug ÷ the first row's | simbot loader / plain | fixed castors / plain "
-          "| Physics.step / plain | server real time: factor held | server fast / plain |")  # fmt: skip
+          "| Physics.step / plain | server real time: factor held | server fast, per CPU second |")  # fmt: skip
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     one_tug = None
     for n in (int(part) for part in args.fleets.split(",")):
@@ -179,8 +188,9 @@ def main() -> None:
         one_tug = one_tug or rtf["plain"] * n
         server = "| — | — |"
         if not args.no_server:
-            held, fast = server_rtf(n, "realtime", 5 * args.seconds), server_rtf(n, "fast", 5 * args.seconds)
-            server = f"| {held:.3f} | {fast / rtf['plain']:.2f} |"
+            held, _ = server_rtf(n, "realtime", 5 * args.seconds)
+            _, fast = server_rtf(n, "fast", 5 * args.seconds)
+            server = f"| {held:.3f} | {fast:.2f}× = {fast / rtf['plain']:.2f} plain |"
         print(
             f"| {n} | {rtf['plain']:.2f}× real time | {one_tug / (rtf['plain'] * n):.2f} "
             f"| {rtf['loader'] / rtf['plain']:.2f} | {rtf['fixed'] / rtf['plain']:.2f} "
