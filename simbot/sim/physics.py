@@ -124,7 +124,7 @@ class Physics:
 
     world: World
     fixed_castors: bool = False
-    """Load ball castors fixed (`ball_castors`): half the tug's degrees of freedom gone, the same
+    """Load ball castors fixed (`ball_castors`): 12 of the tug's 22 degrees of freedom gone, the same
     physics, but not the same trajectories step for step (off until the tests bound their chaos)."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
@@ -492,7 +492,7 @@ def ball_castors(model: Model) -> frozenset[str]:
     Turning such a sphere about its centre moves nothing a collision sees, and with a massless
     gimbal the ball passes no tangential force: it is a frictionless sphere, and may be loaded fixed
     in place, its three gimbal joints out of PyBullet's multibody, whose cost per contact grows with
-    the degrees of freedom (the tug's 12 castor joints are half of them: benchmarks/bench_fleet.py).
+    the degrees of freedom (the tug's 12 castor joints are 12 of its 22: benchmarks/bench_fleet.py).
     """
     parents = {joint.parent for joint in model.joints}
     links = {link.name: link for link in model.links}
