@@ -28,6 +28,7 @@ lint: $(STAMP)
 ## Speed, as ratios against a baseline measured in the same run (figures in the README).
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
+	$(BIN)/python benchmarks/bench_fleet.py
 	$(BIN)/python benchmarks/bench_sensors.py
 	$(BIN)/python benchmarks/bench_merger.py
 	$(BIN)/python benchmarks/bench_stitcher.py

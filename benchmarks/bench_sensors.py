@@ -57,7 +57,7 @@ from timing import per_call_ms
 from simbot.bus import BusOptions, Node, messages
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
-from simbot.sim.physics import RAY_BLIND_GROUP, Physics
+from simbot.sim.physics import Physics
 from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.scene import BulletScene
@@ -277,10 +277,10 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
     directions = ray_directions(params)[0] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
     starts = (np.asarray(position) + directions * params.range_min).tolist()
     ends = (np.asarray(position) + directions * params.range_max).tolist()
-    client = physics.client
+    client, mask = physics.client, ~physics.blind_rays_to(ROBOT_NAME)
     costs.lidar_ms = per_call_ms(ours, repeats)
     costs.rays_ms = per_call_ms(
-        lambda: pb.rayTestBatch(starts, ends, collisionFilterMask=~RAY_BLIND_GROUP, physicsClientId=client), repeats
+        lambda: pb.rayTestBatch(starts, ends, collisionFilterMask=mask, physicsClientId=client), repeats
     )
 
 

@@ -371,8 +371,7 @@ def test_rays_through_the_robot_hit_it_unless_blinded() -> None:
         assert seen == pytest.approx(
             [0.25, 0.38 - 0.025, 0.22 - 0.075 * math.sqrt(1 - (0.03 / 0.075) ** 2)], abs=0.01
         ), seen
-        physics.blind_rays_to("flexley_tug")
-        blind = physics.cast_rays(starts, ends) * 10.0
+        blind = physics.cast_rays(starts, ends, blind_to="flexley_tug") * 10.0
         assert blind[0] == pytest.approx(1.3 + 2.95, abs=0.01), f"through the chassis to the back box: {blind}"
         assert np.all(np.isnan(blind[1:]) | (blind[1:] > 2.3)), f"castor and wheel still seen: {blind}"
     finally:

@@ -1,8 +1,9 @@
 """Lidar, planar or 3-D (SDF `gpu_lidar`, `lidar`, `ray`, `gpu_ray`): one PyBullet ray batch per scan.
 
 Every ray of a scan (horizontal × vertical samples) is cast at the same sim instant from the
-sensor's world pose, starting at range_min so nothing inside the housing is seen. The robot carrying the lidar is invisible to
-its rays (physics.blind_rays_to), as a real lidar's own chassis is below or behind its window.
+sensor's world pose, starting at range_min so nothing inside the housing is seen. The robot
+carrying the lidar is invisible to its rays (physics.blind_rays_to), as a real lidar's own chassis
+is below or behind its window; every other robot is seen.
 A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF's gaussian
 noise, quantised to the range resolution and kept within [range_min, range_max].
 `time_increment` is 0 because the rays really are simultaneous: a consumer that de-skews by it
@@ -185,7 +186,9 @@ class Lidar(Sampled):
         position, quat = self._physics.frame_pose(self._model, self._link, self._pose)
         directions = self._fan.directions.reshape(-1, 3) @ quaternion_to_matrix(quat).T
         origin = np.asarray(position)
-        fractions = self._physics.cast_rays(origin + directions * spec.range_min, origin + directions * spec.range_max)
+        fractions = self._physics.cast_rays(
+            origin + directions * spec.range_min, origin + directions * spec.range_max, blind_to=self._model
+        )
         ranges = spec.range_min + fractions * (spec.range_max - spec.range_min)
         return self._measured(ranges).reshape(self._fan.directions.shape[:2])
 
