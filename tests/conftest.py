@@ -17,6 +17,15 @@ ROBOT_SDF = REPO / "urdf" / "flexley_tug.sdf"
 ROBOT_URDF = REPO / "urdf" / "flexley_tug.urdf"
 TROLLEY_SDF = REPO / "worlds" / "models" / "trolley" / "model.sdf"
 REFERENCE = REPO.parent / "shared" / "reference" / "simbot-gazebo"
+CAMERAS = (
+    "camera_front",
+    "camera_back",
+    "camera_front_right",
+    "camera_back_right",
+    "camera_front_left",
+    "camera_back_left",
+)
+"""The tug's six cameras, as its SDF lists them; each publishes on its own name."""
 
 
 @pytest.fixture

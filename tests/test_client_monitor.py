@@ -25,17 +25,10 @@ from typing import Any
 import numpy as np
 import pytest
 from client_helpers import bus_args, client_command, client_process, pty_client
+from conftest import CAMERAS
 from server_helpers import REPO, SimServer, running_server, wait_until
 
 WORLD_EXTRA = ("--camera-size", "160x120", "--camera-rate", "5")
-CAMERAS = (
-    "camera_front",
-    "camera_back",
-    "camera_front_right",
-    "camera_front_left",
-    "camera_back_right",
-    "camera_back_left",
-)
 LASER_SCAN, CAMERA_INFO = "sensor_msgs/msg/LaserScan", "sensor_msgs/msg/CameraInfo"
 TIMEOUT_S = 60.0
 HORIZON_S, JITTER_S, CLOCK_HZ, LIDAR_HZ = 3.0, 0.1, 100.0, 5.0

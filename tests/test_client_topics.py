@@ -25,6 +25,7 @@ from typing import Any
 
 import pytest
 from client_helpers import bus_args, client_command, client_process
+from conftest import CAMERAS
 from server_helpers import REPO, SimServer, running_server, wait_until
 
 from simbot.bus import encode, messages
@@ -50,14 +51,6 @@ IMAGE, CAMERA_INFO, POSE_STAMPED = (
     "sensor_msgs/msg/Image",
     "sensor_msgs/msg/CameraInfo",
     "geometry_msgs/msg/PoseStamped",
-)
-CAMERAS = (
-    "camera_front",
-    "camera_back",
-    "camera_front_right",
-    "camera_front_left",
-    "camera_back_right",
-    "camera_back_left",
 )
 
 # SPEC §4: key → (type, kind, the client that provides it; None for the server)

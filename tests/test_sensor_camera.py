@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import CAMERAS
 from gl_helpers import NO_EGL
 from server_helpers import SimServer, running_server, stamp_ns
 
@@ -28,14 +29,6 @@ WORLD = str(REPO / "tests" / "fixtures" / "camera_boxes.sdf")
 AT_ORIGIN = ["--spawn", "0", "0", "0.1", "0"]
 IMAGE = "sensor_msgs/msg/Image"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-CAMERAS = (
-    "camera_front",
-    "camera_back",
-    "camera_front_right",
-    "camera_back_right",
-    "camera_front_left",
-    "camera_back_left",
-)
 HFOV = 2.0944
 BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
 
