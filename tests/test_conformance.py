@@ -32,6 +32,8 @@ from simbot.sim.server import Server, ServerConfig
 from simbot.sim.simulation import Mode
 from simbot.sim.system import SensorSettings, scoped_rng
 
+FLUSH = "conformance_flush"
+"""A key no system uses, put after the last step: its arrival means the run's messages have all arrived."""
 STEPS = 200  # 0.2 s at 1 kHz: several messages of every rate here (camera 30 Hz, lidar 50 Hz, IMU 200 Hz)
 SEED = 7
 Published = dict[str, list[bytes]]
@@ -322,7 +324,8 @@ def run(tmp: Path, case: Case, seed: int) -> Published:
     """Every payload published on the namespace, by key, from the server's start through STEPS steps.
 
     The subscriber is on the server's own session, declared before the server is built, so it gets
-    the latched messages of construction too and nothing is lost in transport.
+    the latched messages of construction too and nothing is lost in transport; a marker put after
+    the last step is waited for, so a loaded machine's late deliveries are counted too.
     """
     published: Published = {}
     config = _config(tmp, case, seed)
@@ -339,6 +342,10 @@ def run(tmp: Path, case: Case, seed: int) -> Published:
                 _command(server, node, *case.command)
             for _ in range(STEPS):
                 server.sim.step()
+            # everything put before the marker has been handed to `keep` once the marker has
+            node.session.put(f"{node.namespace}/{FLUSH}", b"")
+            wait_until(lambda: FLUSH in published, 10.0, "the flush marker, after every message of the run")
+            del published[FLUSH]
         finally:
             server.close()
             subscriber.undeclare()
