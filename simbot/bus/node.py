@@ -31,6 +31,7 @@ import zenoh
 import zenoh.ext
 
 from simbot.bus.codec import DecodeError, decode, encode, message_type
+from simbot.bus.frames import with_frame_prefix
 from simbot.bus.graph import SERVICE_TYPE, Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
@@ -101,9 +102,18 @@ class Publisher:
     """
 
     def __init__(
-        self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None
+        self,
+        session: zenoh.Session,
+        key: str,
+        *,
+        latched: bool,
+        drop: bool,
+        typename: str | None = None,
+        frame_prefix: str = "",
     ) -> None:
         self.key = key
+        self.frame_prefix = frame_prefix
+        """Every frame id the messages carry goes out under it (`frames.with_frame_prefix`)."""
         self.latched = latched
         self.typename = typename
         self._session = session
@@ -136,7 +146,7 @@ class Publisher:
 
     def put(self, msg: Any) -> None:
         """Encode `msg` as CDR and put it."""
-        data = encode(msg)
+        data = encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg)
         if self._announcement is None:
             self._announcement = Announcement(self._session, "pub", msg.__msgtype__, self.key)
         self._put(data, self._encoding(msg.__msgtype__))
@@ -378,12 +388,22 @@ class Node:
         return entity
 
     def publisher(
-        self, topic: str, msgtype: type[Any] | str | None = None, *, latched: bool = False, drop: bool = True
+        self,
+        topic: str,
+        msgtype: type[Any] | str | None = None,
+        *,
+        latched: bool = False,
+        drop: bool = True,
+        frame_prefix: str = "",
     ) -> Publisher:
         """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name, for the graph);
-        `latched` serves the latest message to late joiners, `drop=False` blocks."""
+        `latched` serves the latest message to late joiners, `drop=False` blocks; `frame_prefix`
+        puts the frames of what it sends under a robot's namespace."""
         typename = msgtype if isinstance(msgtype, str) or msgtype is None else msgtype.__msgtype__
-        return self._keep(Publisher(self.session, self.key(topic), latched=latched, drop=drop, typename=typename))
+        publisher = Publisher(
+            self.session, self.key(topic), latched=latched, drop=drop, typename=typename, frame_prefix=frame_prefix
+        )
+        return self._keep(publisher)
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False
