@@ -22,7 +22,15 @@ from typing import Any
 import numpy as np
 import pytest
 from conftest import REPO
-from server_helpers import SimServer, keyed_payload, planar_distance, raw_samples, running_server
+from server_helpers import (
+    SimServer,
+    keyed_payload,
+    planar_distance,
+    raw_samples,
+    render_workers,
+    running_server,
+    wait_until,
+)
 
 from simbot.bus import messages
 from simbot.bus.graph import discover
@@ -204,3 +212,32 @@ def test_lockstep_is_deterministic_across_a_create() -> None:
     assert set(first) == set(second)
     for key in first:
         assert first[key] == second[key], key
+
+
+TROLLEY_SDF = REPO / "worlds" / "models" / "trolley" / "model.sdf"
+IMAGE = "sensor_msgs/msg/Image"
+
+
+def test_remove_while_attached_frees_the_trolley_and_while_rendering_ends_the_workers() -> None:
+    """A tug pulling the trolley with its front camera rendering, removed: its joint state says
+    detached, its render workers end; once the workers run, a create with cameras is refused."""
+    with running_server("empty", extra=CHEAP_CAMERAS) as sim:
+        assert sim.call("create", {"sdf_filename": str(TROLLEY_SDF), "name": "trolley", "pose": _pose(1.0, 0.2, 0.0)})[
+            "ok"
+        ]
+        assert create_tug(sim, 1)["ok"]
+        state = sim.subscribe("tug_1/detachable_joint/state", "std_msgs/msg/String", latched=True)
+        sim.send("tug_1/attach", messages.empty())
+        sim.step(10)
+        state.wait_for(lambda msgs: msgs and msgs[-1].data == "attached", what="attached")
+        images = sim.subscribe("tug_1/camera_front", IMAGE)
+        sim.prime(images, chunk=1000, timeout=60.0)
+        assert render_workers(sim.process.pid), "no render worker while tug_1/camera_front renders"
+        refused = create_tug(sim, 2)
+        assert refused["ok"] is False and refused["error"].startswith("sdf") and "render workers" in refused["error"]
+        assert "tug_2" not in sim.state()["models"]
+        assert sim.call("remove", {"name": "tug_1"}) == {"ok": True, "name": "tug_1"}
+        state.wait_for(lambda msgs: msgs[-1].data == "detached", what="detached on removal")
+        wait_until(lambda: not render_workers(sim.process.pid), 10.0, "the render workers to end")
+        sim.step(100)
+        assert set(sim.state()["models"]) == {"ground_plane", "trolley"}
