@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
 from collections.abc import Iterator
 from typing import Any
 
@@ -29,6 +30,7 @@ from server_helpers import (
     raw_samples,
     render_workers,
     running_server,
+    server_command,
     wait_until,
 )
 
@@ -241,3 +243,22 @@ def test_remove_while_attached_frees_the_trolley_and_while_rendering_ends_the_wo
         wait_until(lambda: not render_workers(sim.process.pid), 10.0, "the render workers to end")
         sim.step(100)
         assert set(sim.state()["models"]) == {"ground_plane", "trolley"}
+
+
+def test_robots_n_starts_tugs_in_a_row_each_in_its_namespace() -> None:
+    """--robots 3: tug_1..tug_3 from --spawn along y, 1.5 m apart, each taking commands on its own cmd_vel."""
+    extra = ("--robots", "3", "--spawn", "1", "2", "0.1", "0", "--camera-size", "8x6", "--camera-rate", "1")
+    with running_server("empty", extra=extra) as sim:
+        state = sim.state()
+        assert {"tug_1", "tug_2", "tug_3"} <= set(state["models"]) and "flexley_tug" not in state["models"]
+        for index in (1, 2, 3):
+            (x, y, _), _ = sim.pose(f"tug_{index}", state)
+            assert (x, y) == pytest.approx((1.0, 2.0 + (index - 1) * 1.5), abs=1e-6)
+            assert sim.key(f"tug_{index}/cmd_vel") in state["received"]
+
+
+def test_robots_without_a_robot_is_a_usage_error() -> None:
+    result = subprocess.run(
+        server_command("--robots", "2", "--robot", "none"), capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 2 and "--robots" in result.stderr and "Traceback" not in result.stderr
