@@ -28,6 +28,11 @@ def prefixed_frame(frame: str, prefix: str) -> str:
     return f"{prefix}/{frame}"
 
 
+def frame_prefix(frame: str) -> str:
+    """The namespace of the robot whose tree holds `frame` (`tug_2` of `tug_2/base_scan_front`); empty for none."""
+    return frame.rpartition("/")[0]
+
+
 def with_frame_prefix(msg: Any, prefix: str) -> Any:
     """A copy of `msg` with its frame ids (header, child frame, each transform's) under `prefix`:
     one place for every system of a namespaced model, so none of them needs to know."""
