@@ -50,6 +50,13 @@ def client_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
+    parser.add_argument(
+        "--robot-namespace",
+        default="",
+        metavar="NS",
+        help="the robot's namespace within the bus's (a model created in one, tug_2 of --robots N): "
+        "its topics under NS, the clock and world control where they are",
+    )
     return parser
 
 
@@ -146,7 +153,7 @@ class SimClock:
     def __init__(self, node: Node) -> None:
         self._lock = threading.Lock()
         self._ns: int | None = None
-        node.subscribe("clock", CLOCK, self._tick)
+        node.subscribe("/clock", CLOCK, self._tick)  # the world's, whatever robot the client follows
 
     def _tick(self, msg: Any) -> None:
         ns = messages.stamp_ns(msg.clock)

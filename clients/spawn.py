@@ -4,9 +4,9 @@
                       [--world NAME] [--timeout SECONDS] [--connect E] [--namespace NS]
 
 FILE is an SDF (or URDF, xacro) model file that the server can read: its path goes to the server
-made absolute, as Gazebo's `sdf_filename` does. `--robot-namespace` puts every key and frame of
-the model under NS (`tug_2/cmd_vel`, `tug_2/base_link`); `--namespace` is the bus's namespace,
-as for every client. Prints the name the model got.
+made absolute, as Gazebo's `sdf_filename` does. `--robot-namespace` (every client's option: the
+robot it follows) puts every key and frame of the model under NS (`tug_2/cmd_vel`,
+`tug_2/base_link`); `--namespace` is the bus's namespace, as for every client. Prints the name the model got.
 
 Exit codes: 0 the model is in the world; 1 no world control answers; 2 a user's mistake, the
 server's refusal included (its one line, naming the field, on stderr).
@@ -47,7 +47,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser = client_parser("simbot spawn", "Add a model to the running world (world control's create).")
     parser.add_argument("file", help="the model's SDF, URDF or xacro file")
     parser.add_argument("--name", help="its name in the world (default: the file's model name)")
-    parser.add_argument("--robot-namespace", metavar="NS", help="every key and frame of the model under NS")
     parser.add_argument(
         "--pose", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), help="where it appears (default: its own pose)"
     )
@@ -61,7 +60,7 @@ def create_request(args: argparse.Namespace) -> dict[str, Any]:
     request: dict[str, Any] = {"sdf_filename": str(Path(args.file).absolute()), "allow_renaming": args.allow_renaming}
     if args.name is not None:
         request["name"] = args.name
-    if args.robot_namespace is not None:
+    if args.robot_namespace:
         request["namespace"] = args.robot_namespace
     if args.pose is not None:
         if not all(math.isfinite(v) for v in args.pose):

@@ -371,6 +371,7 @@ class Node:
         self.options = options
         self.role = role
         self.namespace = options.namespace
+        self.robot_namespace = options.robot_namespace.strip("/")
         self._warnings = RateLimitedWarnings()
         self._entities: list[_Closable] = []
         config = zenoh_config(options, role)
@@ -380,8 +381,12 @@ class Node:
             raise BusOpenError(f"cannot open the Zenoh {role} session: {zenoh_reason(exc)}") from None
 
     def key(self, topic: str) -> str:
-        """The Zenoh key of `topic` in this node's namespace."""
-        return topic_key(topic, self.namespace)
+        """The Zenoh key of `topic` in this node's namespace. With a robot namespace, as ROS resolves
+        names in a node's namespace: a relative topic (`cmd_vel`) under it, an absolute one
+        (`/clock`) in the bus's namespace alone."""
+        if topic.startswith("/") or not self.robot_namespace:
+            return topic_key(topic, self.namespace)
+        return topic_key(topic, "/".join(part for part in (self.namespace, self.robot_namespace) if part))
 
     def _keep(self, entity: _T) -> _T:
         self._entities.append(entity)
@@ -420,11 +425,12 @@ class Node:
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> Queryable:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""
-        return self._keep(Queryable(self.session, self.key(key_suffix), capacity))
+        return self._keep(Queryable(self.session, self.key("/" + key_suffix.lstrip("/")), capacity))
 
     def call(self, key_suffix: str, payload: Mapping[str, Any] | bytes, timeout: float = 5.0) -> dict[str, Any]:
-        """Ask the JSON service at `key_suffix`; a dict is sent as JSON, bytes as they are."""
-        key = self.key(key_suffix)
+        """Ask the JSON service at `key_suffix` (a world's, in the bus's namespace); a dict is sent as JSON,
+        bytes as they are."""
+        key = self.key("/" + key_suffix.lstrip("/"))
         body = bytes(payload) if isinstance(payload, (bytes, bytearray)) else json.dumps(dict(payload)).encode()
         replies = self.session.get(
             key,
