@@ -16,13 +16,14 @@ from collections.abc import Sequence
 from simbot.bus import Node
 
 from .common import client_parser, run_client
-from .spawn import add_world_arguments, world_call
+from .spawn import DEFAULT_TIMEOUT_S, world_call
+from .state import add_world_arguments
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = client_parser("simbot remove", "Take a model out of the running world (world control's remove).")
     parser.add_argument("name", help="the model's name in the world")
-    add_world_arguments(parser)
+    add_world_arguments(parser, DEFAULT_TIMEOUT_S)
     return parser
 
 

@@ -24,23 +24,11 @@ from typing import Any
 
 from simbot.bus import Node, ServiceError
 
-from .common import EXIT_USAGE, ClientError, client_parser, number, run_client
-from .state import EXIT_NO_WORLD, NoWorld, choose_world
+from .common import EXIT_USAGE, ClientError, client_parser, run_client
+from .state import EXIT_NO_WORLD, NoWorld, add_world_arguments, choose_world
 
 DEFAULT_TIMEOUT_S = 60.0
 """Loading a robot with its sensors takes a second or two; a loaded machine, more."""
-
-
-def add_world_arguments(parser: argparse.ArgumentParser) -> None:
-    """`--world` and `--timeout`, as `simbot spawn` and `simbot remove` share them."""
-    parser.add_argument("--world", metavar="NAME", help="the world to ask (default: the one on the bus)")
-    parser.add_argument(
-        "--timeout",
-        type=number(float),
-        default=DEFAULT_TIMEOUT_S,
-        metavar="SECONDS",
-        help=f"how long to wait for the world's reply (default {DEFAULT_TIMEOUT_S:g})",
-    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--pose", nargs=4, type=float, metavar=("X", "Y", "Z", "YAW"), help="where it appears (default: its own pose)"
     )
     parser.add_argument("--allow-renaming", action="store_true", help="a taken name becomes NAME_1, NAME_2, ...")
-    add_world_arguments(parser)
+    add_world_arguments(parser, DEFAULT_TIMEOUT_S)
     return parser
 
 
