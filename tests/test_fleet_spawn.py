@@ -222,7 +222,8 @@ IMAGE = "sensor_msgs/msg/Image"
 
 def test_remove_while_attached_frees_the_trolley_and_while_rendering_ends_the_workers() -> None:
     """A tug pulling the trolley with its front camera rendering, removed: its joint state says
-    detached, its render workers end; once the workers run, a create with cameras is refused."""
+    detached, its render workers end; once the workers run, a create with cameras is refused;
+    a reset removes the trolley, created at run time too."""
     with running_server("empty", extra=CHEAP_CAMERAS) as sim:
         assert sim.call("create", {"sdf_filename": str(TROLLEY_SDF), "name": "trolley", "pose": _pose(1.0, 0.2, 0.0)})[
             "ok"
@@ -243,10 +244,13 @@ def test_remove_while_attached_frees_the_trolley_and_while_rendering_ends_the_wo
         wait_until(lambda: not render_workers(sim.process.pid), 10.0, "the render workers to end")
         sim.step(100)
         assert set(sim.state()["models"]) == {"ground_plane", "trolley"}
+        assert sim.control({"reset": {"all": True}})["ok"] is True
+        assert set(sim.state()["models"]) == {"ground_plane"}, "a reset keeps no model created at run time"
 
 
 def test_robots_n_starts_tugs_in_a_row_each_in_its_namespace() -> None:
-    """--robots 3: tug_1..tug_3 from --spawn along y, 1.5 m apart, each taking commands on its own cmd_vel."""
+    """--robots 3: tug_1..tug_3 from --spawn along y, 1.5 m apart, each taking commands on its own cmd_vel;
+    one removed, a reset says it cannot bring it back, and the world runs on."""
     extra = ("--robots", "3", "--spawn", "1", "2", "0.1", "0", "--camera-size", "8x6", "--camera-rate", "1")
     with running_server("empty", extra=extra) as sim:
         state = sim.state()
@@ -255,6 +259,10 @@ def test_robots_n_starts_tugs_in_a_row_each_in_its_namespace() -> None:
             (x, y, _), _ = sim.pose(f"tug_{index}", state)
             assert (x, y) == pytest.approx((1.0, 2.0 + (index - 1) * 1.5), abs=1e-6)
             assert sim.key(f"tug_{index}/cmd_vel") in state["received"]
+        assert sim.call("remove", {"name": "tug_3"})["ok"] is True
+        reply = sim.control({"reset": {"all": True}})
+        assert reply["ok"] is False and "tug_3" in reply["error"], "a model the world started with cannot come back"
+        sim.step(10)
 
 
 def test_robots_without_a_robot_is_a_usage_error() -> None:
