@@ -50,6 +50,8 @@ Handler = Callable[[Request, dict[str, Any]], None]
 
 KEY_SEGMENTS = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
 """A namespace: ROS name tokens joined by `/`, so that every key under it is a ROS topic and a Zenoh key."""
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""A created model's name: one token (it names a key segment, `model/<name>/pose`, and a file)."""
 
 
 @dataclass(frozen=True)
@@ -191,8 +193,8 @@ def create_request(body: dict[str, Any]) -> CreateRequest:
     if "namespace" in body and not KEY_SEGMENTS.fullmatch(namespace):
         raise ValueError(f"namespace: expected key segments of letters, digits and _ joined by /, got {namespace!r}")
     name = body.get("name")
-    if name is not None and not KEY_SEGMENTS.fullmatch(name):
-        raise ValueError(f"name: expected letters, digits and _ (a key segment), got {name!r}")
+    if name is not None and not NAME.fullmatch(name):
+        raise ValueError(f"name: expected letters, digits and _ (one key segment), got {name!r}")
     renaming = body.get("allow_renaming", False)
     if not isinstance(renaming, bool):
         raise TypeError(f"allow_renaming: expected true or false, got {renaming!r}")
