@@ -147,8 +147,18 @@ def test_lidar_sees_a_robot_placed_ahead(fleet: SimServer) -> None:
         ({"sdf_filename": str(TUG_SDF), "name": "x", "pose": {"position": {"y": math.inf}}}, "pose.position.y"),
         ({"sdf_filename": str(TUG_SDF), "name": "x", "namespace": "bad ns*"}, "namespace"),
         ({"sdf_filename": str(TUG_SDF), "sdf": MAST}, "sdf_filename or sdf"),
+        ({"sdf": MAST, "name": "a/b"}, "name"),
     ],
-    ids=["missing file", "malformed sdf", "duplicate name", "nan pose", "infinite pose", "bad namespace", "both"],
+    ids=[
+        "missing file",
+        "malformed sdf",
+        "duplicate name",
+        "nan pose",
+        "infinite pose",
+        "bad namespace",
+        "both",
+        "bad name",
+    ],
 )
 def test_bad_create_changes_nothing(fleet: SimServer, request_body: dict[str, Any], field: str) -> None:
     """One line naming the field; the same models and the same keys on the graph after as before."""
