@@ -26,6 +26,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, Generic, TypeVar
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, Subscription, add_bus_arguments, messages
+from simbot.bus.frames import frame_prefix, prefixed_frame
 from simbot.bus.sync import StampSync
 from simbot.bus.transforms import Matrix, TransformTree
 
@@ -49,6 +50,13 @@ def client_parser(prog: str, description: str) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
+    parser.add_argument(
+        "--robot-namespace",
+        default="",
+        metavar="NS",
+        help="the robot's namespace within the bus's (a model created in one, tug_2 of --robots N): "
+        "its topics under NS, the clock and world control where they are",
+    )
     return parser
 
 
@@ -145,7 +153,7 @@ class SimClock:
     def __init__(self, node: Node) -> None:
         self._lock = threading.Lock()
         self._ns: int | None = None
-        node.subscribe("clock", CLOCK, self._tick)
+        node.subscribe("/clock", CLOCK, self._tick)  # the world's, whatever robot the client follows
 
     def _tick(self, msg: Any) -> None:
         ns = messages.stamp_ns(msg.clock)
@@ -205,7 +213,10 @@ class Recent:
 
 
 class StaticTransforms:
-    """Poses of frames in one target frame, from the latched `tf_static`: queued by Zenoh, taken in by `refresh`."""
+    """Poses of frames in one target frame, from the latched `tf_static`: queued by Zenoh, taken in by `refresh`.
+
+    The target is that of the frame's own robot: `base_link` for `base_scan_front`, `tug_2/base_link`
+    for `tug_2/base_scan_front` (a robot in a namespace of its own prefixes its frames)."""
 
     def __init__(self, node: Node, target: str) -> None:
         self.target = target
@@ -230,8 +241,12 @@ class StaticTransforms:
         ValueError when tf_static holds a cycle.
         """
         if frame not in self._poses:
-            self._poses[frame] = self._tree.lookup(self.target, frame)
+            self._poses[frame] = self._tree.lookup(self.target_of(frame), frame)
         return self._poses[frame]
+
+    def target_of(self, frame: str) -> str:
+        """The target frame in the tree of `frame`'s robot."""
+        return prefixed_frame(self.target, frame_prefix(frame))
 
 
 class StampedSets:

@@ -188,11 +188,11 @@ def combine(alone: Sequence[Rebinned]) -> Rebinned:
     )
 
 
-def to_message(rebinned: Rebinned, ns: int, binning: Binning, scan_time: float) -> Any:
-    """A sensor_msgs/LaserScan in the target frame."""
+def to_message(rebinned: Rebinned, ns: int, binning: Binning, scan_time: float, frame: str = TARGET_FRAME) -> Any:
+    """A sensor_msgs/LaserScan in the target frame (`tug_2/base_link` for a robot in namespace tug_2)."""
     return messages.laser_scan(
         ns,
-        TARGET_FRAME,
+        frame,
         (binning.angle_min, binning.angle_max, binning.increment),
         (0.0, scan_time),
         (rebinned.range_min, rebinned.range_max),
@@ -241,7 +241,8 @@ class MergerNode:
         try:
             pose = self._tf.pose(scan.header.frame_id)  # ValueError when tf_static holds a cycle
             if pose is None:
-                raise BadScan(f"no transform from {scan.header.frame_id!r} to {TARGET_FRAME!r} on tf_static (yet)")
+                target = self._tf.target_of(scan.header.frame_id)
+                raise BadScan(f"no transform from {scan.header.frame_id!r} to {target!r} on tf_static (yet)")
             return self.merger.rebin(scan, pose)
         except ValueError as exc:  # BadScan included
             self.rejected += 1
@@ -250,17 +251,19 @@ class MergerNode:
 
     def _publish(self, ready: Mapping[str, Any]) -> None:
         """Publish each usable scan of a set alone (`*_fixed`), then all of them merged (`scan`)."""
-        binning, stamps, alone = self.merger.binning, [], []
+        binning, stamps, alone, frame = self.merger.binning, [], [], TARGET_FRAME
         for topic, scan in ready.items():
             rebinned = self._rebin(topic, scan) if scan is not None else None
             if rebinned is None:
                 continue
             stamps.append(messages.stamp_ns(scan.header))
             alone.append(rebinned)
-            self._publishers[FIXED_TOPICS[topic]].put(to_message(rebinned, stamps[-1], binning, self.period_s))
+            frame = self._tf.target_of(scan.header.frame_id)
+            message = to_message(rebinned, stamps[-1], binning, self.period_s, frame)
+            self._publishers[FIXED_TOPICS[topic]].put(message)
         if not alone:
             return
-        self._publishers[MERGED_TOPIC].put(to_message(combine(alone), max(stamps), binning, self.period_s))
+        self._publishers[MERGED_TOPIC].put(to_message(combine(alone), max(stamps), binning, self.period_s, frame))
         self.published += 1
         if len(alone) < len(FIXED_TOPICS):
             self.alone += 1

@@ -41,16 +41,21 @@ def build_parser() -> argparse.ArgumentParser:
     parser = client_parser(
         "simbot state", "Print the world's state from its world control; exit 1 when it does not answer."
     )
-    parser.add_argument("--world", metavar="NAME", help="the world to ask (default: the one on the bus)")
+    add_world_arguments(parser, DEFAULT_TIMEOUT_S)
     parser.add_argument("--json", action="store_true", help="print the server's whole reply as JSON")
+    return parser
+
+
+def add_world_arguments(parser: argparse.ArgumentParser, timeout_s: float) -> None:
+    """`--world` and `--timeout`: what every client that asks world control takes."""
+    parser.add_argument("--world", metavar="NAME", help="the world to ask (default: the one on the bus)")
     parser.add_argument(
         "--timeout",
         type=number(float),
-        default=DEFAULT_TIMEOUT_S,
+        default=timeout_s,
         metavar="SECONDS",
-        help=f"how long to wait for the world's reply (default {DEFAULT_TIMEOUT_S:g})",
+        help=f"how long to wait for the world's reply (default {timeout_s:g})",
     )
-    return parser
 
 
 def choose_world(node: Node, wanted: str | None) -> str:

@@ -30,6 +30,8 @@ CLIENTS: dict[str, str] = {
     "snapshot": "write the panorama and a top-down map of the merged scan as PNGs",
     "launch": "start the server and chosen clients; Ctrl-C ends them all",
     "state": "print the world's state from its world control; exit 1 when it does not answer (the container's health check)",
+    "spawn": "add a model to the running world (world control's create), in a namespace of its own if asked",
+    "remove": "take a model out of the running world (world control's remove)",
     "record": "record keys into a rosbag2 bag in MCAP storage; Ctrl-C closes it",
     "play": "publish a recorded bag back onto the bus at its recorded rate",
     "foxglove": "serve the live bus to the Foxglove app over its WebSocket protocol (pip install 'simbot[foxglove]')",

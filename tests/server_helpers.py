@@ -186,6 +186,16 @@ def wait_until(
 # --- the server -----------------------------------------------------------------------------
 
 
+def render_workers(pid: int) -> list[int]:
+    """The server's render worker processes: its spawned children other than multiprocessing's resource tracker."""
+    found = []
+    for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split():
+        cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+        if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
+            found.append(int(child))
+    return found
+
+
 def server_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "simbot.sim.server", *args]
 

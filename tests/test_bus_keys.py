@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from simbot.bus import messages
+from simbot.bus.frames import frame_prefix, prefixed_frame, with_frame_prefix
 from simbot.bus.keys import topic_key
 
 
@@ -48,3 +50,23 @@ def test_topic_key_rejects_what_zenoh_would_misread(topic: str, namespace: str, 
         topic_key(topic, namespace)
     assert repr(topic) in str(caught.value)
     assert "\n" not in str(caught.value)
+
+
+def test_frame_prefix_puts_a_robots_frames_under_its_namespace() -> None:
+    """Headers, child frames and each transform's frames go under the prefix; world, empty and prefixed ones stay."""
+    tf = messages.tf_message(
+        [
+            messages.transform_stamped(0, "odom", "base_footprint", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)),
+            messages.transform_stamped(0, "world", "tug_2/base_link", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)),
+        ]
+    )
+    prefixed = with_frame_prefix(tf, "tug_2")
+    pairs = [(t.header.frame_id, t.child_frame_id) for t in prefixed.transforms]
+    assert pairs == [("tug_2/odom", "tug_2/base_footprint"), ("world", "tug_2/base_link")]
+    assert tf.transforms[0].header.frame_id == "odom", "the message given is not changed"
+    assert with_frame_prefix(messages.string("x"), "tug_2") == messages.string("x")
+    assert (prefixed_frame("", "tug_2"), prefixed_frame("map", "tug_2"), frame_prefix("tug_2/base_link")) == (
+        "",
+        "map",
+        "tug_2",
+    )

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from conftest import CAMERAS
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, running_server, stamp_ns
+from server_helpers import SimServer, render_workers, running_server, stamp_ns
 
 from simbot.bus import messages
 
@@ -220,22 +220,12 @@ def test_bad_camera_options_are_one_line_errors() -> None:
         assert option in result.stderr and "Traceback" not in result.stderr
 
 
-def _render_workers(pid: int) -> list[int]:
-    """The server's render worker processes: its spawned children other than multiprocessing's resource tracker."""
-    found = []
-    for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split():
-        cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
-        if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
-            found.append(int(child))
-    return found
-
-
 def test_a_killed_render_worker_stops_the_cameras_not_the_simulation() -> None:
     """SIGKILL to the render worker: world state reports the cameras' error, and sim time and odom go on."""
     with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--camera-size", "160x120"]) as sim:
         images = sim.subscribe("camera_front", IMAGE)
         images.wait_count(3, timeout=60.0, what="camera_front images")
-        (worker,) = _render_workers(sim.process.pid)
+        (worker,) = render_workers(sim.process.pid)
         os.kill(worker, signal.SIGKILL)
         wait_until = sim.state()["sim_time"]
         while "error" not in sim.state()["sensors"]["flexley_tug/base_link/camera_front"]:

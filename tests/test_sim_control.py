@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import pytest
@@ -20,7 +20,7 @@ from simbot.bus import Node
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
-from simbot.sim.control import MAX_STEPS, WorldControl
+from simbot.sim.control import MAX_STEPS, CreateRequest, WorldControl
 from simbot.sim.physics import Physics
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import SimBus
@@ -42,6 +42,23 @@ class Controlled:
         return self.client.call(key, body, timeout=10.0)
 
 
+@dataclass
+class BareWorld:
+    """The world control's view of a world without a server around it: no sensors, no models made at run time."""
+
+    sim: Simulation
+    sensors: dict[str, object] = field(default_factory=dict)
+
+    def create(self, request: CreateRequest) -> str:
+        raise ValueError("sdf: this test world makes no models")
+
+    def remove(self, name: str) -> None:
+        raise ValueError(f"name: no model named {name!r}")
+
+    def reset(self) -> None:
+        self.sim.reset()
+
+
 @pytest.fixture
 def world() -> Iterator[Controlled]:
     physics = Physics(load_world(asset(f"worlds/{WORLD}.sdf")))
@@ -50,7 +67,7 @@ def world() -> Iterator[Controlled]:
     stop = threading.Event()
     with node_pair() as pair:
         sim = Simulation(physics, [], Mode.LOCKSTEP)
-        control = WorldControl(pair.server, WORLD, sim, SimBus(pair.server), {})
+        control = WorldControl(pair.server, WORLD, sim, SimBus(pair.server), BareWorld(sim))
         loop = threading.Thread(target=sim.run, args=(stop, control.poll), daemon=True)
         loop.start()
         try:

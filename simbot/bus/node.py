@@ -31,6 +31,7 @@ import zenoh
 import zenoh.ext
 
 from simbot.bus.codec import DecodeError, decode, encode, message_type
+from simbot.bus.frames import with_frame_prefix
 from simbot.bus.graph import SERVICE_TYPE, Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
@@ -101,9 +102,18 @@ class Publisher:
     """
 
     def __init__(
-        self, session: zenoh.Session, key: str, *, latched: bool, drop: bool, typename: str | None = None
+        self,
+        session: zenoh.Session,
+        key: str,
+        *,
+        latched: bool,
+        drop: bool,
+        typename: str | None = None,
+        frame_prefix: str = "",
     ) -> None:
         self.key = key
+        self.frame_prefix = frame_prefix
+        """Every frame id the messages carry goes out under it (`frames.with_frame_prefix`)."""
         self.latched = latched
         self.typename = typename
         self._session = session
@@ -136,7 +146,7 @@ class Publisher:
 
     def put(self, msg: Any) -> None:
         """Encode `msg` as CDR and put it."""
-        data = encode(msg)
+        data = encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg)
         if self._announcement is None:
             self._announcement = Announcement(self._session, "pub", msg.__msgtype__, self.key)
         self._put(data, self._encoding(msg.__msgtype__))
@@ -361,6 +371,7 @@ class Node:
         self.options = options
         self.role = role
         self.namespace = options.namespace
+        self.robot_namespace = options.robot_namespace.strip("/")
         self._warnings = RateLimitedWarnings()
         self._entities: list[_Closable] = []
         config = zenoh_config(options, role)
@@ -370,20 +381,34 @@ class Node:
             raise BusOpenError(f"cannot open the Zenoh {role} session: {zenoh_reason(exc)}") from None
 
     def key(self, topic: str) -> str:
-        """The Zenoh key of `topic` in this node's namespace."""
-        return topic_key(topic, self.namespace)
+        """The Zenoh key of `topic` in this node's namespace. With a robot namespace, as ROS resolves
+        names in a node's namespace: a relative topic (`cmd_vel`) under it, an absolute one
+        (`/clock`) in the bus's namespace alone."""
+        if topic.startswith("/") or not self.robot_namespace:
+            return topic_key(topic, self.namespace)
+        return topic_key(topic, "/".join(part for part in (self.namespace, self.robot_namespace) if part))
 
     def _keep(self, entity: _T) -> _T:
         self._entities.append(entity)
         return entity
 
     def publisher(
-        self, topic: str, msgtype: type[Any] | str | None = None, *, latched: bool = False, drop: bool = True
+        self,
+        topic: str,
+        msgtype: type[Any] | str | None = None,
+        *,
+        latched: bool = False,
+        drop: bool = True,
+        frame_prefix: str = "",
     ) -> Publisher:
         """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name, for the graph);
-        `latched` serves the latest message to late joiners, `drop=False` blocks."""
+        `latched` serves the latest message to late joiners, `drop=False` blocks; `frame_prefix`
+        puts the frames of what it sends under a robot's namespace."""
         typename = msgtype if isinstance(msgtype, str) or msgtype is None else msgtype.__msgtype__
-        return self._keep(Publisher(self.session, self.key(topic), latched=latched, drop=drop, typename=typename))
+        publisher = Publisher(
+            self.session, self.key(topic), latched=latched, drop=drop, typename=typename, frame_prefix=frame_prefix
+        )
+        return self._keep(publisher)
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False
@@ -400,11 +425,12 @@ class Node:
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> Queryable:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""
-        return self._keep(Queryable(self.session, self.key(key_suffix), capacity))
+        return self._keep(Queryable(self.session, self.key("/" + key_suffix.lstrip("/")), capacity))
 
     def call(self, key_suffix: str, payload: Mapping[str, Any] | bytes, timeout: float = 5.0) -> dict[str, Any]:
-        """Ask the JSON service at `key_suffix`; a dict is sent as JSON, bytes as they are."""
-        key = self.key(key_suffix)
+        """Ask the JSON service at `key_suffix` (a world's, in the bus's namespace); a dict is sent as JSON,
+        bytes as they are."""
+        key = self.key("/" + key_suffix.lstrip("/"))
         body = bytes(payload) if isinstance(payload, (bytes, bytearray)) else json.dumps(dict(payload)).encode()
         replies = self.session.get(
             key,

@@ -82,13 +82,16 @@ class BusOptions:
     config_file: Path | None = None
     namespace: str = ""
     connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S
+    robot_namespace: str = ""
+    """A client's robot within the bus's namespace (`tug_2`): where its relative topics resolve."""
 
     def __post_init__(self) -> None:
-        if self.namespace.strip("/"):
-            try:
-                topic_key("x", self.namespace)
-            except ValueError as exc:
-                raise BusConfigError(f"--namespace {self.namespace!r}: {exc}") from None
+        for option, value in (("--namespace", self.namespace), ("--robot-namespace", self.robot_namespace)):
+            if value.strip("/"):
+                try:
+                    topic_key("x", value)
+                except ValueError as exc:
+                    raise BusConfigError(f"{option} {value!r}: {exc}") from None
         if not self.connect_timeout >= 0:
             raise BusConfigError(f"--connect-timeout {self.connect_timeout}: must be a number of seconds ≥ 0")
 
@@ -102,6 +105,7 @@ class BusOptions:
             config_file=Path(config) if config is not None else None,
             namespace=getattr(args, "namespace", "") or "",
             connect_timeout=float(getattr(args, "connect_timeout", DEFAULT_CONNECT_TIMEOUT_S)),
+            robot_namespace=getattr(args, "robot_namespace", None) or "",
         )
 
 

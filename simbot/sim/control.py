@@ -7,6 +7,12 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   the steps are done: `{"ok": true, "sim_time": s, "iterations": n}`.
 - `world/<name>/set_pose`: `{"name": "trolley", "position": {"x": 1, "y": 0, "z": 0},
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
+- `world/<name>/create`: `{"sdf_filename": PATH}` or `{"sdf": TEXT}`, with optional `"name"`
+  (default: the SDF's), `"namespace"` (every key of its systems under it, its frames prefixed),
+  `"pose"` (`{"position": {...}, "orientation": {...}}`) and `"allow_renaming"` (a taken name
+  becomes `name_1`, ...), as Gazebo's EntityFactory. The model loads with its plugins and sensors
+  between two steps; the reply `{"ok": true, "name": ...}` comes once it is in the world.
+- `world/<name>/remove`: `{"name": ...}`; its systems close, its keys leave the graph.
 - `world/<name>/state`: any payload; replies with sim time, iterations, pause, mode, real-time
   factor, every model's pose, each sensor's figures by its scoped name `model/link/sensor` (its
   achieved rate in messages per sim second, frames skipped), the payloads each input key has
@@ -14,16 +20,23 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   steps), and the dropped-input counters with their last reasons.
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
+A reset removes the models created since the start, as Gazebo's does.
 Requests are polled by the simulation loop between steps, never acted on in a bus callback.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Mapping
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
 
 from simbot.bus import BadRequest, Node, Request
+from simbot.description.poses import Pose
+from simbot.rotations import quaternion_to_matrix
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import Reporting, SimBus
 
@@ -35,19 +48,54 @@ MAX_COORDINATE = 1e5
 
 Handler = Callable[[Request, dict[str, Any]], None]
 
+KEY_SEGMENTS = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
+"""A namespace: ROS name tokens joined by `/`, so that every key under it is a ROS topic and a Zenoh key."""
+NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""A created model's name: one token (it names a key segment, `model/<name>/pose`, and a file)."""
+
+
+@dataclass(frozen=True)
+class CreateRequest:
+    """A checked `create` request: exactly one of `sdf_filename` and `sdf`."""
+
+    sdf_filename: str | None
+    sdf: str | None
+    name: str | None
+    namespace: str
+    pose: Pose | None
+    allow_renaming: bool
+
+
+class Models(Protocol):
+    """What world control asks of the server about its models."""
+
+    @property
+    def sensors(self) -> Mapping[str, object]: ...
+
+    def create(self, request: CreateRequest) -> str: ...
+
+    def remove(self, name: str) -> None: ...
+
+    def reset(self) -> None: ...
+
 
 class WorldControl:
     """The three queryables of one world."""
 
-    def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus, sensors: Mapping[str, Reporting]) -> None:
+    def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus, models: Models) -> None:
         self.sim = sim
-        self.sensors = dict(sensors)
-        """The sensors `state` reports, by scoped name: two models may each hold a sensor `camera`."""
+        self.models = models
         self.bus = bus
         self.drops = bus.drops
+        handlers = (
+            ("control", self._control),
+            ("set_pose", self._set_pose),
+            ("state", self._state),
+            ("create", self._create),
+            ("remove", self._remove),
+        )
         self._handlers: dict[str, tuple[Any, Handler]] = {
-            name: (node.queryable(f"world/{world}/{name}"), handler)
-            for name, handler in (("control", self._control), ("set_pose", self._set_pose), ("state", self._state))
+            name: (node.queryable(f"world/{world}/{name}"), handler) for name, handler in handlers
         }
         self._keys = {name: node.key(f"world/{world}/{name}") for name in self._handlers}
 
@@ -77,7 +125,7 @@ class WorldControl:
         steps = _steps(body)
         # Everything is valid: only now does anything change.
         if reset:
-            self.sim.reset()
+            self.models.reset()
         if pause is not None:
             self.sim.set_paused(pause)
         self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
@@ -87,14 +135,8 @@ class WorldControl:
         if not isinstance(name, str):
             raise TypeError('set_pose needs a model "name"')
         position = _vector(body.get("position", {}), "xyz", "position", 0.0)
-        orientation = _vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0)
-        norm = math.sqrt(sum(v * v for v in orientation))
-        if norm < 1e-9:
-            raise ValueError("orientation must be a non-zero quaternion")
-        quat = tuple(v / norm for v in orientation)
-        self.sim.physics.set_model_pose(
-            name, ((position[0], position[1], position[2]), (quat[0], quat[1], quat[2], quat[3]))
-        )
+        quat = _unit_quaternion(_vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0))
+        self.sim.physics.set_model_pose(name, ((position[0], position[1], position[2]), quat))
         request.reply(self._time(ok=True))
 
     def _state(self, request: Request, body: dict[str, Any]) -> None:
@@ -108,15 +150,76 @@ class WorldControl:
             "mode": self.sim.mode.value,
             "real_time_factor": self.sim.rtf.value(),
             "models": models,
-            "sensors": {name: sensor.report() for name, sensor in self.sensors.items()},
+            "sensors": {
+                name: sensor.report() for name, sensor in self.models.sensors.items() if isinstance(sensor, Reporting)
+            },
             "received": {i.key: i.received for i in self.bus.inputs},
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),
         }
         request.reply(state)
 
+    def _create(self, request: Request, body: dict[str, Any]) -> None:
+        request.reply({"ok": True, "name": self.models.create(create_request(body))})
+
+    def _remove(self, request: Request, body: dict[str, Any]) -> None:
+        unknown = set(body) - {"name"}
+        if unknown:
+            raise ValueError(f"unknown field(s) {', '.join(sorted(unknown))}; expected name")
+        name = body.get("name")
+        if not isinstance(name, str):
+            raise TypeError(f'name: remove needs a model "name", got {name!r}')
+        self.models.remove(name)
+        request.reply({"ok": True, "name": name})
+
     def _time(self, ok: bool) -> dict[str, Any]:
         return {"ok": ok, "sim_time": self.sim.clock.now_ns / 1e9, "iterations": self.sim.clock.iterations}
+
+
+CREATE_FIELDS = {"sdf_filename", "sdf", "name", "namespace", "pose", "allow_renaming"}
+
+
+def create_request(body: dict[str, Any]) -> CreateRequest:
+    """A create request's fields checked, each error naming its field; nothing is loaded yet."""
+    unknown = set(body) - CREATE_FIELDS
+    if unknown:
+        raise ValueError(f"unknown field(s) {', '.join(sorted(unknown))}; expected {', '.join(sorted(CREATE_FIELDS))}")
+    if ("sdf" in body) == ("sdf_filename" in body):
+        raise ValueError("sdf_filename or sdf: give exactly one, the model's file or its SDF text")
+    for field_name in ("sdf_filename", "sdf", "name", "namespace"):
+        if field_name in body and (not isinstance(body[field_name], str) or not body[field_name].strip()):
+            raise TypeError(f"{field_name}: expected a non-empty string, got {body[field_name]!r}")
+    namespace = body.get("namespace", "").strip("/")
+    if "namespace" in body and not KEY_SEGMENTS.fullmatch(namespace):
+        raise ValueError(f"namespace: expected key segments of letters, digits and _ joined by /, got {namespace!r}")
+    name = body.get("name")
+    if name is not None and not NAME.fullmatch(name):
+        raise ValueError(f"name: expected letters, digits and _ (one key segment), got {name!r}")
+    renaming = body.get("allow_renaming", False)
+    if not isinstance(renaming, bool):
+        raise TypeError(f"allow_renaming: expected true or false, got {renaming!r}")
+    pose = _pose(body["pose"]) if "pose" in body else None
+    return CreateRequest(body.get("sdf_filename"), body.get("sdf"), name, namespace, pose, renaming)
+
+
+def _pose(value: Any) -> Pose:
+    """`{"position": {...}, "orientation": {...}}` as a Pose; missing parts at the origin, identity."""
+    if not isinstance(value, dict) or set(value) - {"position", "orientation"}:
+        raise TypeError(f"pose: expected an object with position and orientation, got {value!r}")
+    position = _vector(value.get("position", {}), "xyz", "pose.position", 0.0)
+    quat = _unit_quaternion(_vector(value.get("orientation", {"w": 1.0}), "xyzw", "pose.orientation", 0.0))
+    matrix = np.eye(4)
+    matrix[:3, :3] = quaternion_to_matrix(quat)
+    matrix[:3, 3] = position
+    return Pose.from_matrix(matrix)
+
+
+def _unit_quaternion(values: list[float]) -> tuple[float, float, float, float]:
+    norm = math.sqrt(sum(v * v for v in values))
+    if norm < 1e-9:
+        raise ValueError("orientation must be a non-zero quaternion")
+    x, y, z, w = (v / norm for v in values)
+    return x, y, z, w
 
 
 def _reset(value: Any) -> bool:

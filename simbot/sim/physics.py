@@ -134,8 +134,11 @@ class Physics:
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _saved_state: int | None = None
+    _saved_bodies: tuple[str, ...] = ()
     _ray_groups: dict[str, int] = field(default_factory=dict)
     _free_ray_groups: Iterator[int] = field(default_factory=ray_groups)
+    _returned_ray_groups: list[int] = field(default_factory=list)
+    """Groups of removed models, handed out again first (lowest first: the same world, the same groups)."""
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
     def __post_init__(self) -> None:
@@ -195,6 +198,22 @@ class Physics:
                 if isinstance(collision.geometry, Heightmap):
                     self._add_heightfield(model, link, collision, collision.geometry, frame)
         return body
+
+    @_changes_world
+    def remove_model(self, name: str) -> list[str]:
+        """Takes `name` out of the world with its further joint trees (`name::<root>`), its wheels'
+        friction, its cached frames and its ray group (free for the next robot); returns the bodies'
+        names. Joints made by `attach` are their system's to undo first."""
+        self.body(name)
+        names = [n for n in self.bodies if n == name or n.startswith(name + "::")]
+        for part in names:
+            body = self.bodies.pop(part)
+            self._wheels = [w for w in self._wheels if w.body != body.id]
+            self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
+            if (group := self._ray_groups.pop(part, None)) is not None:
+                self._returned_ray_groups = sorted([*self._returned_ray_groups, group])
+            pb.removeBody(body.id, physicsClientId=self.client)
+        return names
 
     def _add_heightfield(
         self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform
@@ -319,6 +338,7 @@ class Physics:
     def save_initial_state(self) -> None:
         """Remembers the world as built, for `reset`."""
         self._saved_state = pb.saveState(physicsClientId=self.client)
+        self._saved_bodies = tuple(self.bodies)
 
     # stepping
 
@@ -331,7 +351,11 @@ class Physics:
 
     @_changes_world
     def reset(self) -> None:
-        """Every body back to where it was built, at rest; detachable joints are the systems' to undo."""
+        """Every body back to where it was built, at rest; detachable joints are the systems' to undo.
+        PyBullet restores bodies by their order: the world must hold the bodies it was saved with."""
+        if tuple(self.bodies) != self._saved_bodies:
+            gone = sorted(set(self._saved_bodies) - set(self.bodies))
+            raise ValueError(f"reset: the world as started held {', '.join(gone)}, removed since; restart the server")
         if self._saved_state is not None:
             pb.restoreState(self._saved_state, physicsClientId=self.client)
 
@@ -402,7 +426,7 @@ class Physics:
         group = self._ray_groups.get(model)
         if group is None:
             body = self.body(model)
-            group = next(self._free_ray_groups, None)
+            group = self._returned_ray_groups.pop(0) if self._returned_ray_groups else next(self._free_ray_groups, None)
             if group is None:
                 raise ValueError(f"model {model!r}: more robots carry ray sensors than there are ray groups")
             for index in body.links.values():

@@ -123,9 +123,25 @@ class Simulation:
 
     def __post_init__(self) -> None:
         self.clock = SimClock(round(self.physics.step_size * 1e9))
+        self._order()
+
+    def _order(self) -> None:
+        """The per-phase lists, by priority, ties in the order the systems came (a created model's last)."""
         ordered = in_order(self.systems)
         self._pre = [s for s in ordered if isinstance(s, PreUpdate)]
         self._post = [s for s in ordered if isinstance(s, PostUpdate)]
+
+    def add_systems(self, systems: list[object]) -> None:
+        """A created model's systems join the loop (between steps: world control calls it from `poll`)."""
+        self.systems += systems
+        self._order()
+
+    def remove_systems(self, systems: list[object]) -> None:
+        """A removed model's systems leave the loop and let go of what they hold (`close`)."""
+        leaving = {id(s) for s in systems}
+        self.systems = [s for s in self.systems if id(s) not in leaving]
+        self._order()
+        self.close_all(systems)
 
     def step(self) -> None:
         """One step of every system and the physics; `paused` in the record when world control stepped a paused world."""

@@ -151,6 +151,9 @@ class Input:
         """Payloads that reached the server on this key, valid or not, drained or not."""
         return self._inbox.received
 
+    def close(self) -> None:
+        self._inbox.close()
+
     def drain(self) -> list[Any]:
         """The valid messages that arrived since the last call, oldest first."""
         if self._inbox.overflowed != self._overflowed:
@@ -175,19 +178,44 @@ class Input:
 
 @dataclass
 class SimBus:
-    """What systems may do on the bus: publish, and take commands through an `Input`."""
+    """What systems may do on the bus: publish, and take commands through an `Input`.
+
+    `scoped(namespace)` gives the view one model's systems get: its keys under the namespace
+    (`tug_2/cmd_vel`), the frame ids of what it publishes prefixed (`tug_2/base_link`), and what
+    it declared undeclared together by `close()` when the model leaves the world."""
 
     node: Node
     drops: Drops = field(default_factory=Drops)
     inputs: list[Input] = field(default_factory=list)
+    namespace: str = ""
+    _declared: list[Publisher | Input] = field(default_factory=list)
+
+    def scoped(self, namespace: str) -> SimBus:
+        """A view for one model's systems (`namespace` empty: the world's keys and frames); shares
+        the dropped-input counters and the list of inputs world state reports."""
+        return SimBus(self.node, self.drops, self.inputs, namespace)
+
+    def topic(self, topic: str) -> str:
+        return f"{self.namespace}/{topic}" if self.namespace else topic
 
     def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
         """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""
-        return self.node.publisher(topic, msgtype, latched=latched)
+        publisher = self.node.publisher(self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace)
+        self._declared.append(publisher)
+        return publisher
 
     def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
-        self.inputs.append(Input(self.node, self.drops, topic, typename, check))
+        self.inputs.append(Input(self.node, self.drops, self.topic(topic), typename, check))
+        self._declared.append(self.inputs[-1])
         return self.inputs[-1]
+
+    def close(self) -> None:
+        """Undeclares every key this view declared: they leave the graph."""
+        for entity in self._declared:
+            entity.close()
+            if isinstance(entity, Input):
+                self.inputs.remove(entity)
+        self._declared.clear()
 
 
 @dataclass(frozen=True)

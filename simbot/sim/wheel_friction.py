@@ -70,14 +70,14 @@ class WheelFriction:
 
     def __init__(self, client: int, body: int, wheels: tuple[Wheel, ...]) -> None:
         self._client = client
-        self._body = body
+        self.body = body
         self._wheels = {w.link: w for w in wheels}
         self._links = list(self._wheels)
 
     def apply(self) -> None:
         """Friction forces from the last step's contacts and the current velocities."""
         loads: dict[int, list[float]] = {}
-        for c in pb.getContactPoints(bodyA=self._body, physicsClientId=self._client):
+        for c in pb.getContactPoints(bodyA=self.body, physicsClientId=self._client):
             n = c[9]
             if n > 0 and c[3] in self._wheels:
                 (px, py, pz), (nx, ny, nz) = c[5], c[7]
@@ -94,7 +94,7 @@ class WheelFriction:
                     acc[6] += n * nz
         if not loads:
             return
-        states = pb.getLinkStates(self._body, self._links, computeLinkVelocity=1, physicsClientId=self._client)
+        states = pb.getLinkStates(self.body, self._links, computeLinkVelocity=1, physicsClientId=self._client)
         for link, state in zip(self._links, states):
             acc = loads.get(link)
             if acc is not None:
@@ -135,4 +135,4 @@ class WheelFriction:
         f1 = -wheel.mu * load * max(-1.0, min(1.0, slip_along))
         f2 = -wheel.mu2 * load * max(-1.0, min(1.0, slip_across))
         force = (f1 * along[0] + f2 * across[0], f1 * along[1] + f2 * across[1], f1 * along[2] + f2 * across[2])
-        pb.applyExternalForce(self._body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)
+        pb.applyExternalForce(self.body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)

@@ -140,6 +140,11 @@ class RenderPool:
         """The worker processes' ids, one per worker (for monitoring)."""
         return tuple(w.process.pid for w in self._workers)
 
+    @property
+    def body_names(self) -> frozenset[str]:
+        """The bodies the workers' scenes hold: those the world had when the pool started."""
+        return frozenset(self._body_names)
+
     def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
         """Start rendering camera `camera` at the camera's world pose (looking along its +x, z up)
         with the moving bodies where `states` puts them. Returns at once; raises if busy."""

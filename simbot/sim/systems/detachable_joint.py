@@ -84,3 +84,8 @@ class DetachableJoint:
     def reset(self, info: UpdateInfo) -> None:
         if self.attached:
             self._do_detach()
+
+    def close(self) -> None:
+        """The model leaves the world (or the server stops): the child goes free."""
+        if self.attached:
+            self._do_detach()

@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from simbot.bus import messages
+from simbot.bus import Publisher, messages
 from simbot.sim.system import Every, SystemContext, UpdateInfo, model_topic
 
 POSE_RATE = 50.0
@@ -15,9 +15,22 @@ class PosePublisher:
 
     def __init__(self, ctx: SystemContext) -> None:
         self._physics = ctx.physics
-        dynamic = [name for name, body in ctx.physics.bodies.items() if not body.model.static]
-        self._pubs = {name: ctx.bus.publisher(model_topic(name, "pose"), messages.PoseStamped) for name in dynamic}
+        self._bus = ctx.bus
+        self._pubs: dict[str, Publisher] = {}
+        self.track(list(ctx.physics.bodies))
         self._every = Every.hz(POSE_RATE)
+
+    def track(self, bodies: list[str]) -> None:
+        """Publishes the poses of these bodies (a created model's) from the next step, the static ones aside."""
+        for name in bodies:
+            if not self._physics.body(name).model.static:
+                self._pubs[name] = self._bus.publisher(model_topic(name, "pose"), messages.PoseStamped)
+
+    def untrack(self, bodies: list[str]) -> None:
+        """A removed model's poses leave the bus."""
+        for name in bodies:
+            if (publisher := self._pubs.pop(name, None)) is not None:
+                publisher.close()
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns

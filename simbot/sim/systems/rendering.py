@@ -20,6 +20,12 @@ Scheduling, after each physics step:
   the frames of all cameras due then are published, so after `multi_step` every frame up to
   that time is out.
 
+Models created at run time (world control `create`): their cameras join while the render pool
+has not started (no image watched yet); after that the workers' scenes are fixed, so a create
+with cameras is refused, and bodies created since are not drawn. A removed model's cameras stop
+(their slots stay empty, so the others keep their places in the pool, which closes with the
+last camera) and its body, if the scenes hold it, is parked far below the floor.
+
 A render worker that dies, or a pool that does not start, stops the cameras (an error in the log
 and in each camera's world state), never the simulation.
 """
@@ -34,10 +40,12 @@ from simbot.description.model import World
 from simbot.description.poses import Pose
 from simbot.sim.physics import Physics
 from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, plan_pool
-from simbot.sim.system import SensorSettings, UpdateInfo
+from simbot.sim.system import SensorSettings, SystemConfigError, UpdateInfo
 
 log = logging.getLogger(__name__)
 
+PARKED = ((0.0, 0.0, -1e4), (0.0, 0.0, 0.0, 1.0))
+"""Where a removed body waits in the render scenes, out of every camera's view (clip 50 m)."""
 LOCKSTEP_TIMEOUT_S = 120.0
 """How long lockstep waits for one frame before it gives the cameras up as broken."""
 
@@ -85,20 +93,40 @@ class Rendering:
         self.failure: str | None = None
         self._starting: threading.Thread | None = None
         self._waiting: set[int] = set()
+        self._gone: set[int] = set()
+        """Cameras of removed models, by index."""
+        self._parked: dict[str, BodyState] = {}
+        """Removed bodies the render scenes hold, where they are drawn from now on."""
 
     def add(self, camera: RenderedSensor) -> int:
         """Register a camera; its index in the pool."""
         if self._starting is not None:
-            raise RuntimeError("cameras are registered before the first step")
+            raise SystemConfigError(
+                f"camera {camera.spec.name!r}: the cameras' render workers already run (an image was watched), "
+                "and a camera cannot join them; create models with cameras before any camera is watched"
+            )
         self.cameras.append(camera)
         return len(self.cameras) - 1
+
+    def remove_model(self, name: str, bodies: list[str]) -> None:
+        """The model `name` (its `bodies`) leaves the world: its cameras stop, its bodies leave the
+        scenes' view. Call it before the physics removes them."""
+        for index, camera in enumerate(self.cameras):
+            if camera.where[0] in bodies:
+                self._gone.add(index)
+                self._waiting.discard(index)
+        if self._starting is not None:  # the scenes hold the bodies the world had when the pool started
+            self._parked |= {body: BodyState(PARKED, self.physics.body_state(body)[1]) for body in bodies}
+        if self.pool is not None and len(self._gone) == len(self.cameras):
+            log.info("the last camera left with model %s: the render workers stop", name)
+            self.close()
 
     # --- the update
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
         for index, camera in enumerate(self.cameras):
-            if not camera.due(info):
+            if index in self._gone or not camera.due(info):
                 continue
             if camera.wanted() and self.failure is None:
                 camera.skipped += index in self._waiting  # real time: the physics never waits for a frame
@@ -150,7 +178,10 @@ class Rendering:
     def _request(self, now_ns: int) -> None:
         """Every waiting camera renders from one snapshot of the moving bodies."""
         assert self.pool is not None
-        states = {name: BodyState(*self.physics.body_state(name)) for name in self.physics.moving_bodies()}
+        drawn = self.pool.body_names
+        states = {
+            name: BodyState(*self.physics.body_state(name)) for name in self.physics.moving_bodies() if name in drawn
+        } | {name: state for name, state in self._parked.items() if name in drawn}
         waiting, self._waiting = sorted(self._waiting), set()
         try:
             for index in waiting:
@@ -163,7 +194,7 @@ class Rendering:
         if self.pool is None:
             return
         try:
-            waits = range(len(self.cameras)) if self.settings.lockstep else [None]
+            waits = [i for i in range(len(self.cameras)) if i not in self._gone] if self.settings.lockstep else [None]
             frames = [
                 frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)
             ]
@@ -171,7 +202,8 @@ class Rendering:
             self.fail(str(exc))
             return
         for frame in frames:
-            self.cameras[frame.camera].publish(frame)
+            if frame.camera not in self._gone:
+                self.cameras[frame.camera].publish(frame)
 
     def fail(self, reason: str) -> None:
         """A broken pool stops the cameras, not the simulation."""
