@@ -44,6 +44,9 @@ DRIVEN = "tug_5"
 TUG_SDF = REPO / "urdf" / "flexley_tug.sdf"
 CHEAP_CAMERAS = ("--robot", "none", "--camera-size", "8x6", "--camera-rate", "1")
 SETTLE_STEPS = 500
+STOP_STEPS = 1500
+"""Steps for a stop command to arrive and the tug to come to rest (its DiffDrive states no acceleration
+limit: the wheels' velocity servos stop it within a fraction of a second)."""
 LIDAR_X, MAST_GAP, MAST_HALF = 0.99, 3.0, 0.25
 RANGE_TOLERANCE = 0.006
 
@@ -121,6 +124,8 @@ def test_namespaced_keys_and_frames(fleet: SimServer) -> None:
 
 def test_lidar_sees_a_robot_placed_ahead(fleet: SimServer) -> None:
     """tug_5's front lidar: 720 rays, the mast's face 3.00 m ahead on the middle rays."""
+    fleet.send(f"{DRIVEN}/cmd_vel", messages.twist((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    fleet.step(STOP_STEPS)  # at rest, whatever another test left it doing: the mast is placed from its pose
     (x, y, _), _ = fleet.pose(DRIVEN)
     mast_x = x + LIDAR_X + MAST_GAP + MAST_HALF
     reply = fleet.call("create", {"sdf": MAST, "name": "mast", "pose": _pose(mast_x, y, MAST_HALF)})
