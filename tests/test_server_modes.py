@@ -82,15 +82,15 @@ def _rate(samples: list[tuple[float, Any]]) -> float:
 
 
 def test_realtime_clock_follows_the_wall(realtime: SimServer) -> None:
-    """Over 10 s of wall time the sim clock advances 10 s ± 5 %, at ≥ 100 Hz, strictly increasing."""
+    """Over 5 s of wall time the sim clock advances 5 s ± 5 %, at ≥ 100 Hz, strictly increasing."""
     clock = realtime.subscribe("clock", CLOCK)
-    clock.wait_count(1001, timeout=20.0, what="10 s of clock at 100 Hz")
+    clock.wait_count(501, timeout=15.0, what="5 s of clock at 100 Hz")
     samples = clock.timed()
     wall = samples[-1][0] - samples[0][0]
     sim = (stamp_ns(samples[-1][1]) - stamp_ns(samples[0][1])) / 1e9
     stamps = [stamp_ns(m) for _, m in samples]
     assert all(b > a for a, b in zip(stamps, stamps[1:])), "clock stamps do not strictly increase"
-    assert wall > 9.5
+    assert wall > 4.75
     assert sim == pytest.approx(wall, rel=0.05), f"{sim:.3f} s of sim time in {wall:.3f} s of wall time"
     assert len(samples) >= 0.95 * 100 * wall, f"{len(samples)} clock messages in {wall:.1f} s: below 100 Hz"
     state = realtime.state()
