@@ -36,6 +36,19 @@ def client_command(name: str, *args: str) -> list[str]:
     return [sys.executable, "-m", f"simbot.clients.{name}", *args]
 
 
+def run_without_terminal(name: str, *args: str) -> subprocess.CompletedProcess[str]:
+    """A client run to its end with no terminal on stdin, its output captured: how a mistake is checked."""
+    return subprocess.run(
+        client_command(name, *args),
+        check=False,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
+
+
 class OnBus(Protocol):
     """What a client needs of the bus it joins: a SimServer, or a test's own server-role node."""
 

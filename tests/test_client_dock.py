@@ -14,15 +14,13 @@ since the real-time factor may drop below 1 on a loaded machine.
 from __future__ import annotations
 
 import math
-import subprocess
 import time
 from collections.abc import Iterator
 from contextlib import AbstractContextManager
 
 import pytest
-from client_helpers import PtyClient, bus_args, client_command, pty_client
+from client_helpers import PtyClient, bus_args, client_command, pty_client, run_without_terminal
 from server_helpers import (
-    REPO,
     STRING,
     Collector,
     SimServer,
@@ -181,15 +179,7 @@ def test_under_the_trolley_attach_pull_detach(sim: SimServer) -> None:
     ids=["not-a-terminal", "zero-distance", "infinite-yaw-tolerance"],
 )
 def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...], expected: str) -> None:
-    done = subprocess.run(
-        client_command("dock", *bus_args(sim), *args),
-        check=False,
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=60,
-    )
+    done = run_without_terminal("dock", *bus_args(sim), *args)
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr
 

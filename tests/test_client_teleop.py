@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 import signal
-import subprocess
 import termios
 import time
 from collections.abc import Iterator
@@ -23,7 +22,7 @@ from contextlib import contextmanager
 
 import pytest
 from bus_helpers import endpoint, free_port
-from client_helpers import PtyClient, bus_args, client_command, pty_client
+from client_helpers import PtyClient, bus_args, client_command, pty_client, run_without_terminal
 from server_helpers import REPO, TWIST, SimServer, module_server, reset_before_each, wait_until
 
 from simbot.rotations import yaw_of
@@ -237,28 +236,12 @@ def test_a_signal_ends_it_with_a_stop_and_the_terminal_restored(sim: SimServer, 
     ids=["not-a-terminal", "negative-speed", "nan-margin"],
 )
 def test_a_mistake_is_one_line_and_exit_2(sim: SimServer, args: tuple[str, ...], expected: str) -> None:
-    done = subprocess.run(
-        client_command("teleop", *bus_args(sim), *args),
-        check=False,
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=60,
-    )
+    done = run_without_terminal("teleop", *bus_args(sim), *args)
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr and expected in done.stderr.strip().splitlines()[-1], done.stderr
 
 
 def test_without_a_terminal_it_says_so_before_looking_for_a_server() -> None:
     """No terminal and no server: the one line is about the terminal (checked before the bus opens)."""
-    done = subprocess.run(
-        client_command("teleop", "--connect", endpoint(free_port()), "--connect-timeout", "5"),
-        check=False,
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-        timeout=60,
-    )
+    done = run_without_terminal("teleop", "--connect", endpoint(free_port()), "--connect-timeout", "5")
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "not a terminal" in done.stderr, done.stderr
