@@ -19,7 +19,7 @@ run: $(STAMP)
 test: $(STAMP) lint
 	$(BIN)/python -m pytest
 
-## ruff's checks and its format check over the tree, mypy over simbot/ and clients/ (rules and strictness in pyproject.toml).
+## ruff's checks and its format check over the tree, mypy over simbot/, clients/ and benchmarks/ (rules and strictness in pyproject.toml).
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .

@@ -244,6 +244,15 @@ def bridge_cpu_per_message_ms(pid: int, ros: RosSide, send: Callable[[], None], 
     return max(busy - idle, 0.0) / count * 1e3
 
 
+def counter(counts: dict[str, int], name: str) -> Callable[[Any], None]:
+    """A subscription callback counting the messages of `name`."""
+
+    def count(_: Any) -> None:
+        counts[name] = counts.get(name, 0) + 1
+
+    return count
+
+
 def whole_bus(args: argparse.Namespace) -> None:
     """The bridge's share of a core with a ROS node subscribing every topic but the cameras."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
@@ -263,7 +272,7 @@ def whole_bus(args: argparse.Namespace) -> None:
                 if name.startswith("/bus/") and "camera" not in name
             ]
             for name, typename in topics:
-                ros.subscribe(typename, name, lambda _, name=name: counts.__setitem__(name, counts.get(name, 0) + 1))
+                ros.subscribe(typename, name, counter(counts, name))
             time.sleep(2.0)
             start, received = cpu_s(process.pid), sum(counts.values())
             time.sleep(args.seconds)

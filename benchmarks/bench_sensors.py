@@ -66,7 +66,7 @@ from simbot.sim.simulation import Mode
 from simbot.sim.system import SensorSettings
 from simbot.sim.systems.camera import Camera, CameraParams
 from simbot.sim.systems.imu import Imu
-from simbot.sim.systems.lidar import Lidar, LidarParams, ray_directions
+from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
 
 log = logging.getLogger("bench_sensors")
 
@@ -274,7 +274,8 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
     link, sensor = next((lk, s) for lk, s in physics.body(ROBOT_NAME).model.sensors() if s.name == lidar.name)
     params = LidarParams.from_sdf(sensor)
     position, quat = physics.frame_pose(ROBOT_NAME, link.name, sensor.pose)
-    directions = ray_directions(params)[0] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
+    fan = ray_fan(params)
+    directions = fan.directions[fan.scan_row] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
     starts = (np.asarray(position) + directions * params.range_min).tolist()
     ends = (np.asarray(position) + directions * params.range_max).tolist()
     client, mask = physics.client, ~physics.blind_rays_to(ROBOT_NAME)
