@@ -6,11 +6,13 @@ CPU time, the servers wall time (what real time means):
 
 1. baseline: a bare PyBullet loop at 1 kHz, the plain URDF (`urdf/flexley_tug.urdf`, 20 joints,
    12 of them castor gimbals) loaded N times by `loadURDF` on a plane, nothing but `stepSimulation`;
-2. simbot's loader: the same loop over the bodies `Physics.add_model` builds (passive joints, SDF
-   friction, tyre compliance, castors frictionless and contact-free until they touch);
-3. simbot's loader with `fixed_castors` (each ball castor one rigid frictionless sphere);
-4. `Physics.step`: simbot's loader plus its wheel-friction model, what the server steps;
-5. `simbot-server` in real time and in fast mode with N tugs (two lidars and an IMU each publishing,
+2. simbot's loader with the castors' gimbals: the same loop over the bodies `Physics.add_model`
+   builds with `fixed_castors=False, merge_fixed_links=False` (passive joints, SDF friction, tyre
+   compliance, castors frictionless and contact-free until they touch);
+3. with `fixed_castors` alone (each ball castor one rigid frictionless sphere);
+4. simbot's loader as it is (castors fixed, fixed links merged: 5 links a tug);
+5. `Physics.step`: simbot's loader plus its wheel-friction model, what the server steps;
+6. `simbot-server` in real time and in fast mode with N tugs (two lidars and an IMU each publishing,
    cameras idle: nobody subscribes), measured through world control's sim time: the real-time
    factor it holds (wall time, on this machine as loaded as it is) and fast mode's sim seconds per
    CPU second of the server process (what it would hold on a core of its own; ≥ 1 is real time). The tugs' SDF
@@ -73,10 +75,12 @@ def plain_world(n: int) -> Iterator[Callable[[], None]]:
 
 
 @contextmanager
-def simbot_world(n: int, fixed_castors: bool = False, full_step: bool = False) -> Iterator[Callable[[], None]]:
+def simbot_world(
+    n: int, fixed_castors: bool = True, merge_fixed_links: bool = True, full_step: bool = False
+) -> Iterator[Callable[[], None]]:
     """The empty world and N tugs through simbot's loader; yields a bare step, or `Physics.step`."""
     world = load_world(asset(f"worlds/{WORLD}.sdf"))
-    physics = Physics(world, fixed_castors=fixed_castors)
+    physics = Physics(world, fixed_castors=fixed_castors, merge_fixed_links=merge_fixed_links)
     for model in world.models:
         physics.add_model(model)
     robot = load_model(asset("urdf/flexley_tug.sdf"))
@@ -94,8 +98,9 @@ Loop = Callable[[int], AbstractContextManager[Callable[[], None]]]
 
 LOOPS: dict[str, Loop] = {
     "plain": plain_world,
-    "loader": simbot_world,
-    "fixed": lambda n: simbot_world(n, fixed_castors=True),
+    "gimbals": lambda n: simbot_world(n, fixed_castors=False, merge_fixed_links=False),
+    "fixed": lambda n: simbot_world(n, merge_fixed_links=False),
+    "lean": simbot_world,
     "step": lambda n: simbot_world(n, full_step=True),
 }
 
@@ -175,9 +180,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5, help="runs of each bare loop (median)")
     parser.add_argument("--no-server", action="store_true", help="the bare loops only")
     args = parser.parse_args()
-    print("| tugs | plain URDF, bare loop | cost per tug ÷ the first row's | simbot loader / plain | fixed castors / plain "
-          "| Physics.step / plain | server real time: factor held | server fast, per CPU second |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| tugs | plain URDF, bare loop | cost per tug ÷ the first row's | loader, gimbals / plain "
+          "| castors fixed / plain | loader (fixed, merged) / plain | Physics.step / plain "
+          "| server real time: factor held | server fast, per CPU second |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     one_tug = None
     for n in (int(part) for part in args.fleets.split(",")):
         runs: dict[str, list[float]] = {name: [] for name in LOOPS}
@@ -193,8 +199,8 @@ def main() -> None:
             server = f"| {held:.3f} | {fast:.2f}× = {fast / rtf['plain']:.2f} plain |"
         print(
             f"| {n} | {rtf['plain']:.2f}× real time | {one_tug / (rtf['plain'] * n):.2f} "
-            f"| {rtf['loader'] / rtf['plain']:.2f} | {rtf['fixed'] / rtf['plain']:.2f} "
-            f"| {rtf['step'] / rtf['plain']:.2f} {server}",
+            f"| {rtf['gimbals'] / rtf['plain']:.2f} | {rtf['fixed'] / rtf['plain']:.2f} "
+            f"| {rtf['lean'] / rtf['plain']:.2f} | {rtf['step'] / rtf['plain']:.2f} {server}",
             flush=True,
         )
 

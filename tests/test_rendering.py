@@ -11,7 +11,6 @@ import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -21,7 +20,6 @@ import numpy.typing as npt
 import pytest
 from gl_helpers import NO_EGL
 
-from simbot.sim.bullet import pb
 from simbot.sim.render import BodyState, CameraSpec, Frame, Light, PoolPlan, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.specs import Transform
 
@@ -79,28 +77,13 @@ def yawed(xyz: tuple[float, float, float], yaw: float) -> Transform:
     return (xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
 
 
-def com_pose(urdf: str, link_pose: tuple[float, float, float]) -> Transform:
-    """Where PyBullet puts the base (centre-of-mass) frame of a body loaded at `link_pose`, as the server reads it."""
-    client = pb.connect(pb.DIRECT)
-    try:
-        with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as file:
-            file.write(urdf)
-        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
-        body = pb.loadURDF(file.name, link_pose, flags=flags, physicsClientId=client)
-        position, orientation = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-        return (tuple(position), tuple(orientation))  # type: ignore[return-value]
-    finally:
-        os.unlink(file.name)
-        pb.disconnect(client)
-
-
 def scene() -> list[SceneBody]:
     offset_urdf = box_urdf((0.1, 0.4, 0.4), RED, com=(0.0, 0.4, 0.0))
     return [
         SceneBody("red", box_urdf((0.1, RED_SIZE, RED_SIZE), RED), True, at((RED_FACE + 0.05, 0.0, 0.0))),
         SceneBody("mover", box_urdf((0.1, 0.4, 0.4), GREEN), False, at((MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0))),
         SceneBody("arm", ARM_URDF, False, at(ARM_AT)),
-        SceneBody("offset", offset_urdf, True, com_pose(offset_urdf, (OFFSET_AT[0] + 2.05, 0.0, 0.0))),
+        SceneBody("offset", offset_urdf, True, at((OFFSET_AT[0] + 2.05, 0.0, 0.0))),
         SceneBody("orange", box_urdf((0.1, 1.0, 1.0), ORANGE), True, at((ORANGE_AT[0] + 2.05, 0.0, 0.0))),
         SceneBody("grey", box_urdf((0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0)), True, at((GREY_AT[0] + 2.05, 0.0, 0.0))),
     ]
@@ -199,8 +182,8 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
     """The green box moved 0.3 m to the left (+y) shifts left by fx·dy/d pixels."""
     camera = at(MOVER_AT)
     centre = (MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0)
-    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), ())}).color, 1))
-    moved = BodyState(at((centre[0], 0.3, 0.0)), ())
+    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), {})}).color, 1))
+    moved = BodyState(at((centre[0], 0.3, 0.0)), {})
     after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved}).color, 1))
     assert before == pytest.approx(W / 2 - 0.5, abs=1)
     assert after - before == pytest.approx(-FX * 0.3 / MOVER_FACE, abs=2)
@@ -209,8 +192,8 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
 def test_joint_positions_move_links(pool: RenderPool) -> None:
     """The arm swung by 0.1 rad about z puts its box fx·tan(0.1) pixels to the left."""
     camera = at(ARM_AT)
-    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.0,))}).color, 1))
-    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), (0.1,))}).color, 1))
+    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.0})}).color, 1))
+    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.1})}).color, 1))
     assert straight == pytest.approx(W / 2 - 0.5, abs=1)
     assert swung - straight == pytest.approx(-FX * math.tan(0.1), abs=2)
 
@@ -297,7 +280,7 @@ def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: Render
 def test_bad_requests_are_refused(pool: RenderPool) -> None:
     """Unknown bodies and cameras fail at the request, in the caller."""
     with pytest.raises(ValueError, match="nosuch"):
-        pool.request(RGB, 0, AHEAD, {"nosuch": BodyState(AHEAD, ())})
+        pool.request(RGB, 0, AHEAD, {"nosuch": BodyState(AHEAD, {})})
     with pytest.raises(IndexError):
         pool.request(len(CAMERAS), 0, AHEAD, {})
     assert not pool.busy(RGB)
@@ -344,7 +327,7 @@ def test_gl_and_tiny_draw_every_shape_with_the_same_silhouette() -> None:
     if NO_EGL:
         pytest.skip(NO_EGL)
     urdf = SHAPES_URDF.format(mesh=Path(__file__).resolve().parents[1] / "meshes" / "wheel.stl")
-    bodies = [SceneBody("shapes", urdf, True, com_pose(urdf, (0.0, 0.0, 0.0)))]
+    bodies = [SceneBody("shapes", urdf, True, at((0.0, 0.0, 0.0)))]
     camera = CameraSpec("c", 640, 480, 1.6, 0.05, 50.0)
     images = {}
     for name in ("gl", "tiny"):
@@ -374,7 +357,7 @@ def _sphere_silhouette(camera: CameraSpec, centre: tuple[float, float, float], r
 
 def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
     """A state the worker cannot apply (the arm without its joint position) fails that frame only."""
-    pool.request(RGB, 7, at(ARM_AT), {"arm": BodyState(at(ARM_AT), ())})
+    pool.request(RGB, 7, at(ARM_AT), {"arm": BodyState(at(ARM_AT), {})})
     with pytest.raises(RuntimeError, match="arm"):
         pool.collect(wait_for=RGB, timeout=WAIT)
     assert not pool.busy(RGB)

@@ -27,7 +27,7 @@ from simbot.description.generated_meshes import heightmap_heights
 from simbot.description.model import Collision, Heightmap, Joint, Link, Model, Sphere, World
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import joint_trees, link_frame, urdf_root
-from simbot.sim.bullet import pb
+from simbot.sim.bullet import pb, quiet
 from simbot.sim.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 
 logger = logging.getLogger(__name__)
@@ -114,8 +114,15 @@ class Body:
     com_to_frame: Transform
     """The SDF model frame seen from PyBullet's base (centre of mass) frame."""
     urdf: str
-    """The model's URDF (what `robot_description` publishes); PyBullet loads it as it is, or with its
-    ball castors fixed (`Physics.fixed_castors`), every link and joint at the same index."""
+    """The model's URDF (what `robot_description` publishes and the renderer draws). PyBullet may
+    load it leaner (`Physics.fixed_castors`, `Physics.merge_fixed_links`): look links up here."""
+    hosts: dict[str, str] = field(default_factory=dict)
+    """Each link's host: the link PyBullet simulates it as part of (itself, or the link a chain of
+    fixed joints ties it to, when fixed links are merged). `links` maps a link to its host's index."""
+    drawn: tuple[str, ...] = ()
+    """The joints that move in `urdf`: what the renderer poses."""
+    held: frozenset[str] = frozenset()
+    """Joints that move in `urdf` but that PyBullet holds fixed (ball castors): they read 0."""
 
 
 @dataclass
@@ -123,9 +130,14 @@ class Physics:
     """A PyBullet world built from an SDF world description; stepped at the world's step size."""
 
     world: World
-    fixed_castors: bool = False
+    fixed_castors: bool = True
     """Load ball castors fixed (`ball_castors`): 12 of the tug's 22 degrees of freedom gone, the same
-    physics, but not the same trajectories step for step (off until the tests bound their chaos)."""
+    physics (a frictionless sphere turning about its centre moves nothing a collision sees)."""
+    merge_fixed_links: bool = True
+    """Load each chain of fixed joints as one link (PyBullet's URDF_MERGE_FIXED_LINKS): the tug's 21
+    links become 5 (its base and four wheels), each costing the articulated-body solver and the
+    broadphase as much as a moving one. A model with a contact or force/torque sensor keeps its links:
+    those sensors read one link's contacts or one fixed joint's wrench."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
     constraints: set[int] = field(default_factory=set)
@@ -178,16 +190,23 @@ class Physics:
             raise ValueError(f"a model named {name!r} is already in the world")
         urdf_text = model_to_urdf(model, generated_dir=Path(self._tmp.name))
         castors = ball_castors(model)
+        lean = _with_fixed_joints(urdf_text, castors) if self.fixed_castors else urdf_text
         urdf = Path(self._tmp.name) / f"{name}.urdf"
-        urdf.write_text(_with_fixed_joints(urdf_text, castors) if self.fixed_castors else urdf_text)
+        urdf.write_text(lean)
         root = urdf_root(model)
         frame = pose_to_transform(pose if pose is not None else model.pose)
         root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
+        merge = self.merge_fixed_links and not _reads_own_links(model)
         flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
-        body_id = pb.loadURDF(
-            str(urdf), *root_pose, useFixedBase=model.static, flags=flags, physicsClientId=self.client
-        )
-        body = self._index(name, model, body_id, root, urdf_text)
+        with quiet(1):
+            body_id = pb.loadURDF(
+                str(urdf),
+                *root_pose,
+                useFixedBase=model.static,
+                flags=flags | (pb.URDF_MERGE_FIXED_LINKS if merge else 0),
+                physicsClientId=self.client,
+            )
+        body = self._index(name, model, body_id, root, urdf_text, _fixed_hosts(lean) if merge else {})
         self.bodies[name] = body
         self._configure_joints(body)
         self._configure_friction(body)
@@ -247,16 +266,26 @@ class Physics:
         mu = collision.friction.mu if collision.friction else SDF_DEFAULT_MU
         pb.changeDynamics(body, -1, lateralFriction=mu, physicsClientId=self.client)
 
-    def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str) -> Body:
+    def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str, hosts: dict[str, str]) -> Body:
+        """The body's names: PyBullet's links and joints, then each merged link at its host's index."""
         links = {root: -1}
-        joints = {}
+        joints, moving = {}, set()
         for j in range(pb.getNumJoints(body_id, physicsClientId=self.client)):
             info = pb.getJointInfo(body_id, j, physicsClientId=self.client)
             joints[info[1].decode()] = j
             links[info[12].decode()] = j
+            if info[2] != pb.JOINT_FIXED:
+                moving.add(info[1].decode())
+        for link, host in hosts.items():
+            links.setdefault(link, links[host])
         root_in_model = pose_to_transform(Pose() if root == "world" else link_frame(model.link(root)))
         com_to_root = invert(self._base_com(body_id))
-        return Body(name, model, body_id, links, joints, com_to_root, compose(com_to_root, invert(root_in_model)), urdf)
+        return Body(
+            name, model, body_id, links, joints, com_to_root, compose(com_to_root, invert(root_in_model)), urdf,
+            hosts={link: hosts.get(link, link) for link in links},
+            drawn=(drawn := _moving_joints(urdf)),
+            held=frozenset(drawn) - moving,
+        )  # fmt: skip
 
     def _base_com(self, body_id: int) -> Transform:
         """The base's centre of mass in its link frame."""
@@ -275,11 +304,12 @@ class Physics:
                 )
 
     def _configure_friction(self, body: Body) -> None:
-        """SDF μ per link; wheels with μ ≠ μ2 get the anisotropic model PyBullet lacks (see wheel_friction)."""
+        """SDF μ per link; wheels with μ ≠ μ2 get the anisotropic model PyBullet lacks (see wheel_friction).
+        A merged link's collisions take their host's μ (the tug's castors, the chassis's)."""
         wheels = []
         for link in body.model.links:
             index = body.links.get(link.name)
-            if index is None:
+            if index is None or body.hosts[link.name] != link.name:
                 continue
             friction = next((c.friction for c in link.collisions if c.friction is not None), None)
             mu = friction.mu if friction else SDF_DEFAULT_MU
@@ -297,7 +327,9 @@ class Physics:
 
     def _soften_tyres(self, body: Body, wheels: list[Wheel]) -> None:
         """Tyre compliance, critically damped for each wheel's share of the body's mass."""
-        mass = sum(pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in body.links.values())
+        mass = sum(
+            pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in sorted(set(body.links.values()))
+        )
         damping = 2.0 * math.sqrt(TYRE_STIFFNESS * mass / len(wheels))
         for wheel in wheels:
             pb.changeDynamics(
@@ -311,9 +343,10 @@ class Physics:
     def _configure_castors(self, body: Body, castors: frozenset[str]) -> None:
         """A ball castor's sphere passes no friction (an ideal castor's ball spins instead, and so must
         a fixed one) and makes no contact until it touches: hanging 2 cm up, within Bullet's 2 cm
-        contact margin, it would otherwise put 8 idle contacts per tug into the solver every step."""
+        contact margin, it would otherwise put 8 idle contacts per tug into the solver every step.
+        A castor merged into its host (`merge_fixed_links`) is the host's to configure."""
         for joint in body.model.joints:
-            if joint.name in castors:
+            if joint.name in castors and body.hosts[joint.child] == joint.child:
                 pb.changeDynamics(
                     body.id,
                     body.links[joint.child],
@@ -390,9 +423,10 @@ class Physics:
         key = (body.name, link, pose_in_link)
         offset = self._offsets.get(key)
         if offset is None:
-            sdf_link = body.model.link(link)
+            host = body.hosts.get(link, link)
+            host_frame = IDENTITY if host == "world" else link_frame(body.model.link(host))
             offset = self._offsets[key] = pose_to_transform(
-                link_frame(sdf_link).inverse() @ sdf_link.pose @ pose_in_link
+                host_frame.inverse() @ body.model.link(link).pose @ pose_in_link
             )
         return offset
 
@@ -429,7 +463,7 @@ class Physics:
             group = self._returned_ray_groups.pop(0) if self._returned_ray_groups else next(self._free_ray_groups, None)
             if group is None:
                 raise ValueError(f"model {model!r}: more robots carry ray sensors than there are ray groups")
-            for index in body.links.values():
+            for index in sorted(set(body.links.values())):  # in index order: Bullet re-adds the proxies in it
                 pb.setCollisionFilterGroupMask(body.id, index, group, -1, physicsClientId=self.client)
             self._ray_groups[model] = group
         return group
@@ -508,13 +542,13 @@ class Physics:
         """Names of the models that can move (not static)."""
         return [name for name, body in self.bodies.items() if not body.model.static]
 
-    def body_state(self, model: str) -> tuple[Transform, tuple[float, ...]]:
-        """PyBullet's base (centre-of-mass) pose and every joint position, in joint index order: enough to redraw the body."""
+    def body_state(self, model: str) -> tuple[Transform, dict[str, float]]:
+        """The root link's URDF frame in the world and the position of every joint of the model's
+        URDF (`Body.urdf`) that can move there, by name: enough to redraw the body from that URDF."""
         body = self.body(model)
         com = _as_transform(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
-        count = pb.getNumJoints(body.id, physicsClientId=self.client)
-        states = pb.getJointStates(body.id, range(count), physicsClientId=self.client) if count else []
-        return com, tuple(float(s[0]) for s in states)
+        states = self.joint_states(model, list(body.drawn))
+        return compose(com, body.com_to_root), {name: state[0] for name, state in zip(body.drawn, states)}
 
     def _link(self, body: Body, link: str) -> int:
         try:
@@ -529,11 +563,13 @@ class Physics:
             raise KeyError(f"model {body.name!r} has no movable joint {joint!r}") from None
 
     def joint_states(self, model: str, joints: list[str]) -> list[tuple[float, float, float]]:
-        """(position, velocity, motor effort) of each named joint."""
+        """(position, velocity, motor effort) of each named joint; zeros for a joint held fixed (`Body.held`)."""
         body = self.body(model)
-        indices = [self._joint(body, j) for j in joints]
-        states = pb.getJointStates(body.id, indices, physicsClientId=self.client)
-        return [(float(s[0]), float(s[1]), float(s[3])) for s in states]
+        moving = [j for j in joints if j not in body.held]
+        indices = [self._joint(body, j) for j in moving]
+        states = pb.getJointStates(body.id, indices, physicsClientId=self.client) if indices else []
+        found = {name: (float(s[0]), float(s[1]), float(s[3])) for name, s in zip(moving, states)}
+        return [found.get(j, (0.0, 0.0, 0.0)) for j in joints]
 
     @_changes_world
     def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:
@@ -688,6 +724,34 @@ def _sphere_on(link: Link, centre: Pose) -> bool:
         if not isinstance(collision.geometry, Sphere) or math.dist(at, centre.xyz) > 1e-9:
             return False
     return True
+
+
+def _reads_own_links(model: Model) -> bool:
+    """Whether a sensor of `model` reads a link's own contacts or a fixed joint's wrench, which merging
+    fixed links would pool with its neighbours' or take away."""
+    return any(sensor.type in ("contact", "force_torque") for _, sensor in model.sensors())
+
+
+def _fixed_hosts(urdf: str) -> dict[str, str]:
+    """Each link of `urdf` that a fixed joint ties to its parent, and the link it merges into (up the
+    chain of fixed joints): what PyBullet's URDF_MERGE_FIXED_LINKS does."""
+    parents = {
+        joint.find("child").get("link", ""): (joint.find("parent").get("link", ""), joint.get("type"))  # type: ignore[union-attr]
+        for joint in ET.fromstring(urdf).iter("joint")
+    }
+    hosts = {}
+    for link in parents:
+        host = link
+        while host in parents and parents[host][1] == "fixed":
+            host = parents[host][0]
+        if host != link:
+            hosts[link] = host
+    return hosts
+
+
+def _moving_joints(urdf: str) -> tuple[str, ...]:
+    """The names of the joints of `urdf` that are not fixed."""
+    return tuple(joint.get("name", "") for joint in ET.fromstring(urdf).iter("joint") if joint.get("type") != "fixed")
 
 
 def _with_fixed_joints(urdf: str, joints: frozenset[str]) -> str:

@@ -44,7 +44,10 @@ class BulletScene:
     bodies: Sequence[SceneBody]
     client: int = -1
     ids: dict[str, int] = field(default_factory=dict)
-    movable: dict[str, tuple[int, ...]] = field(default_factory=dict)
+    movable: dict[str, tuple[tuple[int, str], ...]] = field(default_factory=dict)
+    """Each body's joints that move: (index, name)."""
+    inertial: dict[str, Transform] = field(default_factory=dict)
+    """Each body's base centre of mass in its root link frame: PyBullet poses a base by it."""
     posed: dict[str, BodyState] | None = None
     """The states last applied."""
     version: int = 0
@@ -67,17 +70,24 @@ class BulletScene:
                     body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
                 except pb.error as exc:
                     raise RuntimeError(f"body {body.name!r}: {exc}") from None
-                # loadURDF places the URDF root link frame; the base pose given is the COM frame's
-                pb.resetBasePositionAndOrientation(body_id, *body.base, physicsClientId=self.client)
                 self.ids[body.name] = body_id
+                info = pb.getDynamicsInfo(body_id, -1, physicsClientId=self.client)
+                self.inertial[body.name] = (tuple(info[3]), tuple(info[4]))
+                self._place(body.name, body.base)
                 self.movable[body.name] = self._one_dof_joints(body_id)
 
-    def _one_dof_joints(self, body_id: int) -> tuple[int, ...]:
+    def _place(self, name: str, root: Transform) -> None:
+        """Puts the body's root link frame at `root` (PyBullet places a base by its centre of mass)."""
+        pb, inertial = self.pb, self.inertial[name]
+        com = pb.multiplyTransforms(root[0], root[1], inertial[0], inertial[1])
+        pb.resetBasePositionAndOrientation(self.ids[name], *com, physicsClientId=self.client)
+
+    def _one_dof_joints(self, body_id: int) -> tuple[tuple[int, str], ...]:
         pb = self.pb
         one_dof = (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC)
         count = pb.getNumJoints(body_id, physicsClientId=self.client)
-        types = [pb.getJointInfo(body_id, j, physicsClientId=self.client)[2] for j in range(count)]
-        return tuple(j for j, kind in enumerate(types) if kind in one_dof)
+        infos = [pb.getJointInfo(body_id, j, physicsClientId=self.client) for j in range(count)]
+        return tuple((j, info[1].decode()) for j, info in enumerate(infos) if info[2] in one_dof)
 
     def apply(self, states: Mapping[str, BodyState]) -> None:
         """Put the moving bodies where the request says. The cameras of a set share one snapshot:
@@ -89,12 +99,11 @@ class BulletScene:
         pb, client = self.pb, self.client
         for name, state in states.items():
             body_id = self.ids[name]
-            pb.resetBasePositionAndOrientation(body_id, *state.base, physicsClientId=client)
-            movable = self.movable[name]
-            if movable and len(state.joints) <= movable[-1]:
-                raise ValueError(f"body {name!r}: {len(state.joints)} joint positions, joint {movable[-1]} moves")
-            for j in movable:
-                pb.resetJointState(body_id, j, state.joints[j], physicsClientId=client)
+            self._place(name, state.base)
+            for j, joint in self.movable[name]:
+                if joint not in state.joints:
+                    raise ValueError(f"body {name!r}: no position for its joint {joint!r}")
+                pb.resetJointState(body_id, j, state.joints[joint], physicsClientId=client)
         self.posed = dict(states)
 
     def visual_shapes(self, name: str) -> list[VisualShape]:

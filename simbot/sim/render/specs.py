@@ -4,6 +4,7 @@ outputs, the light, and a finished frame. Plain frozen data: it crosses the proc
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -30,7 +31,7 @@ class SceneBody:
     static: bool
     """loadURDF(useFixedBase=static): a static body never moves, so GL bakes it into the world's buffer."""
     base: Transform
-    """PyBullet base (centre-of-mass) pose at start, as getBasePositionAndOrientation gives it."""
+    """The root link's URDF frame in the world at start."""
 
 
 @dataclass(frozen=True)
@@ -38,9 +39,9 @@ class BodyState:
     """Where a moving body is at the instant a frame is taken."""
 
     base: Transform
-    """PyBullet base pose (centre-of-mass frame), raw from getBasePositionAndOrientation."""
-    joints: tuple[float, ...]
-    """Position of every joint in PyBullet joint index order (fixed joints included, value 0)."""
+    """The root link's URDF frame in the world."""
+    joints: Mapping[str, float]
+    """The position of every joint of the URDF that moves, by name."""
 
 
 @dataclass(frozen=True)
