@@ -61,10 +61,6 @@ class Wheel:
     fdir1 and μ2 across it. A mecanum wheel's rollers give 45° with μ2 0 (Gazebo's mecanum example)."""
 
 
-def _cross(a: Vec3, b: Vec3) -> Vec3:
-    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
-
-
 class WheelFriction:
     """The wheels of one body; `apply` once before every physics step (plain floats: it runs at 1 kHz)."""
 
@@ -108,31 +104,29 @@ class WheelFriction:
                 )
 
     def _apply_one(self, wheel: Wheel, point: Vec3, normal: Vec3, load: float, state: tuple[Any, ...]) -> None:
-        centre, linear, angular = state[0], state[6], state[7]
-        m = pb.getMatrixFromQuaternion(state[5])
-        a = wheel.axle
-        axle = (
-            m[0] * a[0] + m[1] * a[1] + m[2] * a[2],
-            m[3] * a[0] + m[4] * a[1] + m[5] * a[2],
-            m[6] * a[0] + m[7] * a[1] + m[8] * a[2],
+        """One wheel's friction force, its vectors in plain floats (it runs for every wheel at 1 kHz)."""
+        (cx, cy, cz), (qx, qy, qz, qw), (vx, vy, vz), (wx, wy, wz) = state[0], state[5], state[6], state[7]
+        (px, py, pz), (nx, ny, nz), (ax, ay, az) = point, normal, wheel.axle
+        tx, ty, tz = 2.0 * (qy * az - qz * ay), 2.0 * (qz * ax - qx * az), 2.0 * (qx * ay - qy * ax)
+        ax, ay, az = (  # the axle in the world: a + w t + q × t, t = 2 q × a
+            ax + qw * tx + qy * tz - qz * ty,
+            ay + qw * ty + qz * tx - qx * tz,
+            az + qw * tz + qx * ty - qy * tx,
         )
-        along = _cross(axle, normal)
-        norm = (along[0] * along[0] + along[1] * along[1] + along[2] * along[2]) ** 0.5
+        lx, ly, lz = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx  # along = axle × normal
+        norm = (lx * lx + ly * ly + lz * lz) ** 0.5
         if norm < 1e-6:  # touching with its side: no rolling direction
             return
-        along = (along[0] / norm, along[1] / norm, along[2] / norm)
-        across = _cross(normal, along)
+        lx, ly, lz = lx / norm, ly / norm, lz / norm
+        sx, sy, sz = ny * lz - nz * ly, nz * lx - nx * lz, nx * ly - ny * lx  # across = normal × along
         if wheel.fdir1:
             c, s = math.cos(wheel.fdir1), math.sin(wheel.fdir1)
-            along, across = (
-                (c * along[0] + s * across[0], c * along[1] + s * across[1], c * along[2] + s * across[2]),
-                (c * across[0] - s * along[0], c * across[1] - s * along[1], c * across[2] - s * along[2]),
-            )
-        spin = _cross(angular, (point[0] - centre[0], point[1] - centre[1], point[2] - centre[2]))
-        sx, sy, sz = linear[0] + spin[0], linear[1] + spin[1], linear[2] + spin[2]
-        slip_along = (sx * along[0] + sy * along[1] + sz * along[2]) / SLIP_SPEED
-        slip_across = (sx * across[0] + sy * across[1] + sz * across[2]) / SLIP_SPEED
-        f1 = -wheel.mu * load * max(-1.0, min(1.0, slip_along))
-        f2 = -wheel.mu2 * load * max(-1.0, min(1.0, slip_across))
-        force = (f1 * along[0] + f2 * across[0], f1 * along[1] + f2 * across[1], f1 * along[2] + f2 * across[2])
+            lx, ly, lz, sx, sy, sz = (
+                c * lx + s * sx, c * ly + s * sy, c * lz + s * sz, c * sx - s * lx, c * sy - s * ly, c * sz - s * lz,
+            )  # fmt: skip
+        rx, ry, rz = px - cx, py - cy, pz - cz
+        ux, uy, uz = vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx  # slip: v + ω × r
+        f1 = -wheel.mu * load * max(-1.0, min(1.0, (ux * lx + uy * ly + uz * lz) / SLIP_SPEED))
+        f2 = -wheel.mu2 * load * max(-1.0, min(1.0, (ux * sx + uy * sy + uz * sz) / SLIP_SPEED))
+        force = (f1 * lx + f2 * sx, f1 * ly + f2 * sy, f1 * lz + f2 * sz)
         pb.applyExternalForce(self.body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)
