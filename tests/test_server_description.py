@@ -38,6 +38,7 @@ from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame
 from simbot.rotations import quaternion_to_matrix
+from simbot.sim.physics import ball_castors
 
 TOL = 1e-6
 ROOT = "base_footprint"
@@ -163,8 +164,10 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
             f"{camera}'s optical frame is turned wrong"
         )
 
-    # every fixed link and every sensor frame, composed from base_footprint, where the SDF puts it
-    fixed = {j.child for j in model.joints if j.type == "fixed"}
+    # every fixed link and every sensor frame, composed from base_footprint, where the SDF puts it; the
+    # castors too, whose gimbals the physics holds fixed (Physics.fixed_castors): tf_static at zero
+    castors = {j.child for j in model.joints if j.name in ball_castors(model)}
+    fixed = {j.child for j in model.joints if j.type == "fixed"} | castors
     checked = []
     for link in model.links:
         if link.name in fixed:
@@ -180,9 +183,9 @@ def test_tf_static_matches_the_sdf(tf_static: dict[str, tuple[str, np.ndarray]],
             assert error < TOL, f"tf_static puts {frame} {error:.2e} from the SDF pose of sensor {sensor.name}"
             checked.append(frame)
     assert {"base_link", "imu_link", "base_scan_front", "base_scan_back"} <= set(checked)
-    assert set(CAMERAS) <= set(checked)
-    # static means static: no wheel or castor (they move) and nothing from the odom tree
-    movable = {j.child for j in model.joints if j.type != "fixed"}
+    assert set(CAMERAS) <= set(checked) and castors <= set(checked) and len(castors) == 4
+    # static means static: no wheel (they move) and nothing from the odom tree
+    movable = {j.child for j in model.joints if j.type != "fixed"} - castors
     assert not movable & set(tree), f"tf_static holds moving links: {sorted(movable & set(tree))}"
     assert "odom" not in tree and ROOT not in tree
 
