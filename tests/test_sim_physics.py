@@ -94,7 +94,7 @@ def test_turns_in_place_despite_four_wheels(physics: Physics) -> None:
     sideways forces balance wherever the centre lies between the axles: |x| < 0.58 − 0.01/ω = 0.56 m.
     Along them, slip stays under 0.01 m/s (0.1 − 0.2ω = 0.008 m/s) and friction is linear in it:
     the forces balance at y = (0.2ω − 0.1)/ω · (N_left − N_right)/N, within 1.7 cm even with all the
-    load on one side. So the robot drifts: measured centres at 0.2 to 4.6 cm along x and under 0.7 cm
+    load on one side. So the robot drifts: measured centres within 4.6 cm along x and 0.7 cm
     across over six start headings."""
     _drive(physics, -0.1, 0.1)
     start = physics.model_pose("flexley_tug")
