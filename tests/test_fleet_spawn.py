@@ -10,6 +10,11 @@ motor ramps in a few steps: ±0.2 m. A tug nobody drives rests on its wheels aft
 its planar position changes less than 1 cm. The front lidar sits 0.99 m ahead of the tug's
 origin; its two middle rays (±half an increment off the axis, cos ≈ 1 − 2e-6) meet the mast's
 face 3.00 m ahead, quantised to 0.01 m: ±0.006 m, plus the tug's settling (well under 1 mm).
+
+Cameras while the world changes (the last tests): a lockstep server with the robot, its front
+camera watched, so the render workers run when a red box and a tug are created: the box appears
+in the robot's image with its pinhole size and goes when removed; the tug's own camera publishes
+at its rate; the images across a create are the same, byte for byte, run to run.
 """
 
 from __future__ import annotations
@@ -301,6 +306,7 @@ FRONT_CAMERA = (1.0, 0.0, 0.48)
 """The front camera in the tug's model frame: (1.0, 0, 0.39) on base_link, 0.09 above base_footprint."""
 BOX_GAP, BOX_HALF = 1.5, 0.25
 FRAME_NS = round(1e9 / RATE)
+WATCHED = ("--camera-size", f"{SIZE[0]}x{SIZE[1]}", "--camera-rate", str(RATE))
 
 
 RED_BOX = f"""<?xml version="1.0"?>
@@ -319,13 +325,18 @@ RED_BOX = f"""<?xml version="1.0"?>
 def watched_server() -> Iterator[SimServer]:
     """The robot in the empty world, lockstep, its front camera watched until it published: the render
     workers run from then on, for the server's life."""
-    extra = ("--camera-size", f"{SIZE[0]}x{SIZE[1]}", "--camera-rate", str(RATE))
-    with running_server("empty", extra=extra) as sim:
-        sim.step(SETTLE_STEPS)
-        images = sim.subscribe("camera_front", IMAGE)
-        sim.prime(images, chunk=100, timeout=60.0)
-        assert render_workers(sim.process.pid)
+    with running_server("empty", extra=WATCHED) as sim:
+        _watch_front_camera(sim)
         yield sim
+
+
+def _watch_front_camera(sim: SimServer) -> Collector[Any]:
+    """The robot settled, its front camera's images coming (the render workers run)."""
+    sim.step(SETTLE_STEPS)
+    images = sim.subscribe("camera_front", IMAGE)
+    sim.prime(images, chunk=100, timeout=60.0)
+    assert render_workers(sim.process.pid)
+    return images
 
 
 def _camera_and_axis(sim: SimServer) -> tuple[np.ndarray, np.ndarray]:
@@ -395,3 +406,29 @@ def test_a_tug_created_while_cameras_render_publishes_its_camera_at_its_rate(wat
     finally:
         watched.unsubscribe_all()
         assert watched.call("remove", {"name": "tug_2"})["ok"] is True
+
+
+def _frames_across_a_create(seed: int) -> dict[int, bytes]:
+    """The front camera's images, by stamp: the one at the create (every step count here is whole frames), then
+    over the 0.5 s after tug_2 is created 4 m ahead, dropping onto its wheels."""
+    with running_server("empty", seed=seed, extra=WATCHED) as sim:
+        images = _watch_front_camera(sim)
+        (x, y, _), _ = sim.pose()
+        created = round(sim.step(0)["sim_time"] * 1e9)
+        request = {"sdf_filename": str(TUG_SDF), "name": "tug_2", "namespace": "tug_2", "pose": _pose(x + 4.0, y)}
+        assert sim.call("create", request, timeout=60.0)["ok"] is True
+        sim.step(500)
+        last = created + 5 * FRAME_NS
+        frames = images.wait_for(lambda msgs: any(stamp_ns(m) == last for m in msgs), what="0.5 s of frames")
+        return {stamp_ns(m): bytes(m.data) for m in frames if stamp_ns(m) >= created}
+
+
+def test_images_across_a_create_are_byte_identical_run_to_run() -> None:
+    """Two lockstep runs with one seed and the same calls: the camera that watches a tug created in front of it
+    gives the same frames, byte for byte: the one at the create and the five after it, which show the tug."""
+    first, second = _frames_across_a_create(3), _frames_across_a_create(3)
+    assert len(first) == 6 and first.keys() == second.keys()
+    for stamp in first:
+        assert first[stamp] == second[stamp], f"the frames stamped {stamp} differ"
+    empty = first[min(first)]
+    assert all(first[stamp] != empty for stamp in sorted(first)[1:]), "the created tug is not in the images"
