@@ -414,6 +414,17 @@ def test_a_camera_added_to_a_running_pool_renders_its_own_view(renderer: str) ->
         )
 
 
+def test_an_added_camera_goes_to_the_worker_with_the_fewest_cameras() -> None:
+    """Three cameras on two workers (rgb and mono on worker 0, rgbd on worker 1): a fourth goes to worker 1,
+    as the death of worker 1 shows, naming its cameras."""
+    with RenderPool(scene()[:1], CAMERAS[:3], workers=2, renderer="tiny") as render_pool:
+        added = render_pool.add_camera(CameraSpec("late", W, H, HFOV, 0.05, 50.0))
+        render_pool.request(added, 1, AHEAD, {})
+        os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
+        with pytest.raises(RuntimeError, match=r"worker 1 .*died.*its cameras: rgbd, late$"):
+            render_pool.collect(wait_for=added, timeout=WAIT)
+
+
 def test_a_body_that_does_not_load_fails_the_next_collect_and_the_worker_goes_on() -> None:
     """A broken URDF added to a running pool: the next collect raises naming it; the worker still renders."""
     with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="tiny") as render_pool:
