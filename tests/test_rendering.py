@@ -1,8 +1,9 @@
 """The render pool with real PyBullet in real worker processes, with both renderers (OpenGL on EGL
 and TinyRenderer): geometry of the images (pinhole facts), the light convention, moving bodies and
 joints, pixel formats and noise, depth and points, the two renderers agreeing, the one
-outstanding request per camera, the fallback where no EGL context opens, and a dead or busy
-worker never hanging the caller."""
+outstanding request per camera, bodies and cameras added to a running pool (and bodies
+removed), the fallback where no EGL context opens, and a dead or busy worker never hanging the
+caller."""
 
 from __future__ import annotations
 
@@ -43,6 +44,8 @@ ARM_REACH = 2.5
 OFFSET_AT = (300.0, 0.0, 0.0)  # a body whose centre of mass is beside its visual
 ORANGE_AT = (400.0, 0.0, 0.0)
 GREY_AT = (500.0, 0.0, 0.0)  # a grey wall filling the view: a flat region for the noise
+LATE_AT = (600.0, 0.0, 0.0)  # empty until a test adds bodies to the running pool
+LATE_FACE, LATE_SIZE, LATE_SIDE = 2.0, 0.4, 0.5  # their front faces 2 m ahead, 0.4 m wide, 0.5 m either side
 
 AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
 INERTIA = '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/>'
@@ -362,6 +365,75 @@ def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
         pool.collect(wait_for=RGB, timeout=WAIT)
     assert not pool.busy(RGB)
     assert mask(render(pool, RGB, AHEAD).color, 0)[H // 2, W // 2]
+
+
+def late_box(name: str, rgba: tuple[float, ...], side: float, static: bool) -> SceneBody:
+    """A box for the empty region, its front face LATE_FACE ahead of the camera there, `side` m to its left."""
+    size = (0.1, LATE_SIZE, LATE_SIZE)
+    return SceneBody(name, box_urdf(size, rgba), static, at((LATE_AT[0] + LATE_FACE + 0.05, side, 0.0)))
+
+
+def test_bodies_added_to_a_running_pool_are_drawn_where_placed_and_removed_ones_vanish(pool: RenderPool) -> None:
+    """A moving green box 0.5 m to the left and a static red one 0.5 m to the right, added while the pool runs:
+    each fx·0.4/2 = 20 px wide, centred fx·0.5/2 = 25 px off the centre column; the static bodies loaded at the
+    start are still drawn as before (GL re-bakes its static world). Removed, they are gone from the image."""
+    camera = at(LATE_AT)
+    assert not mask(render(pool, RGB, camera).color, 1).any()
+    green, red = late_box("late_green", GREEN, LATE_SIDE, False), late_box("late_red", RED, -LATE_SIDE, True)
+    pool.add_body(green)
+    pool.add_body(red)
+    assert {"late_green", "late_red"} <= pool.body_names
+    pixels = render(pool, RGB, camera, {"late_green": BodyState(green.base, {})}).color
+    offset = FX * LATE_SIDE / LATE_FACE
+    for m, side in ((mask(pixels, 1), -1), (mask(pixels, 0), 1)):
+        assert centroid_column(m) == pytest.approx(W / 2 - 0.5 + side * offset, abs=1)
+        assert m[H // 2].sum() == pytest.approx(FX * LATE_SIZE / LATE_FACE, abs=2)
+    assert mask(render(pool, RGB, AHEAD).color, 0)[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+    pool.remove_body("late_green")
+    pool.remove_body("late_red")
+    assert not {"late_green", "late_red"} & pool.body_names
+    emptied = render(pool, RGB, camera).color
+    assert not mask(emptied, 0).any() and not mask(emptied, 1).any()
+    with pytest.raises(ValueError, match="late_green"):
+        pool.request(RGB, 0, camera, {"late_green": BodyState(green.base, {})})
+
+
+def test_a_camera_added_to_a_running_pool_renders_its_own_view(renderer: str) -> None:
+    """Two cameras on two workers, then a third of another size and focal length: it takes index 2 (the others
+    keep theirs) and sees the red box with its own pinhole (fx 50: 25 px wide) and from its own pose."""
+    late = CameraSpec("late", 80, 60, 2.0 * math.atan(40 / 50), 0.05, 50.0)
+    with RenderPool(scene()[:1], CAMERAS[:2], workers=2, renderer=renderer, light=FRONT_LIT) as growing:
+        assert growing.add_camera(late) == 2
+        pixels = render(growing, 2, at((0.0, 0.2, 0.0))).color
+        assert pixels.shape == (60, 80, 3)
+        red = mask(pixels, 0)
+        assert red[30].sum() == pytest.approx(late.fx * RED_SIZE / RED_FACE, abs=2)
+        assert centroid_column(red) == pytest.approx(40 - 0.5 + late.fx * 0.2 / RED_FACE, abs=2)
+        assert mask(render(growing, RGB, AHEAD).color, 0)[H // 2].sum() == pytest.approx(
+            FX * RED_SIZE / RED_FACE, abs=2
+        )
+
+
+def test_an_added_camera_goes_to_the_worker_with_the_fewest_cameras() -> None:
+    """Three cameras on two workers (rgb and mono on worker 0, rgbd on worker 1): a fourth goes to worker 1,
+    as the death of worker 1 shows, naming its cameras."""
+    with RenderPool(scene()[:1], CAMERAS[:3], workers=2, renderer="tiny") as render_pool:
+        added = render_pool.add_camera(CameraSpec("late", W, H, HFOV, 0.05, 50.0))
+        render_pool.request(added, 1, AHEAD, {})
+        os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
+        with pytest.raises(RuntimeError, match=r"worker 1 .*died.*its cameras: rgbd, late$"):
+            render_pool.collect(wait_for=added, timeout=WAIT)
+
+
+def test_a_body_that_does_not_load_fails_the_next_collect_and_the_worker_goes_on() -> None:
+    """A broken URDF added to a running pool: the next collect raises naming it; the worker still renders."""
+    with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="tiny") as render_pool:
+        render_pool.add_body(SceneBody("broken", "<robot name='x'><link", True, AHEAD))
+        render_pool.request(RGB, 1, AHEAD, {})
+        with pytest.raises(RuntimeError, match="add_body 'broken'"):
+            render_pool.collect(wait_for=RGB, timeout=WAIT)
+        (frame,) = render_pool.collect()
+        assert mask(frame.rgb(), 0)[H // 2, W // 2]
 
 
 QUIET_SCRIPT = """

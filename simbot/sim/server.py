@@ -179,6 +179,7 @@ class Server:
                 self.physics.remove_model(name)
             raise
         bodies = [body for body in self.physics.bodies if body not in before]
+        self.rendering.add_model(bodies)
         self.models[name] = Placed(name, bodies, self.bus.scoped(namespace), describe or bool(namespace))
         return self.models[name]
 

@@ -4,7 +4,9 @@ llvmpipe on the CPU where there is not).
 The scene comes from the worker's PyBullet copy (`BulletScene`): every visual shape of every link,
 tessellated once (`shapes.py`). Bodies that never move are baked into one world-frame vertex
 buffer, drawn in one call; each link of a moving body is one buffer in its link frame, drawn with
-the link's transform of the request. Lighting is TinyRenderer's model (ambient + diffuse of the
+the link's transform of the request. A body added or removed at run time adds or drops its links'
+buffers; a static one re-bakes the world buffer from the static bodies' vertices, which are kept
+for that (tessellating them again would cost far more than concatenating). Lighting is TinyRenderer's model (ambient + diffuse of the
 world's sun, no specular), per vertex, so a fragment costs one colour write.
 
 The projection flips y, so the framebuffer's first row is the image's top row and the pixels are
@@ -27,7 +29,7 @@ import numpy.typing as npt
 
 from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
 from simbot.sim.render.shapes import triangles
-from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, Transform
+from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, SceneBody, Transform
 
 log = logging.getLogger(__name__)
 
@@ -78,9 +80,14 @@ class _Part:
     """A vertex array drawn with one transform: the static world, or one moving link."""
 
     vao: Any
+    buffer: Any
     body: str | None
     """None for the static world (identity transform)."""
     link: int
+
+    def release(self) -> None:
+        self.vao.release()
+        self.buffer.release()
 
 
 @dataclass
@@ -112,36 +119,69 @@ class GlRenderer:
         self.uniforms["to_light"].value = tuple(to_light / np.linalg.norm(to_light))
         self.uniforms["ambient"].value = light.ambient
         self.uniforms["diffuse"].value = light.diffuse
-        self.parts = self._build_parts()
+        self.parts: list[_Part] = []
+        """The static world first (if any), then each moving link, in the order the bodies came."""
+        self._static: dict[str, npt.NDArray[np.float32]] = {}
+        """Each static body's vertices in the world frame: what the world buffer is baked from."""
         self._posed = -1
         self._model_matrices: list[bytes] = []
-        self.targets = {i: self._target(spec) for i, spec in cameras.items()}
+        for body in scene.bodies.values():
+            self._tessellate(body)
+        self._bake()
+        self.targets: dict[int, _Target] = {}
+        for index, spec in cameras.items():
+            self.add_camera(index, spec)
 
     # --- the scene
 
-    def _build_parts(self) -> list[_Part]:
-        parts: list[_Part] = []
-        static: list[npt.NDArray[np.float32]] = []
-        for body in self.scene.bodies:
-            shapes = self.scene.visual_shapes(body.name)
-            if body.static:
-                frames = self.scene.link_matrices(body.name)
-                static += [_vertices(shape, frames[shape.link]) for shape in shapes]
-                continue
-            for link in sorted({shape.link for shape in shapes}):
-                data = np.concatenate([_vertices(s, np.eye(4)) for s in shapes if s.link == link])
-                if len(data):
-                    parts.append(_Part(self._vao(data), body.name, link))
-        if static:
-            world = np.concatenate(static)
-            if len(world):
-                parts.insert(0, _Part(self._vao(world), None, -1))
-        log.debug("GL scene: %d draws, %d vertices", len(parts), sum(p.vao.vertices for p in parts))
-        return parts
+    def add_body(self, name: str) -> None:
+        """Draw a body the scene has just loaded."""
+        body = self.scene.bodies[name]
+        self._tessellate(body)
+        if body.static:
+            self._bake()
+        self._posed = -1
 
-    def _vao(self, data: npt.NDArray[np.float32]) -> Any:
+    def remove_body(self, name: str) -> None:
+        """Stop drawing a body, before the scene drops it."""
+        for part in self.parts:
+            if part.body == name:
+                part.release()
+        self.parts = [part for part in self.parts if part.body != name]
+        if self._static.pop(name, None) is not None:
+            self._bake()
+        self._posed = -1
+
+    def add_camera(self, index: int, spec: CameraSpec) -> None:
+        self.targets[index] = self._target(spec)
+
+    def _tessellate(self, body: SceneBody) -> None:
+        """A static body's vertices in the world frame (for `_bake`); a moving body's links as parts."""
+        shapes = self.scene.visual_shapes(body.name)
+        if body.static:
+            frames = self.scene.link_matrices(body.name)
+            self._static[body.name] = _stack([_vertices(shape, frames[shape.link]) for shape in shapes])
+            return
+        for link in sorted({shape.link for shape in shapes}):
+            data = _stack([_vertices(s, np.eye(4)) for s in shapes if s.link == link])
+            if len(data):
+                self.parts.append(self._part(data, body.name, link))
+
+    def _bake(self) -> None:
+        """Every static body into one world buffer, drawn in one call, replacing the old one."""
+        for part in self.parts:
+            if part.body is None:
+                part.release()
+        self.parts = [part for part in self.parts if part.body is not None]
+        world = _stack(list(self._static.values()))
+        if len(world):
+            self.parts.insert(0, self._part(world, None, -1))
+        log.debug("GL scene: %d draws, %d vertices", len(self.parts), sum(p.vao.vertices for p in self.parts))
+
+    def _part(self, data: npt.NDArray[np.float32], body: str | None, link: int) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-        return self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f", "in_position", "in_normal", "in_color")])
+        vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f", "in_position", "in_normal", "in_color")])
+        return _Part(vao, buffer, body, link)
 
     def _target(self, spec: CameraSpec) -> _Target:
         size = (spec.width, spec.height)
@@ -212,6 +252,11 @@ def _uniform(program: Any, name: str) -> Any:
 def _gl(m: Matrix) -> bytes:
     """A 4×4 matrix as GLSL's column-major float32 bytes."""
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
+
+
+def _stack(arrays: list[npt.NDArray[np.float32]]) -> npt.NDArray[np.float32]:
+    """Vertex rows one after the other; no rows for no arrays."""
+    return np.concatenate(arrays) if arrays else np.empty((0, 9), dtype=np.float32)
 
 
 def _vertices(shape: VisualShape, link_to_world: Matrix) -> npt.NDArray[np.float32]:

@@ -5,6 +5,13 @@
   loads the same scene as the server (the URDF texts the server loaded, at their start poses),
   and one renderer (`worker.py`). Cameras are dealt to the workers round-robin; a worker renders
   its cameras' requests in order.
+- The world may change while the pool runs: `add_body` and `remove_body` go to every worker,
+  `add_camera` to the worker with the fewest cameras (the camera takes the next index; the
+  others keep theirs). A worker takes its messages in order, so a change reaches its scene
+  before any request sent after it, and a set of requests sent together sees one scene. They
+  return at once: a worker loads the body while the caller goes on, and one that cannot load it
+  fails the next `collect`. (A worker busy with a frame reads the change when that frame is
+  done, so sending a URDF text larger than a pipe holds waits for that frame.)
 - Workers run at nice 10, so on a busy machine the physics wins the CPU and frames come late
   rather than the simulation slowing down.
 - A request carries the camera's world pose and the poses and joint positions of the bodies that
@@ -76,7 +83,7 @@ class _Worker:
     index: int
     process: BaseProcess
     conn: Connection
-    cameras: tuple[int, ...]
+    cameras: list[int]
     death: str | None = None
     """Why it is gone, once it is."""
 
@@ -110,7 +117,7 @@ class RenderPool:
     ) -> None:
         _check_config(bodies, cameras, workers, renderer)
         self.cameras = tuple(cameras)
-        self._body_names = frozenset(body.name for body in bodies)
+        self._body_names = {body.name for body in bodies}
         self._closed = False
         self._workers: list[_Worker] = []
         self._outstanding: dict[int, int] = {}  # camera -> stamp, until its frame is handed over
@@ -142,8 +149,40 @@ class RenderPool:
 
     @property
     def body_names(self) -> frozenset[str]:
-        """The bodies the workers' scenes hold: those the world had when the pool started."""
+        """The bodies the workers' scenes hold (once they have read the changes sent)."""
         return frozenset(self._body_names)
+
+    def add_body(self, body: SceneBody) -> None:
+        """Every worker's scene loads `body` before any later request; see the module docstring."""
+        self._check_open()
+        if body.name in self._body_names:
+            raise ValueError(f"body {body.name!r} is in the scene already")
+        self._broadcast(("add_body", body))
+        self._body_names.add(body.name)
+
+    def remove_body(self, name: str) -> None:
+        """Every worker's scene drops body `name` before any later request."""
+        self._check_open()
+        if name not in self._body_names:
+            raise ValueError(f"no body {name!r} in the scene")
+        self._broadcast(("remove_body", name))
+        self._body_names.remove(name)
+
+    def add_camera(self, spec: CameraSpec) -> int:
+        """A camera for the running pool, on the worker with the fewest cameras; its index (the next one)."""
+        self._check_open()
+        if not self._workers:
+            raise RuntimeError(f"camera {spec.name!r}: a pool started with no cameras has no worker to render it")
+        index = len(self.cameras)
+        worker = min(self._workers, key=lambda w: len(w.cameras))
+        shm = SharedMemory(create=True, size=spec.nbytes)
+        self.cameras = (*self.cameras, spec)
+        self._shms.append(shm)
+        self._buffers.append(CameraBuffers(spec, shm))
+        self._worker_of.append(worker.index)
+        worker.cameras.append(index)
+        self._send(worker, ("add_camera", index, spec, shm.name))
+        return index
 
     def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
         """Start rendering camera `camera` at the camera's world pose (looking along its +x, z up)
@@ -162,11 +201,7 @@ class RenderPool:
             raise ValueError(f"camera {spec.name!r}: no such bodies in the scene: {sorted(unknown)}")
         pos, quat = camera_pose
         pose = (tuple(float(v) for v in pos), tuple(float(v) for v in quat))
-        try:
-            worker.conn.send(("render", camera, int(stamp_ns), pose, dict(states)))
-        except OSError:
-            self._mark_dead(worker)
-            raise RuntimeError(f"camera {camera} {spec.name!r}: {worker.death}") from None
+        self._send(worker, ("render", camera, int(stamp_ns), pose, dict(states)))
         self._outstanding[camera] = int(stamp_ns)
 
     def busy(self, camera: int) -> bool:
@@ -214,7 +249,7 @@ class RenderPool:
     def _start(self, bodies: Sequence[SceneBody], n: int, renderer: str, light: Light, gl_threads: int | None) -> None:
         ctx = multiprocessing.get_context("spawn")
         for index in range(n):
-            mine = tuple(i for i, w in enumerate(self._worker_of) if w == index)
+            mine = [i for i, w in enumerate(self._worker_of) if w == index]
             jobs = {i: (self.cameras[i], self._shms[i].name) for i in mine}
             parent_end, child_end = ctx.Pipe()
             process = ctx.Process(
@@ -274,13 +309,16 @@ class RenderPool:
         exited = not worker.process.is_alive()  # asked first: what it sent before exiting is in the pipe
         try:
             while worker.conn.poll():
-                self._receive(worker.conn.recv())
+                self._receive(worker, worker.conn.recv())
         except (EOFError, OSError):
             exited = True
         if exited:
             self._mark_dead(worker)
 
-    def _receive(self, message: tuple[Any, ...]) -> None:
+    def _receive(self, worker: _Worker, message: tuple[Any, ...]) -> None:
+        if message[0] == "scene_failed":
+            self._failures.append(f"render worker {worker.index}: {message[1]}")
+            return
         kind, camera, stamp = message[0], message[1], message[2]
         if kind == "frame":
             buffers = self._buffers[camera]
@@ -313,6 +351,23 @@ class RenderPool:
         for frame in frames:
             del self._outstanding[frame.camera]
         return frames
+
+    # --- sending
+
+    def _broadcast(self, message: tuple[Any, ...]) -> None:
+        """To every live worker; a dead one's cameras raise at their next request."""
+        for worker in self._workers:
+            if worker.death is None:
+                with contextlib.suppress(RuntimeError):
+                    self._send(worker, message)
+
+    def _send(self, worker: _Worker, message: tuple[Any, ...]) -> None:
+        """RuntimeError naming the worker and its cameras when it is gone."""
+        try:
+            worker.conn.send(message)
+        except OSError:
+            self._mark_dead(worker)
+            raise RuntimeError(worker.death) from None
 
     def _mark_dead(self, worker: _Worker) -> None:
         if worker.death is not None:

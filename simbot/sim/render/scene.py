@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 from types import ModuleType
 from typing import NamedTuple
 
@@ -36,45 +35,60 @@ class VisualShape(NamedTuple):
     rgba: tuple[float, float, float, float]
 
 
-@dataclass
 class BulletScene:
-    """The bodies loaded as the server loaded them, posed on request."""
+    """The bodies loaded as the server loaded them, posed on request; bodies come and go as the
+    server's do (`add`, `remove`)."""
 
-    pb: ModuleType
-    bodies: Sequence[SceneBody]
-    client: int = -1
-    ids: dict[str, int] = field(default_factory=dict)
-    movable: dict[str, tuple[tuple[int, str], ...]] = field(default_factory=dict)
-    """Each body's joints that move: (index, name)."""
-    inertial: dict[str, Transform] = field(default_factory=dict)
-    """Each body's base centre of mass in its root link frame: PyBullet poses a base by it."""
-    posed: dict[str, BodyState] | None = None
-    """The states last applied."""
-    version: int = 0
-    """Counts the changes of pose: what a renderer caches per pose is valid while it holds."""
+    def __init__(self, pb: ModuleType, bodies: Sequence[SceneBody] = ()) -> None:
+        self.pb = pb
+        self.client: int = pb.connect(pb.DIRECT)
+        self.bodies: dict[str, SceneBody] = {}
+        self.ids: dict[str, int] = {}
+        self.movable: dict[str, tuple[tuple[int, str], ...]] = {}
+        """Each body's joints that move: (index, name)."""
+        self.inertial: dict[str, Transform] = {}
+        """Each body's base centre of mass in its root link frame: PyBullet poses a base by it."""
+        self.posed: dict[str, BodyState] | None = None
+        """The states last applied."""
+        self.version = 0
+        """Counts the changes of pose and of bodies: what a renderer caches per pose is valid while it holds."""
+        for body in bodies:
+            self.add(body)
 
-    def __post_init__(self) -> None:
-        self.client = self.pb.connect(self.pb.DIRECT)
-        self._load_bodies()
-
-    def _load_bodies(self) -> None:
-        """The same flags as the server, so that base centre-of-mass frames agree."""
+    def add(self, body: SceneBody) -> None:
+        """Loads `body` with the server's flags, so that base centre-of-mass frames agree."""
         pb = self.pb
+        if body.name in self.ids:
+            raise ValueError(f"body {body.name!r} is in the scene already")
         flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
         with tempfile.TemporaryDirectory(prefix="simbot-render-") as folder:
-            for n, body in enumerate(self.bodies):
-                path = os.path.join(folder, f"{n}.urdf")
-                with open(path, "w", encoding="utf-8") as file:
-                    file.write(body.urdf)
-                try:
-                    body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
-                except pb.error as exc:
-                    raise RuntimeError(f"body {body.name!r}: {exc}") from None
-                self.ids[body.name] = body_id
-                info = pb.getDynamicsInfo(body_id, -1, physicsClientId=self.client)
-                self.inertial[body.name] = (tuple(info[3]), tuple(info[4]))
-                self._place(body.name, body.base)
-                self.movable[body.name] = self._one_dof_joints(body_id)
+            path = os.path.join(folder, "body.urdf")
+            with open(path, "w", encoding="utf-8") as file:
+                file.write(body.urdf)
+            try:
+                body_id = pb.loadURDF(path, useFixedBase=body.static, flags=flags, physicsClientId=self.client)
+            except pb.error as exc:
+                raise RuntimeError(f"body {body.name!r}: {exc}") from None
+        self.bodies[body.name] = body
+        self.ids[body.name] = body_id
+        info = pb.getDynamicsInfo(body_id, -1, physicsClientId=self.client)
+        self.inertial[body.name] = (tuple(info[3]), tuple(info[4]))
+        self._place(body.name, body.base)
+        self.movable[body.name] = self._one_dof_joints(body_id)
+        self._changed()
+
+    def remove(self, name: str) -> None:
+        """Takes the body out of the scene (a renderer that caches it drops it first)."""
+        self.pb.removeBody(self.ids.pop(name), physicsClientId=self.client)
+        for table in (self.bodies, self.movable, self.inertial):
+            del table[name]
+        self._changed()
+
+    def _changed(self) -> None:
+        """The set of bodies changed: the next request poses every body, whatever it held before
+        (a body re-created under an old name must not pass for the old one's pose)."""
+        self.posed = None
+        self.version += 1
 
     def _place(self, name: str, root: Transform) -> None:
         """Puts the body's root link frame at `root` (PyBullet places a base by its centre of mass)."""

@@ -25,10 +25,20 @@ class TinyRenderer:
     def __init__(self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec]) -> None:
         self.scene = scene
         self.light = light
-        self.cameras = dict(cameras)
-        self.projections = {
-            i: _flat(projection_matrix(s.vfov_deg, s.width / s.height, s.near, s.far)) for i, s in cameras.items()
-        }
+        self.cameras: dict[int, CameraSpec] = {}
+        self.projections: dict[int, Sequence[float]] = {}
+        for index, spec in cameras.items():
+            self.add_camera(index, spec)
+
+    def add_camera(self, index: int, spec: CameraSpec) -> None:
+        self.cameras[index] = spec
+        self.projections[index] = _flat(projection_matrix(spec.vfov_deg, spec.width / spec.height, spec.near, spec.far))
+
+    def add_body(self, name: str) -> None:
+        """Nothing to do: PyBullet draws the scene's bodies as they are."""
+
+    def remove_body(self, name: str) -> None:
+        """Nothing to do: PyBullet draws the scene's bodies as they are."""
 
     def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None:
         spec = self.cameras[camera]

@@ -1,9 +1,12 @@
 """A render worker process: its own copy of the scene, one renderer, requests in order.
 
 The worker loads the scene (`BulletScene`), opens the renderer it was asked for (`gl`, `tiny`, or
-`auto`: gl when an EGL context opens, else tiny with the reason), reports ready, then renders
-requests until told to stop or the server is gone. Each frame is drawn straight into the
-camera's shared memory and finished there (`outputs.py`); only a small message goes back.
+`auto`: gl when an EGL context opens, else tiny with the reason), reports ready, then takes the
+pool's messages in order until told to stop or the server is gone: render requests, and the
+changes of a world that runs (a body added or removed, a camera added), each before any request
+sent after it. Each frame is drawn straight into the camera's shared memory and finished there
+(`outputs.py`); only a small message goes back. A change that fails is reported (`scene_failed`)
+and the worker goes on.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
@@ -33,6 +36,16 @@ class Renderer(Protocol):
     device: str
 
     def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None: ...
+
+    def add_camera(self, index: int, spec: CameraSpec) -> None: ...
+
+    def add_body(self, name: str) -> None:
+        """After the scene has loaded it."""
+        ...
+
+    def remove_body(self, name: str) -> None:
+        """Before the scene drops it."""
+        ...
 
     def close(self) -> None: ...
 
@@ -97,16 +110,16 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         scene = BulletScene(pb, plan.bodies)
         specs = {i: spec for i, (spec, _) in plan.jobs.items()}
         renderer, fallback = open_renderer(plan.renderer, scene, plan.light, specs, plan.gl_threads)
-        cameras = {i: _camera(i, spec, name) for i, (spec, name) in plan.jobs.items()}
+        held = _Held(scene, renderer, {i: _camera(i, spec, name) for i, (spec, name) in plan.jobs.items()})
     except Exception as exc:
-        conn.send(("error", "".join(traceback.format_exception_only(type(exc), exc)).strip()))
+        conn.send(("error", _reason(exc)))
         return
     conn.send(("ready", renderer.name, fallback, renderer.device))
     try:
-        _serve(conn, scene, renderer, cameras)
+        _serve(conn, held)
     finally:
         renderer.close()
-        for camera in cameras.values():
+        for camera in held.cameras.values():
             camera.buffers.release()
             camera.buffers.shm.close()
         scene.close()
@@ -137,20 +150,63 @@ def _camera(index: int, spec: CameraSpec, shm_name: str) -> _Camera:
     return _Camera(index, buffers, np.random.default_rng(spec.seed), PointGrid(spec) if spec.points else None)
 
 
-def _serve(conn: Connection, scene: BulletScene, renderer: Renderer, cameras: dict[int, _Camera]) -> None:
-    """Render requests in order until told to stop or the server is gone (EOF, broken pipe)."""
+@dataclass
+class _Held:
+    """What a worker holds, and the changes the pool may ask of it while the world runs."""
+
+    scene: BulletScene
+    renderer: Renderer
+    cameras: dict[int, _Camera]
+
+    def add_body(self, body: SceneBody) -> None:
+        self.scene.add(body)
+        self.renderer.add_body(body.name)
+
+    def remove_body(self, name: str) -> None:
+        self.renderer.remove_body(name)
+        self.scene.remove(name)
+
+    def add_camera(self, index: int, spec: CameraSpec, shm_name: str) -> None:
+        self.cameras[index] = _camera(index, spec, shm_name)
+        self.renderer.add_camera(index, spec)
+
+
+def _serve(conn: Connection, held: _Held) -> None:
+    """The pool's messages in order until told to stop or the server is gone (EOF, broken pipe)."""
+    changes: dict[str, Callable[..., None]] = {
+        "add_body": held.add_body,
+        "remove_body": held.remove_body,
+        "add_camera": held.add_camera,
+    }
     try:
-        while (message := conn.recv())[0] == "render":
-            _, camera, stamp, pose, states = message
-            start = time.perf_counter()
-            try:
-                render(scene, renderer, cameras[camera], pose, states)
-            except Exception as exc:
-                conn.send(("failed", camera, stamp, f"{type(exc).__name__}: {exc}"))
+        while (message := conn.recv())[0] != "stop":
+            kind, *args = message
+            if kind == "render":
+                conn.send(_render_request(held, *args))
                 continue
-            conn.send(("frame", camera, stamp, time.perf_counter() - start))
+            try:
+                changes[kind](*args)
+            except Exception as exc:
+                subject = getattr(args[0], "name", args[0])  # a SceneBody by its name; a body name; a camera index
+                conn.send(("scene_failed", f"{kind} {subject!r}: {_reason(exc)}"))
     except (EOFError, OSError):
         return
+
+
+def _render_request(
+    held: _Held, camera: int, stamp: int, pose: Transform, states: Mapping[str, BodyState]
+) -> tuple[Any, ...]:
+    """The message that answers a request: its frame is done, or why it failed."""
+    start = time.perf_counter()
+    try:
+        render(held.scene, held.renderer, held.cameras[camera], pose, states)
+    except Exception as exc:
+        return ("failed", camera, stamp, f"{type(exc).__name__}: {exc}")
+    return ("frame", camera, stamp, time.perf_counter() - start)
+
+
+def _reason(exc: Exception) -> str:
+    return "".join(traceback.format_exception_only(type(exc), exc)).strip()
 
 
 def render(

@@ -20,11 +20,15 @@ Scheduling, after each physics step:
   the frames of all cameras due then are published, so after `multi_step` every frame up to
   that time is out.
 
-Models created at run time (world control `create`): their cameras join while the render pool
-has not started (no image watched yet); after that the workers' scenes are fixed, so a create
-with cameras is refused, and bodies created since are not drawn. A removed model's cameras stop
-(their slots stay empty, so the others keep their places in the pool, which closes with the
-last camera) and its body, if the scenes hold it, is parked far below the floor.
+Models created and removed at run time (world control `create`, `remove`): the pool loads the
+world as it is when it starts. What changes after that snapshot (bodies added or removed, in
+order, and cameras added) is sent to the pool before the next set of requests, and at once when
+the pool runs; a worker reads its messages in order, so every camera of a set draws the same
+scene, and the first set requested after a create draws the created bodies (lockstep stays exact
+and deterministic: the same calls send the same messages in the same order). A camera of a
+created model takes the next index and renders like the others; a removed model's bodies leave
+the scenes, and its cameras stop (their slots stay empty, so the others keep their places).
+When the last camera leaves, the pool closes; a camera created later starts a fresh one.
 
 A render worker that dies, or a pool that does not start, stops the cameras (an error in the log
 and in each camera's world state), never the simulation.
@@ -40,12 +44,10 @@ from simbot.description.model import World
 from simbot.description.poses import Pose
 from simbot.sim.physics import Physics
 from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, plan_pool
-from simbot.sim.system import SensorSettings, SystemConfigError, UpdateInfo
+from simbot.sim.system import SensorSettings, UpdateInfo
 
 log = logging.getLogger(__name__)
 
-PARKED = ((0.0, 0.0, -1e4), (0.0, 0.0, 0.0, 1.0))
-"""Where a removed body waits in the render scenes, out of every camera's view (clip 50 m)."""
 LOCKSTEP_TIMEOUT_S = 120.0
 """How long lockstep waits for one frame before it gives the cameras up as broken."""
 
@@ -95,31 +97,66 @@ class Rendering:
         self._waiting: set[int] = set()
         self._gone: set[int] = set()
         """Cameras of removed models, by index."""
-        self._parked: dict[str, BodyState] = {}
-        """Removed bodies the render scenes hold, where they are drawn from now on."""
+        self._changes: list[SceneBody | str] = []
+        """Since the pool's snapshot of the world, not yet sent to it: bodies added (a SceneBody) and removed (a name)."""
 
     def add(self, camera: RenderedSensor) -> int:
-        """Register a camera; its index in the pool."""
-        if self._starting is not None:
-            raise SystemConfigError(
-                f"camera {camera.spec.name!r}: the cameras' render workers already run (an image was watched), "
-                "and a camera cannot join them; create models with cameras before any camera is watched"
-            )
+        """Register a camera; its index in the pool (a running pool takes it at once)."""
         self.cameras.append(camera)
+        self._sync()
         return len(self.cameras) - 1
+
+    def add_model(self, bodies: list[str]) -> None:
+        """Bodies new in the physics enter the render scenes; call it once the physics holds them."""
+        if self._following:
+            self._changes += [self._scene_body(body) for body in bodies]
+            self._sync()
 
     def remove_model(self, name: str, bodies: list[str]) -> None:
         """The model `name` (its `bodies`) leaves the world: its cameras stop, its bodies leave the
-        scenes' view. Call it before the physics removes them."""
+        scenes. Call it before the physics removes them."""
         for index, camera in enumerate(self.cameras):
             if camera.where[0] in bodies:
                 self._gone.add(index)
                 self._waiting.discard(index)
-        if self._starting is not None:  # the scenes hold the bodies the world had when the pool started
-            self._parked |= {body: BodyState(PARKED, self.physics.body_state(body)[1]) for body in bodies}
+        if self._following:
+            self._changes += bodies
         if self.pool is not None and len(self._gone) == len(self.cameras):
             log.info("the last camera left with model %s: the render workers stop", name)
-            self.close()
+            self._stop_pool()
+        else:
+            self._sync()
+
+    @property
+    def _following(self) -> bool:
+        """A pool has taken (or is taking) its snapshot of the world and works on: it must follow the changes."""
+        return self._starting is not None and self.failure is None
+
+    def _stop_pool(self) -> None:
+        """No camera is left: the pool closes, and the next camera watched starts a fresh one."""
+        self.close()
+        self.cameras, self._gone, self._changes, self._starting = [], set(), [], None
+
+    def _sync(self) -> None:
+        """Sends a running pool what changed since its snapshot of the world, in order."""
+        if self.pool is None:
+            return
+        changes, self._changes = self._changes, []
+        try:
+            for change in changes:
+                if isinstance(change, SceneBody):
+                    self.pool.add_body(change)
+                else:
+                    self.pool.remove_body(change)
+            for camera in self.cameras[len(self.pool.cameras) :]:
+                self.pool.add_camera(camera.spec)
+        except RuntimeError as exc:
+            self.fail(str(exc))
+
+    def _scene_body(self, name: str) -> SceneBody:
+        """A body as the physics loaded it, where it is now."""
+        body = self.physics.bodies[name]
+        return SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0])
 
     # --- the update
 
@@ -143,21 +180,20 @@ class Rendering:
             return True
         if self.failure is not None:
             return False
-        if self._starting is None:
-            bodies = [
-                SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0])
-                for name, body in self.physics.bodies.items()
-            ]
-            self._starting = threading.Thread(target=self._start, args=(bodies,), name="render-pool-start", daemon=True)
+        if self._starting is None:  # the snapshot of the world: what changes after it goes to `_changes`
+            bodies = [self._scene_body(name) for name in self.physics.bodies]
+            specs = [camera.spec for camera in self.cameras]
+            self._starting = threading.Thread(
+                target=self._start, args=(bodies, specs), name="render-pool-start", daemon=True
+            )
             self._starting.start()
         if self.settings.lockstep:
             self._starting.join()
         return self.pool is not None
 
-    def _start(self, bodies: list[SceneBody]) -> None:
+    def _start(self, bodies: list[SceneBody], specs: list[CameraSpec]) -> None:
         """Runs in a thread (PyBullet is not touched here): spawning workers and loading the scene
         takes seconds the loop must not wait."""
-        specs = [camera.spec for camera in self.cameras]
         plan = plan_pool(len(specs), self.settings.render_workers)
         try:
             pool = RenderPool(
@@ -176,12 +212,12 @@ class Rendering:
         return self.pool is not None and not any(self.pool.busy(i) for i in range(len(self.cameras)))
 
     def _request(self, now_ns: int) -> None:
-        """Every waiting camera renders from one snapshot of the moving bodies."""
-        assert self.pool is not None
-        drawn = self.pool.body_names
-        states = {
-            name: BodyState(*self.physics.body_state(name)) for name in self.physics.moving_bodies() if name in drawn
-        } | {name: state for name, state in self._parked.items() if name in drawn}
+        """Every waiting camera renders from one snapshot of the moving bodies, in the scenes as the
+        world has them now."""
+        self._sync()
+        if self.pool is None:  # the pool broke taking the changes
+            return
+        states = {name: BodyState(*self.physics.body_state(name)) for name in self.physics.moving_bodies()}
         waiting, self._waiting = sorted(self._waiting), set()
         try:
             for index in waiting:
