@@ -151,6 +151,8 @@ class Physics:
     _free_ray_groups: Iterator[int] = field(default_factory=ray_groups)
     _returned_ray_groups: list[int] = field(default_factory=list)
     """Groups of removed models, handed out again first (lowest first: the same world, the same groups)."""
+    _heightfields: dict[str, list[int]] = field(default_factory=dict)
+    """The heightfield bodies of each model's heightmaps (PyBullet bodies apart from the model's)."""
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
     def __post_init__(self) -> None:
@@ -212,10 +214,7 @@ class Physics:
         self._configure_friction(body)
         self._undamp(body)
         self._configure_castors(body, castors)
-        for link in model.links:
-            for collision in link.collisions:
-                if isinstance(collision.geometry, Heightmap):
-                    self._add_heightfield(model, link, collision, collision.geometry, frame)
+        self._add_heightfields(name, model, frame)
         return body
 
     @_changes_world
@@ -231,12 +230,23 @@ class Physics:
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
             if (group := self._ray_groups.pop(part, None)) is not None:
                 self._returned_ray_groups = sorted([*self._returned_ray_groups, group])
+            for heightfield in self._heightfields.pop(part, []):
+                pb.removeBody(heightfield, physicsClientId=self.client)
             pb.removeBody(body.id, physicsClientId=self.client)
         return names
 
+    def _add_heightfields(self, name: str, model: Model, frame: Transform) -> None:
+        """The heightmaps of a tree's collisions, each a body of its own, kept under `name` so that they leave with it."""
+        for link in model.links:
+            for collision in link.collisions:
+                if isinstance(collision.geometry, Heightmap):
+                    body = self._add_heightfield(model, link, collision, collision.geometry, frame)
+                    if body is not None:
+                        self._heightfields.setdefault(name, []).append(body)
+
     def _add_heightfield(
         self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform
-    ) -> None:
+    ) -> int | None:
         """A heightmap's collision as a PyBullet heightfield fixed in the world, URDF having none;
         only in a static model, as Gazebo has it (the URDF carries the heightmap's visual)."""
         if not model.static:
@@ -245,7 +255,7 @@ class Physics:
                 model.name,
                 collision.name,
             )
-            return
+            return None
         heights = heightmap_heights(heightmap, model.source)
         rows, cols = heights.shape
         shape = pb.createCollisionShape(
@@ -265,6 +275,7 @@ class Physics:
         body = pb.createMultiBody(0.0, shape, -1, *pose, physicsClientId=self.client)
         mu = collision.friction.mu if collision.friction else SDF_DEFAULT_MU
         pb.changeDynamics(body, -1, lateralFriction=mu, physicsClientId=self.client)
+        return int(body)
 
     def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str, hosts: dict[str, str]) -> Body:
         """The body's names: PyBullet's links and joints, then each merged link at its host's index."""
