@@ -140,7 +140,8 @@ class Physics:
     those sensors read one link's contacts or one fixed joint's wrench."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
-    constraints: set[int] = field(default_factory=set)
+    constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
+    """Joints made by `attach`: each one's (parent model, child model)."""
     _wheels: list[WheelFriction] = field(default_factory=list)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     read_only: bool = False
@@ -645,8 +646,12 @@ class Physics:
             physicsClientId=self.client,
         )  # fmt: skip
         pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
-        self.constraints.add(cid)
+        self.constraints[cid] = (parent[0], child[0])
         return cid
+
+    def holder(self, model: str) -> str | None:
+        """The model that a joint made by `attach` fixes `model` to, if one does (a fleet shares a trolley)."""
+        return next((parent for parent, child in self.constraints.values() if child == model), None)
 
     def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
         """(body id, link index, the link's centre-of-mass frame in the world): PyBullet constrains those."""
@@ -664,8 +669,7 @@ class Physics:
     @_changes_world
     def detach(self, constraint: int) -> None:
         """Removes a joint made by `attach`."""
-        if constraint in self.constraints:
-            self.constraints.remove(constraint)
+        if self.constraints.pop(constraint, None) is not None:
             pb.removeConstraint(constraint, physicsClientId=self.client)
 
 
