@@ -60,6 +60,12 @@ def client_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return parser
 
 
+def followed_model(robot_namespace: str, default: str = "flexley_tug") -> str:
+    """The model name of the robot a client follows: the last segment of its `--robot-namespace`
+    (`tug_2`, as `--robots N` names each tug after its namespace), else `default`, the one robot's."""
+    return robot_namespace.strip("/").rpartition("/")[2] or default
+
+
 def number(kind: Callable[[str], Number], *, at_least_zero: bool = False) -> Callable[[str], Number]:
     """An argparse type: a finite number > 0 (≥ 0 with `at_least_zero`); argparse's one-line error otherwise."""
     bound = "≥ 0" if at_least_zero else "> 0"

@@ -12,6 +12,14 @@ last second (they come at 50 Hz). The client checks every 0.2 s and prints near 
 changes; the status line shows the distance and the joint's state from the latched
 `detachable_joint/state`. Every period here is sim time (`clock`): a world at 0.5× or 4× docks the
 same, and a paused one makes no checks.
+
+One robot of a fleet (`--robot-namespace tug_2`): attach, detach and the joint's state are that
+robot's (`tug_2/attach`, `tug_2/detachable_joint/state`), the poses the world's ground truth
+(`model/tug_2/pose`, `model/trolley/pose` at the bus's namespace). The robot is the model named
+by the namespace's last segment (tug_2 of `--robots N`) unless `--robot` names it. The trolley is
+`--trolley` (default `trolley`): the model whose nearness is checked, which must be the one the
+robot's joint holds (the tug's SDF names `trolley`). The server refuses a trolley that another
+robot holds, so one trolley serves a fleet one robot at a time.
 """
 
 from __future__ import annotations
@@ -28,7 +36,17 @@ from typing import Any
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.transforms import planar_pose
 
-from .common import POLL_S, Mailbox, Recent, SimClock, SimTicker, client_parser, number, run_client
+from .common import (
+    POLL_S,
+    Mailbox,
+    Recent,
+    SimClock,
+    SimTicker,
+    client_parser,
+    followed_model,
+    number,
+    run_client,
+)
 from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
@@ -57,7 +75,7 @@ class PoseWatch:
 
     def __init__(self, node: Node, model: str) -> None:
         self.model = model
-        self._poses = Recent(node, f"model/{model}/pose", POSE_STAMPED, POSE_TIMEOUT_S)
+        self._poses = Recent(node, f"/model/{model}/pose", POSE_STAMPED, POSE_TIMEOUT_S)  # the world's ground truth
 
     def pose(self, now: float | None) -> Planar | None:
         """(x, y, yaw), or None when none is stamped within POSE_TIMEOUT_S of sim time before `now`."""
@@ -135,7 +153,7 @@ class Docking:
 def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys at once, a check every period, the joint's state as it changes."""
     clock = SimClock(node)
-    robot, trolley = PoseWatch(node, args.robot), PoseWatch(node, args.trolley)
+    robot, trolley = PoseWatch(node, args.robot or followed_model(args.robot_namespace)), PoseWatch(node, args.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)
     docking = Docking(
@@ -179,7 +197,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     positive = number(float)
     parser.add_argument(
-        "--robot", default="flexley_tug", metavar="MODEL", help="the robot's model name (default flexley_tug)"
+        "--robot",
+        metavar="MODEL",
+        help="the robot's model name (default: the last segment of --robot-namespace, else flexley_tug)",
     )
     parser.add_argument(
         "--trolley", default="trolley", metavar="MODEL", help="the trolley's model name (default trolley)"

@@ -12,6 +12,12 @@ What it shows, and where from:
 - the server's cameras, from the world state's sensor figures (size, rate per sim second,
   skipped frames): images are never subscribed to, since a subscriber makes the server render.
 
+With `--robot-namespace tug_2` it shows one robot of a fleet: that robot's keys, named relative to
+its namespace as its nodes see them (`lidar_front` for `tug_2/lidar_front`), the world's clock
+and the robot's ground truth (`/clock`, `/model/tug_2/pose`: absolute names, at the bus's
+namespace), and the cameras of its model (`tug_2/...` in the world state); the other robots'
+keys and cameras are left out.
+
 Drawn in place with ANSI escapes on a terminal; elsewhere (a pipe, `simbot launch`) each refresh
 is a block of lines followed by a blank line. SIGINT / SIGTERM end it with code 0.
 """
@@ -30,8 +36,8 @@ import numpy as np
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
 
-from .common import Mailbox, client_parser, number, run_client
-from .topics import Traffic, format_rate, latched, live_topics, world_names
+from .common import Mailbox, client_parser, followed_model, number, run_client
+from .topics import Topic, Traffic, format_rate, latched, live_topics, world_names
 
 REFRESH_S = 1.0
 RATE_HORIZON_S = 3.0
@@ -142,12 +148,25 @@ def state_line(world: str | None, state: Mapping[str, Any] | None) -> str:
 # --- the monitor ----------------------------------------------------------------------------
 
 
+def followed_topics(topics: Mapping[str, Topic], robot_namespace: str, model: str) -> dict[str, Topic]:
+    """The topics to show, by the name shown: all of them; in a robot's namespace, the robot's (named
+    relative to it) and the world's clock and the robot's ground truth (named absolute)."""
+    if not robot_namespace:
+        return dict(topics)
+    prefix = robot_namespace.strip("/") + "/"
+    world = {"clock", f"model/{model}/pose"}
+    shown = {name.removeprefix(prefix): topic for name, topic in topics.items() if name.startswith(prefix)}
+    return shown | {f"/{name}": topic for name, topic in topics.items() if name in world}
+
+
 class Monitor:
     """Subscriptions to every summarisable key, their latest messages and rates, and the table."""
 
     def __init__(self, node: Node, world: str | None) -> None:
         self.node = node
         self.world = world
+        self.model = followed_model(node.robot_namespace, default="")
+        """The followed robot's model; empty: none followed, every model's cameras are shown."""
         self.traffic = Traffic(RATE_HORIZON_S)
         self.types: dict[str, str] = {}
         self.inboxes: dict[str, Mailbox[Any]] = {}
@@ -162,14 +181,18 @@ class Monitor:
         topics = live_topics(self.node)
         if self.world is None:
             self.world = next(iter(world_names(topics.values())), None)
-        new = [
-            t for name, t in topics.items() if name not in self.types and "pub" in t.kinds and t.typename in SUMMARIES
-        ]
-        held = latched(self.node.session, [topic.key for topic in new])
-        for topic in new:
+        shown = followed_topics(topics, self.node.robot_namespace, self.model)
+        new = {
+            name: t
+            for name, t in shown.items()
+            if name not in self.types and "pub" in t.kinds and t.typename in SUMMARIES
+        }
+        held = latched(self.node.session, [topic.key for topic in new.values()])
+        for name, topic in new.items():
             inbox: Mailbox[Any] = Mailbox(1)
-            self.types[topic.name], self.inboxes[topic.name] = topic.typename, inbox
-            self.node.subscribe(topic.name, topic.typename, self._arrival(topic.name, inbox), latched=topic.key in held)
+            self.types[name], self.inboxes[name] = topic.typename, inbox
+            # by its name at the bus's namespace: the same key whatever robot is followed
+            self.node.subscribe(f"/{topic.name}", topic.typename, self._arrival(name, inbox), latched=topic.key in held)
 
     def _arrival(self, name: str, inbox: Mailbox[Any]) -> Callable[[Any], None]:
         def arrived(msg: Any) -> None:  # Zenoh thread: count and keep the newest
@@ -199,7 +222,7 @@ class Monitor:
         ]
         sensors: Mapping[str, Any] = (state or {}).get("sensors", {})
         for name, figures in sensors.items():
-            if "size" in figures:
+            if "size" in figures and (not self.model or name.startswith(f"{self.model}/")):
                 rows.append((name, f"{figures.get('rate_hz', 0.0):.1f} Hz", camera_text(figures)))
         return rows
 

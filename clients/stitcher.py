@@ -249,9 +249,10 @@ class StripStitcher:
 
 
 class CylinderStitcher:
-    """Every camera reprojected onto a cylinder of `radius` about base_link's z axis, unrolled."""
+    """Every camera reprojected onto a cylinder of `radius` about base_link's z axis, unrolled; the
+    panorama is stamped in `frame`, that base_link's id (`tug_2/base_link` for a robot in namespace tug_2)."""
 
-    def __init__(self, cameras: Mapping[str, CameraModel], radius: float) -> None:
+    def __init__(self, cameras: Mapping[str, CameraModel], radius: float, frame: str = BASE_FRAME) -> None:
         if not (radius > 0 and math.isfinite(radius)):
             raise ValueError(f"radius must be a positive number of metres, not {radius}")
         self.cameras = dict(cameras)
@@ -260,7 +261,7 @@ class CylinderStitcher:
         self.width, self.height = WIDTH_PER_CAMERA * self.tiles.width, self.tiles.height
         f = self.width / (2 * math.pi)
         centre_z = float(np.mean([c.matrix()[2, 3] for c in self.cameras.values()]))
-        self.info = PanoramaInfo(BASE_FRAME, f, f, (self.width - 1) / 2, (self.height - 1) / 2 + f * centre_z / radius)
+        self.info = PanoramaInfo(frame, f, f, (self.width - 1) / 2, (self.height - 1) / 2 + f * centre_z / radius)
         self._tables: OrderedDict[frozenset[str], tuple[npt.NDArray[Any], npt.NDArray[Any]]] = OrderedDict()
         self._out: Pixels = np.zeros((self.height, self.width, 3), dtype=np.uint8)
 
@@ -376,7 +377,8 @@ class StitcherNode:
             except ValueError as exc:
                 pose, reason = None, str(exc)
             else:
-                reason = f"no transform from {intrinsics.frame_id!r} to {BASE_FRAME!r} on tf_static (yet)"
+                target = self._tf.target_of(intrinsics.frame_id)
+                reason = f"no transform from {intrinsics.frame_id!r} to {target!r} on tf_static (yet)"
             if pose is None:
                 self._warnings.warn(name, f"left out of the panorama: {reason}")
                 continue
@@ -389,7 +391,8 @@ class StitcherNode:
         if self.layout == "cylindrical":
             models = self._cylinder_cameras()
             if models and models != current:
-                self._stitcher = CylinderStitcher(models, self.radius)
+                frame = self._tf.target_of(next(iter(models.values())).intrinsics.frame_id)  # the cameras' robot's
+                self._stitcher = CylinderStitcher(models, self.radius, frame)
         elif self._intrinsics and self._intrinsics != current:
             self._stitcher = StripStitcher(self._intrinsics)
         if self._stitcher is not None and self._stitcher.cameras is not current:

@@ -118,14 +118,22 @@ def _sees(name: str, azimuth: float) -> bool:
     return forward > 0 and abs(left) / forward <= (WIDTH / 2) / FX
 
 
-def _run(
-    sim: SimServer, *args: str, count: int = 3, each_chunk: Callable[[float], None] | None = None
+def run_stitcher(
+    sim: SimServer,
+    *args: str,
+    count: int = 3,
+    each_chunk: Callable[[float], None] | None = None,
+    robot: str = "",
+    frame_steps: int = FRAME_STEPS,
 ) -> tuple[list[Any], list[Any], str]:
-    """Runs the stitcher, stepping one camera period at a time until `count` panoramas (and camera_infos)
-    came out; (images, camera_infos, the stitcher's stderr)."""
-    images, infos = sim.subscribe("camera_360/image_raw", IMAGE), sim.subscribe("camera_360/camera_info", CAMERA_INFO)
+    """Runs the stitcher (following `robot`'s namespace, if given), stepping `frame_steps` (a camera
+    period) at a time until `count` panoramas (and camera_infos) came out; (images, camera_infos, the
+    stitcher's stderr)."""
+    out = f"{robot}/camera_360" if robot else "camera_360"
+    images, infos = sim.subscribe(f"{out}/image_raw", IMAGE), sim.subscribe(f"{out}/camera_info", CAMERA_INFO)
+    follow = ("--robot-namespace", robot) if robot else ()
     try:
-        with client_process(sim, "stitcher", *args) as stitcher:
+        with client_process(sim, "stitcher", *follow, *args) as stitcher:
             deadline = time.monotonic() + OUTPUT_TIMEOUT_S
             while len(images) < count or len(infos) < count:
                 assert stitcher.alive(), f"the stitcher exited: {stitcher.stderr()[-2000:]}"
@@ -133,7 +141,7 @@ def _run(
                     raise AssertionError(
                         f"{len(images)} panoramas in {OUTPUT_TIMEOUT_S} s: {stitcher.stderr()[-2000:]}"
                     )
-                sim_time = sim.step(FRAME_STEPS)["sim_time"]
+                sim_time = sim.step(frame_steps)["sim_time"]
                 if each_chunk is not None:
                     each_chunk(sim_time)
                 before, wait_end = len(images), time.monotonic() + 0.3  # the stitcher runs on wall time
@@ -146,12 +154,12 @@ def _run(
         sim.unsubscribe_all()
 
 
-def _info_of(image: Any, infos: list[Any]) -> Any:
+def info_of(image: Any, infos: list[Any]) -> Any:
     """The camera_info published with `image` (the same stamp)."""
     return next(i for i in infos if messages.stamp_ns(i.header) == messages.stamp_ns(image.header))
 
 
-def _check_info(image: Any, info: Any, frame: str, k: tuple[float, float, float, float]) -> None:
+def check_info(image: Any, info: Any, frame: str, k: tuple[float, float, float, float]) -> None:
     assert (info.width, info.height) == (image.width, image.height)
     assert info.header.frame_id == image.header.frame_id == frame
     assert messages.stamp_ns(info.header) == messages.stamp_ns(image.header)
@@ -161,10 +169,10 @@ def _check_info(image: Any, info: Any, frame: str, k: tuple[float, float, float,
 
 def test_strip_is_the_six_images_side_by_side(sim: SimServer) -> None:
     raw = {name: sim.subscribe(name, IMAGE) for name in CAMERAS}  # the scene is static: every frame is the same
-    images, infos, _ = _run(sim, "--layout", "strip")
-    panorama, info = images[-1], _info_of(images[-1], infos)
+    images, infos, _ = run_stitcher(sim, "--layout", "strip")
+    panorama, info = images[-1], info_of(images[-1], infos)
     assert (panorama.width, panorama.height, panorama.encoding) == (6 * WIDTH, HEIGHT, "rgb8")
-    _check_info(panorama, info, "camera_front_optical_frame", (FX, FX, CX, CY))
+    check_info(panorama, info, "camera_front_optical_frame", (FX, FX, CX, CY))
     pixels = messages.image_pixels(panorama)
     tiles = {name: pixels[:, i * WIDTH : (i + 1) * WIDTH] for i, name in enumerate(CAMERAS)}
     for name, tile in tiles.items():
@@ -197,12 +205,12 @@ def test_cylinder_lines_the_pole_up_from_both_cameras(sim: SimServer) -> None:
     raw = {name: sim.subscribe(name, IMAGE) for name in CAMERAS}
     raw_infos = {name: sim.subscribe(f"{name}/camera_info", CAMERA_INFO) for name in CAMERAS}
     tf = sim.subscribe("tf_static", TF_MESSAGE, latched=True)
-    images, infos, _ = _run(sim, "--layout", "cylindrical", "--radius", str(RADIUS))
-    panorama, info = images[-1], _info_of(images[-1], infos)
+    images, infos, _ = run_stitcher(sim, "--layout", "cylindrical", "--radius", str(RADIUS))
+    panorama, info = images[-1], info_of(images[-1], infos)
     width, height = 3 * WIDTH, HEIGHT
     f = width / (2 * math.pi)
     assert (panorama.width, panorama.height, panorama.encoding) == (width, height, "rgb8")
-    _check_info(panorama, info, "base_link", (f, f, (width - 1) / 2, (height - 1) / 2 + f * CAMERA_Z / RADIUS))
+    check_info(panorama, info, "base_link", (f, f, (width - 1) / 2, (height - 1) / 2 + f * CAMERA_Z / RADIUS))
     expected_column = (width - 1) / 2 - f * POLE_AZIMUTH
 
     # each camera alone, reprojected by the stitcher's own class from what the server published
@@ -253,7 +261,7 @@ def test_a_camera_missing_or_garbage_leaves_its_sector_black(tmp_path: Path) -> 
             image = messages.image(round(sim_time * 1e9), "camera_back_optical_frame", garbage)
             server.publisher("camera_back").put(dataclasses.replace(image, encoding="32FC1"))
 
-        images, infos, stderr = _run(server, count=4, each_chunk=feed)
+        images, infos, stderr = run_stitcher(server, count=4, each_chunk=feed)
     panorama = images[-1]
     assert (panorama.width, panorama.height) == (3 * WIDTH, HEIGHT) and len(infos) >= 4
     width = 3 * WIDTH

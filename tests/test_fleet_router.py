@@ -5,6 +5,12 @@ The router is a Python Zenoh session in router mode in a subprocess (the eclipse
 ships no `zenohd`), configured by `docker/zenoh-router.json5` with only its endpoints replaced:
 it listens on a fresh port and connects to both servers' ports. A client that connects to the
 router alone receives both servers' `clock` and `odom` and calls both worlds' control.
+
+Having had a router connected does not slow a server's exit: SIGTERM to exit took 0.2–0.6 s here
+(0.6–1.6 s under two busy loops on this 2-core machine), of which the server's own closing
+(systems, physics, 34 undeclares and the Zenoh session) is 10–25 ms and the rest is the Python
+interpreter's finalisation of its modules (about 0.13 s unloaded); so the 2 s of every server
+test holds.
 """
 
 from __future__ import annotations
@@ -25,10 +31,6 @@ from server_helpers import Collector, SimServer, keyed_payload, raw_samples, run
 from simbot.bus import BusOptions, Node
 
 ROUTER_CONFIG = REPO / "docker" / "zenoh-router.json5"
-ROUTED_EXIT_TIMEOUT_S = 10.0
-"""A server that has had a router connected closes its Zenoh session more slowly: under two busy
-loops on this 2-core machine it exited in 2.7–4.4 s of SIGTERM, against 1.6–1.8 s never routed
-(the 2 s the other server tests allow); still a clean exit, code 0."""
 ROUTER = """
 import sys, zenoh
 config = zenoh.Config.from_file(sys.argv[1])
@@ -88,8 +90,8 @@ def test_a_client_of_the_router_sees_both_servers() -> None:
                 for server in servers:
                     state = node.call(f"{server.namespace}/world/{server.world}/state", {}, timeout=5.0)
                     assert state["ok"] and state["sim_time"] > 0, state
-        for server in (site_b, site_a):
-            server.stop(timeout=ROUTED_EXIT_TIMEOUT_S)
+        exits = [server.stop() for server in (site_b, site_a)]  # within the 2 s every server test allows
+    print(f"\nrouted servers exited in {', '.join(f'{s:.2f}' for s in exits)} s of SIGTERM")
 
 
 def test_the_fleet_compose_file_joins_its_servers_through_the_router_config() -> None:

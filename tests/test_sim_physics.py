@@ -9,9 +9,10 @@ import numpy as np
 import pybullet as pb
 import pytest
 from conftest import ROBOT_SDF, TROLLEY_SDF
+from test_sim_shapes import CONTACT_SLOP, FIXTURES
 
 from simbot.description import load_model, load_world
-from simbot.description.model import Box, Collision, Link, Model
+from simbot.description.model import Box, Collision, Inertial, Link, Model, Sphere
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.rotations import yaw_of
@@ -174,3 +175,26 @@ def test_attach_holds_the_relative_pose_and_detach_frees(physics: Physics) -> No
         "then stands while the robot drives on"
     )
     assert physics.model_pose("flexley_tug")[0][0] > trolley1[0] + 1.0
+
+
+def test_a_removed_heightmap_leaves_nothing_to_land_on() -> None:
+    """The terrain's heightfield (a PyBullet body of its own) goes with its model: a ball dropped from
+    3 m where the surface stood at 1.92 m (tests/test_sim_shapes.py) falls through to the floor and
+    rests on it at its radius, and the world holds as many bodies as before the terrain came."""
+    world = load_world(asset("worlds/empty.sdf"))
+    sim = Physics(world)
+    for model in world.models:
+        sim.add_model(model)
+    bodies = pb.getNumBodies(physicsClientId=sim.client)
+    sim.add_model(load_world(FIXTURES / "heightmap.sdf").model("terrain"))
+    sim.remove_model("terrain")
+    left = pb.getNumBodies(physicsClientId=sim.client)
+    radius = 0.1
+    ball = Link("ball", inertial=Inertial(1.0), collisions=(Collision("c", Sphere(radius)),))
+    sim.add_model(Model("ball", links=(ball,)), pose=Pose((1.0, 2.0, 3.0)))
+    _run(sim, 1.5)  # a fall of 2.9 m takes 0.77 s
+    (x, y, z), _ = sim.model_pose("ball")
+    sim.close()
+    assert z == pytest.approx(radius, abs=CONTACT_SLOP)
+    assert (x, y) == pytest.approx((1.0, 2.0), abs=1e-6)
+    assert left == bodies

@@ -140,7 +140,8 @@ class Physics:
     those sensors read one link's contacts or one fixed joint's wrench."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
-    constraints: set[int] = field(default_factory=set)
+    constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
+    """Joints made by `attach`: each one's (parent model, child model)."""
     _wheels: list[WheelFriction] = field(default_factory=list)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     read_only: bool = False
@@ -151,6 +152,8 @@ class Physics:
     _free_ray_groups: Iterator[int] = field(default_factory=ray_groups)
     _returned_ray_groups: list[int] = field(default_factory=list)
     """Groups of removed models, handed out again first (lowest first: the same world, the same groups)."""
+    _heightfields: dict[str, list[int]] = field(default_factory=dict)
+    """The heightfield bodies of each model's heightmaps (PyBullet bodies apart from the model's)."""
     _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
 
     def __post_init__(self) -> None:
@@ -212,10 +215,7 @@ class Physics:
         self._configure_friction(body)
         self._undamp(body)
         self._configure_castors(body, castors)
-        for link in model.links:
-            for collision in link.collisions:
-                if isinstance(collision.geometry, Heightmap):
-                    self._add_heightfield(model, link, collision, collision.geometry, frame)
+        self._add_heightfields(name, model, frame)
         return body
 
     @_changes_world
@@ -231,12 +231,23 @@ class Physics:
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
             if (group := self._ray_groups.pop(part, None)) is not None:
                 self._returned_ray_groups = sorted([*self._returned_ray_groups, group])
+            for heightfield in self._heightfields.pop(part, []):
+                pb.removeBody(heightfield, physicsClientId=self.client)
             pb.removeBody(body.id, physicsClientId=self.client)
         return names
 
+    def _add_heightfields(self, name: str, model: Model, frame: Transform) -> None:
+        """The heightmaps of a tree's collisions, each a body of its own, kept under `name` so that they leave with it."""
+        for link in model.links:
+            for collision in link.collisions:
+                if isinstance(collision.geometry, Heightmap):
+                    body = self._add_heightfield(model, link, collision, collision.geometry, frame)
+                    if body is not None:
+                        self._heightfields.setdefault(name, []).append(body)
+
     def _add_heightfield(
         self, model: Model, link: Link, collision: Collision, heightmap: Heightmap, frame: Transform
-    ) -> None:
+    ) -> int | None:
         """A heightmap's collision as a PyBullet heightfield fixed in the world, URDF having none;
         only in a static model, as Gazebo has it (the URDF carries the heightmap's visual)."""
         if not model.static:
@@ -245,7 +256,7 @@ class Physics:
                 model.name,
                 collision.name,
             )
-            return
+            return None
         heights = heightmap_heights(heightmap, model.source)
         rows, cols = heights.shape
         shape = pb.createCollisionShape(
@@ -265,6 +276,7 @@ class Physics:
         body = pb.createMultiBody(0.0, shape, -1, *pose, physicsClientId=self.client)
         mu = collision.friction.mu if collision.friction else SDF_DEFAULT_MU
         pb.changeDynamics(body, -1, lateralFriction=mu, physicsClientId=self.client)
+        return int(body)
 
     def _index(self, name: str, model: Model, body_id: int, root: str, urdf: str, hosts: dict[str, str]) -> Body:
         """The body's names: PyBullet's links and joints, then each merged link at its host's index."""
@@ -634,8 +646,12 @@ class Physics:
             physicsClientId=self.client,
         )  # fmt: skip
         pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
-        self.constraints.add(cid)
+        self.constraints[cid] = (parent[0], child[0])
         return cid
+
+    def holder(self, model: str) -> str | None:
+        """The model that a joint made by `attach` fixes `model` to, if one does (a fleet shares a trolley)."""
+        return next((parent for parent, child in self.constraints.values() if child == model), None)
 
     def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
         """(body id, link index, the link's centre-of-mass frame in the world): PyBullet constrains those."""
@@ -653,8 +669,7 @@ class Physics:
     @_changes_world
     def detach(self, constraint: int) -> None:
         """Removes a joint made by `attach`."""
-        if constraint in self.constraints:
-            self.constraints.remove(constraint)
+        if self.constraints.pop(constraint, None) is not None:
             pb.removeConstraint(constraint, physicsClientId=self.client)
 
 

@@ -9,7 +9,8 @@
 | `output_topic` | `model/<child_model>/detachable_joint/state` (`attached` / `detached`, on change and to late joiners) |
 
 The default keys are Gazebo Sim's. Unlike Gazebo's, it starts detached: the tug must drive under
-the trolley first.
+the trolley first. In a fleet every tug's joint names the one `trolley`: a trolley that one robot
+holds is refused to the others (a warning; the state stays `detached`) until it is detached.
 """
 
 from __future__ import annotations
@@ -63,6 +64,10 @@ class DetachableJoint:
             self._do_detach()
 
     def _do_attach(self) -> None:
+        holder = self._physics.holder(self._child[0])
+        if holder is not None:  # another robot of the fleet pulls it: one joint at a time
+            log.warning("cannot attach: %s is attached to %s", self._child[0], holder)
+            return
         try:
             self._joint = self._physics.attach(self._parent, self._child)
         except KeyError as exc:
