@@ -55,6 +55,7 @@ from bench_server import bare_loop, free_port
 from timing import per_call_ms
 
 from simbot.bus import BusOptions, Node, messages
+from simbot.description import load_model
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
@@ -71,14 +72,8 @@ from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
 log = logging.getLogger("bench_sensors")
 
 WORLD = "warehouse"
-CAMERAS = (
-    "camera_front",
-    "camera_back",
-    "camera_front_right",
-    "camera_back_right",
-    "camera_front_left",
-    "camera_back_left",
-)
+CAMERAS = tuple(s.name for _, s in load_model(asset("urdf/flexley_tug.sdf")).sensors() if s.type == "camera")
+"""The tug's six cameras, read from its SDF (each publishes on its own name)."""
 LIDARS = ("lidar_front", "lidar_back")
 IMU = "imu_scan"
 CAMERA_TARGET_HZ = 30.0
