@@ -124,6 +124,11 @@ class Body:
     held: frozenset[str] = frozenset()
     """Joints that move in `urdf` but that PyBullet holds fixed (ball castors): they read 0."""
 
+    @property
+    def indices(self) -> list[int]:
+        """PyBullet's link indices of the body, each once (merged links share their host's), in order."""
+        return sorted(set(self.links.values()))
+
 
 @dataclass
 class Physics:
@@ -339,9 +344,7 @@ class Physics:
 
     def _soften_tyres(self, body: Body, wheels: list[Wheel]) -> None:
         """Tyre compliance, critically damped for each wheel's share of the body's mass."""
-        mass = sum(
-            pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in sorted(set(body.links.values()))
-        )
+        mass = sum(pb.getDynamicsInfo(body.id, i, physicsClientId=self.client)[0] for i in body.indices)
         damping = 2.0 * math.sqrt(TYRE_STIFFNESS * mass / len(wheels))
         for wheel in wheels:
             pb.changeDynamics(
@@ -475,7 +478,7 @@ class Physics:
             group = self._returned_ray_groups.pop(0) if self._returned_ray_groups else next(self._free_ray_groups, None)
             if group is None:
                 raise ValueError(f"model {model!r}: more robots carry ray sensors than there are ray groups")
-            for index in sorted(set(body.links.values())):  # in index order: Bullet re-adds the proxies in it
+            for index in body.indices:  # in index order: Bullet re-adds the proxies in it
                 pb.setCollisionFilterGroupMask(body.id, index, group, -1, physicsClientId=self.client)
             self._ray_groups[model] = group
         return group
@@ -771,7 +774,7 @@ def _moving_joints(urdf: str) -> tuple[str, ...]:
 
 def _with_fixed_joints(urdf: str, joints: frozenset[str]) -> str:
     """The URDF with the parts of `joints` (a ball joint's are JOINT__yaw, ...) made fixed; links
-    and joints keep their order, so their PyBullet indices stay those of the published URDF."""
+    and joints keep their names (`Body.held` tells which moving joints PyBullet holds)."""
     if not joints:
         return urdf
     root = ET.fromstring(urdf)
