@@ -64,10 +64,10 @@ from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
-from simbot.sim.system import SensorSettings
 from simbot.sim.systems.camera import Camera, CameraParams
 from simbot.sim.systems.imu import Imu
 from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
+from simbot.sim.systems.rendering import Rendering
 
 log = logging.getLogger("bench_sensors")
 
@@ -242,7 +242,7 @@ def in_process_server() -> Iterator[tuple[Server, Node]]:
         world_path(WORLD),
         asset("urdf/flexley_tug.sdf"),
         mode=Mode.LOCKSTEP,
-        sensors=SensorSettings(camera_size=(640, 480)),
+        overrides={"camera.size": (640, 480)},
     )
     with Node(BusOptions(listen=(endpoint,), namespace=namespace), "server") as node:
         server = Server(config, node)
@@ -301,20 +301,22 @@ def imu_costs(server: Server, costs: Costs, repeats: int) -> None:
 def camera_costs(server: Server, costs: Costs, rounds: int) -> None:
     """Each camera through the real pool: the server's request (pose, body states, pipe), the
     worker's render (Frame.render_s), and the server's encode + publish (Camera.publish)."""
-    physics, cameras, rendering = server.physics, systems_of(server, Camera), server.rendering
+    physics, cameras, rendering = server.physics, systems_of(server, Camera), systems_of(server, Rendering)[0]
     if not rendering._ready() or rendering.pool is None:
-        raise RuntimeError(f"render pool did not start: {rendering.failure}")
+        raise RuntimeError(f"render pool did not start: {rendering.status.failure}")
     pool = rendering.pool
     costs.renderer, costs.fallback = pool.renderer_used, pool.fallback_reason
     request, render, publish, trip = [], [], [], []
     for n in range(rounds + 1):
         for cam in cameras:
-            now = server.sim.clock.now_ns + n * len(cameras) + cam.index  # a fresh snapshot each time
+            now = (
+                server.sim.clock.now_ns + n * len(cameras) + rendering.cameras.index(cam)
+            )  # a fresh snapshot each time
             start = time.perf_counter()
             states = {name: BodyState(*physics.body_state(name)) for name in physics.moving_bodies()}
-            pool.request(cam.index, now, physics.frame_pose(*cam.where), states)
+            pool.request(rendering.cameras.index(cam), now, physics.frame_pose(*cam.where), states)
             requested = time.perf_counter()
-            (frame,) = pool.collect(wait_for=cam.index, timeout=FIRST_FRAME_TIMEOUT_S)
+            (frame,) = pool.collect(wait_for=rendering.cameras.index(cam), timeout=FIRST_FRAME_TIMEOUT_S)
             collected = time.perf_counter()
             cam.publish(frame)
             published = time.perf_counter()
@@ -335,7 +337,7 @@ def measure_in_process(seconds: float) -> Costs:
     with in_process_server() as (server, client):
         count_topics(client, [*CAMERAS, *LIDARS, IMU])  # the bytes really leave, as they do for a subscriber
         time.sleep(0.5)
-        light = server.rendering.light
+        light = systems_of(server, Rendering)[0].light
         for size in ((640, 480), (320, 240)):
             views = robot_views(server.physics, size)
             costs.tiny_fps[size], costs.tiny_cpu_fps[size] = bare_render_fps(

@@ -27,10 +27,10 @@ import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
+from simbot.sim.naming import scoped_rng
 from simbot.sim.registry import GROUP, SENSOR_GROUP
 from simbot.sim.server import Server, ServerConfig
 from simbot.sim.simulation import Mode
-from simbot.sim.system import SensorSettings, scoped_rng
 
 FLUSH = "conformance_flush"
 """A key no system uses, put after the last step: its arrival means the run's messages have all arrived."""
@@ -310,7 +310,7 @@ def _config(tmp: Path, case: Case, seed: int) -> ServerConfig:
     world, robot = tmp / "world.sdf", tmp / "robot.sdf"
     world.write_text(WORLD.format(world_plugins=case.world_plugins))
     robot.write_text(ROBOT.format(plugins=case.plugins, sensors=case.sensors))
-    return ServerConfig(world, robot, (0.0, 0.0, 0.0, 0.0), Mode.LOCKSTEP, seed, SensorSettings(render_workers=1))
+    return ServerConfig(world, robot, (0.0, 0.0, 0.0, 0.0), Mode.LOCKSTEP, seed, {"rendering.workers": 1})
 
 
 def _command(server: Server, node: Node, topic: str, message: Any) -> None:

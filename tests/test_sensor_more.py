@@ -46,7 +46,7 @@ from simbot.description.poses import Pose
 from simbot.sim.physics import pose_to_transform
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig
 from simbot.sim.simulation import Mode
-from simbot.sim.system import SensorSettings, SystemConfigError
+from simbot.sim.system import SystemConfigError
 
 G = 9.8
 STEP_NS = 1_000_000
@@ -162,7 +162,7 @@ def probe(
     world_file, robot_file = tmp / "world.sdf", tmp / "probe.sdf"
     world_file.write_text(WORLD.format(world=world))
     robot_file.write_text(PROBE.format(static=str(static).lower(), mass=mass, sensors=sensors, extra=extra))
-    config = ServerConfig(world_file, robot_file, spawn, Mode.LOCKSTEP, 0, SensorSettings(render_workers=1))
+    config = ServerConfig(world_file, robot_file, spawn, Mode.LOCKSTEP, 0, {"rendering.workers": 1})
     options = BusOptions(listen=(endpoint(free_port()),), namespace=unique_namespace())
     with Node(options, "server") as node, raw_samples(node.session, f"{node.namespace}/**", keyed_payload) as received:
         server = Server(config, node)

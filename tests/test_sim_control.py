@@ -20,10 +20,10 @@ from simbot.bus import Node
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
+from simbot.sim.bus_view import SimBus
 from simbot.sim.control import MAX_STEPS, CreateRequest, WorldControl
 from simbot.sim.physics import Physics
 from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import SimBus
 
 WORLD = "empty"
 CONTROL, SET_POSE, STATE = (f"world/{WORLD}/{name}" for name in ("control", "set_pose", "state"))
@@ -66,7 +66,7 @@ def world() -> Iterator[Controlled]:
     physics.save_initial_state()
     stop = threading.Event()
     with node_pair() as pair:
-        sim = Simulation(physics, [], Mode.LOCKSTEP)
+        sim = Simulation(physics, Mode.LOCKSTEP)
         control = WorldControl(pair.server, WORLD, sim, SimBus(pair.server), BareWorld(sim))
         loop = threading.Thread(target=sim.run, args=(stop, control.poll), daemon=True)
         loop.start()

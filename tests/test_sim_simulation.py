@@ -20,8 +20,9 @@ from simbot.description.model import Box, Collision, Inertial, Link, Model, Para
 from simbot.description.model import World as SdfWorld
 from simbot.description.poses import Pose
 from simbot.sim.physics import Physics, PhysicsReadOnly
-from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, plugin_priority
+from simbot.sim.plugin_params import plugin_priority
+from simbot.sim.simulation import Mode, Scheduled, Simulation
+from simbot.sim.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 
 STEP_NS = 1_000_000
 Calls = list[tuple[str, ...]]
@@ -75,6 +76,11 @@ class Both(PreOnly, PostOnly):
         self.calls.append(("reset", self.name, str(info.sim_time_ns)))
 
 
+def in_loop(systems: list[Any]) -> list[Scheduled]:
+    """Systems as the world schedules them: at their class's priority."""
+    return [Scheduled(system, priority(system)) for system in systems]
+
+
 @dataclass
 class World:
     calls: Calls = field(default_factory=list)
@@ -87,7 +93,7 @@ class World:
             PostOnly("c", self.calls),
             Both("d", self.calls),
         ]
-        self.sim = Simulation(cast(Physics, StandInPhysics(self.calls)), systems, Mode.LOCKSTEP)
+        self.sim = Simulation(cast(Physics, StandInPhysics(self.calls)), Mode.LOCKSTEP, in_loop(systems))
 
 
 def test_a_step_runs_pre_update_physics_post_update_in_system_order() -> None:
@@ -149,7 +155,7 @@ class Recorder:
 def test_every_phase_of_a_step_gets_one_update_record() -> None:
     """Sim time reached, step size, iterations, and paused when world control steps a paused world."""
     recorder, calls = Recorder(), []
-    sim = Simulation(cast(Physics, StandInPhysics(calls)), [recorder], Mode.LOCKSTEP)
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, in_loop([recorder]))
     sim.step()
     sim.set_paused(True)
     sim.step()
@@ -158,7 +164,7 @@ def test_every_phase_of_a_step_gets_one_update_record() -> None:
 
 
 def test_systems_run_by_priority_lower_first_ties_in_given_order() -> None:
-    """A class's priority, or one set on the system (the SDF's <gz:system_priority>), orders each phase."""
+    """A class's priority, or the one the world schedules it with (the SDF's <gz:system_priority>), orders each phase."""
     calls: Calls = []
     late, early, plain, plain2 = (
         Both("late", calls),
@@ -166,8 +172,9 @@ def test_systems_run_by_priority_lower_first_ties_in_given_order() -> None:
         Both("plain", calls),
         PostOnly("plain2", calls),
     )
-    late.priority, early.priority = LAST_PRIORITY, -10  # type: ignore[attr-defined]
-    sim = Simulation(cast(Physics, StandInPhysics(calls)), [late, plain, early, plain2], Mode.LOCKSTEP)
+    early.priority = -10  # type: ignore[attr-defined]
+    scheduled = [Scheduled(late, LAST_PRIORITY), *in_loop([plain, early, plain2])]
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, scheduled)
     sim.step()
     order = [(phase, name) for phase, name, *_ in (c for c in calls if len(c) == 3)]
     assert order == [
@@ -211,7 +218,7 @@ def test_post_update_sees_the_physics_read_only() -> None:
     try:
         physics.add_model(box, "box", Pose((0.0, 0.0, 1.0), (0.0, 0.0, 0.0)))
         meddler = Meddler(physics)
-        sim = Simulation(physics, [meddler], Mode.LOCKSTEP)
+        sim = Simulation(physics, Mode.LOCKSTEP, in_loop([meddler]))
         sim.step()
         assert meddler.refused == ["Physics.set_model_pose: the physics is read-only after the step (post_update)"]
         (_, _, z), _ = physics.model_pose("box")

@@ -3,6 +3,9 @@
 Plugins go through `simbot.systems`, keyed by canonical name; sensors through `simbot.sensors`,
 keyed by the SDF sensor type (`gpu_lidar`, `ray`, `camera`, `imu`, ...).
 
+Two more groups hold the systems that need no `<plugin>`: `simbot.world_systems`, which every
+world gets, and `simbot.robot_systems`, which every described model gets.
+
 Gazebo names one system several ways: `gz::sim::systems::DiffDrive`, `ignition::gazebo::systems::
 DiffDrive`, and the library files `gz-sim-diff-drive-system`, `libignition-gazebo6-diff-drive-
 system.so`. All reduce to one canonical name (`DiffDrive`), which is the entry point's name. simbot
@@ -13,16 +16,20 @@ from __future__ import annotations
 
 import logging
 import re
-from collections.abc import Callable
 from functools import cache
 from importlib.metadata import entry_points
 
 from simbot.description.model import Plugin, Sensor
+from simbot.sim.system import SystemFactory
 
 log = logging.getLogger(__name__)
 
 GROUP = "simbot.systems"
 SENSOR_GROUP = "simbot.sensors"
+WORLD_GROUP = "simbot.world_systems"
+"""Systems every world gets without a `<plugin>` (the clock, ground-truth poses, camera rendering)."""
+ROBOT_GROUP = "simbot.robot_systems"
+"""Systems every described model gets (the robot, a namespaced model): its description and tf."""
 _LIBRARY = re.compile(
     r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$"
 )
@@ -39,7 +46,7 @@ def canonical_name(plugin: Plugin) -> str:
 
 
 @cache
-def registered(group: str = GROUP) -> dict[str, Callable[..., object]]:
+def registered(group: str = GROUP) -> dict[str, SystemFactory]:
     """Name → system class, for every installed entry point of `group`."""
     systems = {}
     for point in entry_points(group=group):
@@ -50,7 +57,13 @@ def registered(group: str = GROUP) -> dict[str, Callable[..., object]]:
     return systems
 
 
-def lookup(plugin: Plugin) -> Callable[..., object] | None:
+def builtin(group: str) -> list[SystemFactory]:
+    """Every system of a built-in group, in the order of their names (a fixed order, whatever installed them)."""
+    systems = registered(group)
+    return [systems[name] for name in sorted(systems)]
+
+
+def lookup(plugin: Plugin) -> SystemFactory | None:
     """The class for `plugin`, or None with a warning naming it."""
     name = canonical_name(plugin)
     system = registered().get(name)
@@ -61,7 +74,7 @@ def lookup(plugin: Plugin) -> Callable[..., object] | None:
     return system
 
 
-def sensor_lookup(sensor: Sensor) -> Callable[..., object] | None:
+def sensor_lookup(sensor: Sensor) -> SystemFactory | None:
     """The class for a `<sensor>` of this type, or None with a warning naming it."""
     system = registered(SENSOR_GROUP).get(sensor.type)
     if system is None:

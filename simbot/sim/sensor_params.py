@@ -21,7 +21,9 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.model import Param, Sensor
-from simbot.sim.system import Sampled, SystemConfigError, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.naming import sensor_frame, sensor_rate
+from simbot.sim.rates import Sampled
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)

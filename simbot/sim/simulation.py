@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from simbot.sim.physics import Physics
-from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable, UpdateInfo, in_order
+from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable, System, UpdateInfo
 
 log = logging.getLogger(__name__)
 
@@ -106,13 +106,21 @@ class StepRequest:
     done: Callable[[], None]
 
 
+@dataclass(frozen=True)
+class Scheduled:
+    """A system in the loop, with its place in each phase (lower first)."""
+
+    system: System
+    priority: int
+
+
 @dataclass
 class Simulation:
     """The world, its systems, and the loop that advances them."""
 
     physics: Physics
-    systems: list[object]
     mode: Mode = Mode.REALTIME
+    scheduled: list[Scheduled] = field(default_factory=list)
     clock: SimClock = field(init=False)
     paused: bool = False
     rtf: RealTimeFactor = field(default_factory=RealTimeFactor)
@@ -125,23 +133,27 @@ class Simulation:
         self.clock = SimClock(round(self.physics.step_size * 1e9))
         self._order()
 
+    @property
+    def systems(self) -> list[System]:
+        """Every system in the loop, by priority, ties in the order they came (a created model's last)."""
+        return [entry.system for entry in sorted(self.scheduled, key=lambda entry: entry.priority)]
+
     def _order(self) -> None:
-        """The per-phase lists, by priority, ties in the order the systems came (a created model's last)."""
-        ordered = in_order(self.systems)
+        """The per-phase lists."""
+        ordered = self.systems
         self._pre = [s for s in ordered if isinstance(s, PreUpdate)]
         self._post = [s for s in ordered if isinstance(s, PostUpdate)]
 
-    def add_systems(self, systems: list[object]) -> None:
-        """A created model's systems join the loop (between steps: world control calls it from `poll`)."""
-        self.systems += systems
+    def add_systems(self, systems: list[Scheduled]) -> None:
+        """Systems join the loop (a created model's between steps: world control calls it from `poll`)."""
+        self.scheduled += systems
         self._order()
 
-    def remove_systems(self, systems: list[object]) -> None:
-        """A removed model's systems leave the loop and let go of what they hold (`close`)."""
+    def remove_systems(self, systems: list[System]) -> None:
+        """A removed model's systems leave the loop; closing them is their owner's business."""
         leaving = {id(s) for s in systems}
-        self.systems = [s for s in self.systems if id(s) not in leaving]
+        self.scheduled = [entry for entry in self.scheduled if id(entry.system) not in leaving]
         self._order()
-        self.close_all(systems)
 
     def step(self) -> None:
         """One step of every system and the physics; `paused` in the record when world control stepped a paused world."""
@@ -171,7 +183,7 @@ class Simulation:
         self.physics.reset()
         self.clock.reset()
         info = self.clock.info(self.paused)
-        for system in in_order(self.systems):
+        for system in self.systems:
             if isinstance(system, Resettable):
                 system.reset(info)
         self._pacer.anchor(0)
@@ -182,7 +194,7 @@ class Simulation:
         self.close_all(self.systems)
 
     @staticmethod
-    def close_all(systems: list[object]) -> None:
+    def close_all(systems: list[System]) -> None:
         for system in systems:
             if isinstance(system, Closable):
                 system.close()

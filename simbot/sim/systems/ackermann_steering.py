@@ -35,8 +35,7 @@ import math
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param
-from simbot.sim.systems.drive import (
+from simbot.sim.drive import (
     DeadReckoning,
     Encoders,
     Limits,
@@ -51,6 +50,8 @@ from simbot.sim.systems.drive import (
     require_joints,
     warn_unsupported,
 )
+from simbot.sim.plugin_params import bool_param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 STRAIGHT = 0.001
 """rad/s of commanded turn below which the car drives straight (Gazebo's threshold)."""
@@ -116,6 +117,8 @@ def bicycle_curvature(left: float, right: float, wheel_base: float) -> float:
 
 class AckermannSteering:
     """Steers and drives a car; publishes its odometry."""
+
+    name = "AckermannSteering"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -11,12 +11,15 @@ the joint's one axis, as Gazebo applies `JointForceCmd[0]`; a reset returns it t
 
 from __future__ import annotations
 
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, scoped_key
-from simbot.sim.systems.drive import check_float, require_joints
+from simbot.sim.drive import check_float, require_joints
+from simbot.sim.naming import scoped_key
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 class ApplyJointForce:
     """Applies the commanded force before every physics step."""
+
+    name = "ApplyJointForce"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

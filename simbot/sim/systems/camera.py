@@ -1,7 +1,8 @@
 """Camera (SDF `camera`): images rendered by the rendering system, stamped with the sim time they show.
 
-The camera registers with the world's one `Rendering` system (simbot/sim/systems/rendering.py),
-which schedules it and renders it in worker processes. This module says what a camera renders
+The world's one `Rendering` system (simbot/sim/systems/rendering.py) finds the camera by its
+`RenderedSensor` contract (simbot/sim/render/contract.py), schedules it and renders it in worker
+processes. This module says what a camera renders
 and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same camera with
 other outputs.
 
@@ -26,6 +27,8 @@ SDF parameters (under `<camera>`; `CameraParams`):
 | `<clip><near>`, `<far>` | 0.1, 100 | metres, 0 < near < far |
 | `<noise>` (`type`, `stddev`) | none | gaussian pixel noise, fraction of full scale |
 | `<update_rate>` (of the `<sensor>`) | 30 | frames per second (`--camera-rate` overrides) |
+
+Command-line parameters (`RunOptions.overrides`): `camera.size` ((width, height)), `camera.rate` (Hz).
 """
 
 from __future__ import annotations
@@ -38,17 +41,13 @@ from typing import Any
 from simbot.bus import Publisher, messages
 from simbot.bus.frames import optical_frame
 from simbot.description.model import Sensor
+from simbot.sim.bus_view import SimBus
+from simbot.sim.naming import sensor_frame, sensor_rate
+from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
+from simbot.sim.render.contract import RenderStatus
 from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import (
-    Sampled,
-    SimBus,
-    SystemConfigError,
-    SystemContext,
-    UpdateInfo,
-    sensor_frame,
-    sensor_rate,
-)
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 CHANNELS = {"R8G8B8": 3, "RGB_INT8": 3, "L8": 1, "L_INT8": 1}
 """SDF image formats simbot renders, by the number of uint8 channels (rgb8, mono8)."""
@@ -123,7 +122,7 @@ class Camera(Sampled):
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
         params = CameraParams.from_sdf(sensor, self.color)
-        width, height = ctx.settings.camera_size or (params.width, params.height)
+        width, height = ctx.override("camera.size") or (params.width, params.height)
         self.spec = CameraSpec(
             sensor.name,
             width,
@@ -137,14 +136,14 @@ class Camera(Sampled):
             noise_stddev=params.noise_stddev,
             seed=int(ctx.rng.integers(2**31)),
         )
-        super().__init__(sensor.name, ctx.settings.camera_rate or sensor_rate(sensor, DEFAULT_RATE_HZ))
+        super().__init__(sensor.name, ctx.override("camera.rate") or sensor_rate(sensor, DEFAULT_RATE_HZ))
         self.where = (model, link.name, sensor.pose)
         self.frame_id = optical_frame(sensor_frame(sensor))
         topic = ctx.sensor_topic(self.kind)
         self.outputs = self.advertise(ctx.bus, topic)
         self._info = ctx.bus.publisher(self.info_key(topic), messages.CameraInfo)
-        self.rendering = ctx.require_rendering()
-        self.index = self.rendering.add(self)
+        self.status = RenderStatus()
+        """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
 
     def advertise(self, bus: SimBus, topic: str) -> list[Output]:
@@ -177,10 +176,10 @@ class Camera(Sampled):
 
     def report(self) -> dict[str, Any]:
         figures = super().report() | {"skipped": self.skipped, "size": [self.spec.width, self.spec.height]}
-        if self.rendering.renderer is not None:
-            figures["renderer"] = self.rendering.renderer
-        if self.rendering.failure is not None:
-            figures["error"] = self.rendering.failure
+        if self.status.renderer is not None:
+            figures["renderer"] = self.status.renderer
+        if self.status.failure is not None:
+            figures["error"] = self.status.failure
         return figures
 
     def reset(self, info: UpdateInfo) -> None:

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import LAST_PRIORITY, Every, SystemContext, UpdateInfo
+from simbot.sim.rates import Every
+from simbot.sim.system import LAST_PRIORITY, SystemContext, UpdateInfo
 
 CLOCK_RATE = 100.0
 """Hz of sim time; SPEC §4 asks for at least 100."""
 
 
 class ClockPublisher:
-    """Built into the server; not from an SDF plugin. It publishes last in a step, so a client that
+    """A world system (built in, no `<plugin>`). It publishes last in a step, so a client that
     sees sim time t has been sent everything stamped t."""
 
+    name = "ClockPublisher"
     priority = LAST_PRIORITY
 
     def __init__(self, ctx: SystemContext) -> None:

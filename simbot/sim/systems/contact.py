@@ -28,9 +28,11 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Link, Sensor
+from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.physics import ContactPoint, Physics
+from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import Sampled, SystemContext, UpdateInfo, sensor_frame, sensor_rate
+from simbot.sim.system import SystemContext, UpdateInfo
 
 DEFAULT_TOPIC = "__default_topic__"
 

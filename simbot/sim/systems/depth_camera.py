@@ -10,7 +10,7 @@ applied to depth.
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import SimBus
+from simbot.sim.bus_view import SimBus
 from simbot.sim.systems.camera import Camera, Output
 
 

@@ -18,7 +18,9 @@ from __future__ import annotations
 import logging
 
 from simbot.bus import messages
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, model_topic, param
+from simbot.sim.naming import model_topic
+from simbot.sim.plugin_params import param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)
 
@@ -27,6 +29,8 @@ EMPTY = "std_msgs/msg/Empty"
 
 class DetachableJoint:
     """Requests are queued by the bus and acted on before the next physics step."""
+
+    name = "DetachableJoint"
 
     def __init__(self, ctx: SystemContext) -> None:
         plugin = ctx.plugin

@@ -30,18 +30,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import (
-    Every,
-    SystemConfigError,
-    SystemContext,
-    UpdateInfo,
-    bool_param,
-    model_topic,
-    number_param,
-    param,
-    scoped_key,
-)
-from simbot.sim.systems.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
+from simbot.sim.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
+from simbot.sim.naming import model_topic, scoped_key
+from simbot.sim.plugin_params import bool_param, number_param, param
+from simbot.sim.rates import Every
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)
@@ -111,6 +104,8 @@ class Odometry:
 
 class DiffDrive:
     """Drives both wheels of each side at v ∓ ω·separation/2 over the radius; publishes odometry."""
+
+    name = "DiffDrive"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -22,9 +22,11 @@ from __future__ import annotations
 
 import math
 
-from simbot.sim.system import SystemContext, UpdateInfo, bool_param, number_param, scoped_key
-from simbot.sim.systems.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
-from simbot.sim.systems.pid import Pid, PidGains
+from simbot.sim.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
+from simbot.sim.naming import scoped_key
+from simbot.sim.pid import Pid, PidGains
+from simbot.sim.plugin_params import bool_param, number_param
+from simbot.sim.system import SystemContext, UpdateInfo
 
 
 class CommandedJoints:
@@ -68,6 +70,8 @@ class CommandedJoints:
 
 class JointController:
     """Holds the commanded velocity on its joints, directly or through a PID on force."""
+
+    name = "JointController"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -19,13 +19,16 @@ as in Gazebo: the joint is driven at the velocity that closes the error in one s
 
 from __future__ import annotations
 
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, bool_param, number_param, param
+from simbot.sim.pid import Pid, PidGains
+from simbot.sim.plugin_params import bool_param, number_param, param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.systems.joint_controller import CommandedJoints
-from simbot.sim.systems.pid import Pid, PidGains
 
 
 class JointPositionController:
     """Drives its joints toward the commanded position, by force (PID) or by velocity."""
+
+    name = "JointPositionController"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

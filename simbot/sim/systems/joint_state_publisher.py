@@ -10,7 +10,10 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, number_param, param, scoped_key
+from simbot.sim.naming import scoped_key
+from simbot.sim.plugin_params import number_param, param
+from simbot.sim.rates import Every
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 DEFAULT_RATE_HZ = 30.0
@@ -19,6 +22,8 @@ DEFAULT_RATE_HZ = 30.0
 
 class JointStatePublisher:
     """Publishes sensor_msgs/JointState at its rate, stamped with sim time."""
+
+    name = "JointStatePublisher"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

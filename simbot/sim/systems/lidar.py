@@ -43,15 +43,10 @@ import numpy.typing as npt
 from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.rotations import quaternion_to_matrix
+from simbot.sim.naming import sensor_frame, sensor_rate
+from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import (
-    Sampled,
-    SystemConfigError,
-    SystemContext,
-    UpdateInfo,
-    sensor_frame,
-    sensor_rate,
-)
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)

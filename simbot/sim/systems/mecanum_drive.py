@@ -28,8 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.system import SystemContext, UpdateInfo
-from simbot.sim.systems.drive import (
+from simbot.sim.drive import (
     DeadReckoning,
     Encoders,
     Limits,
@@ -42,6 +41,7 @@ from simbot.sim.systems.drive import (
     require_joints,
     warn_unsupported,
 )
+from simbot.sim.system import SystemContext, UpdateInfo
 
 CORNERS = ("front_left", "front_right", "back_left", "back_right")
 SIGNS = ((-1.0, -1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0))
@@ -90,6 +90,8 @@ class MecanumParams:
 
 class MecanumDrive:
     """Drives four mecanum wheels; publishes odometry."""
+
+    name = "MecanumDrive"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

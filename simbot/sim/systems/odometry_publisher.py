@@ -29,13 +29,18 @@ import numpy.typing as npt
 from simbot.bus import messages
 from simbot.description.poses import Pose
 from simbot.rotations import quaternion_to_matrix, yaw_of
+from simbot.sim.drive import OdometryOutput, diagonal, vector_param
+from simbot.sim.naming import scoped_key
 from simbot.sim.physics import Transform, compose, pose_to_transform
-from simbot.sim.system import Every, SystemConfigError, SystemContext, UpdateInfo, number_param, param, scoped_key
-from simbot.sim.systems.drive import OdometryOutput, diagonal, vector_param
+from simbot.sim.plugin_params import number_param, param
+from simbot.sim.rates import Every
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 class OdometryPublisher:
     """Publishes the model's ground-truth odometry at its rate."""
+
+    name = "OdometryPublisher"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -4,31 +4,33 @@
 from __future__ import annotations
 
 from simbot.bus import Publisher, messages
-from simbot.sim.system import Every, SystemContext, UpdateInfo, model_topic
+from simbot.sim.naming import model_topic
+from simbot.sim.rates import Every
+from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 
 POSE_RATE = 50.0
 """Hz of sim time: as often as odometry, so the two can be compared sample by sample."""
 
 
 class PosePublisher:
-    """Built into the server for all models that are not static."""
+    """A world system (built in, no `<plugin>`): the poses of every model that is not static, from
+    the step after it enters the world until it leaves."""
+
+    name = "PosePublisher"
 
     def __init__(self, ctx: SystemContext) -> None:
         self._physics = ctx.physics
         self._bus = ctx.bus
         self._pubs: dict[str, Publisher] = {}
-        self.track(list(ctx.physics.bodies))
         self._every = Every.hz(POSE_RATE)
 
-    def track(self, bodies: list[str]) -> None:
-        """Publishes the poses of these bodies (a created model's) from the next step, the static ones aside."""
-        for name in bodies:
+    def model_added(self, event: ModelEvent) -> None:
+        for name in event.bodies:
             if not self._physics.body(name).model.static:
                 self._pubs[name] = self._bus.publisher(model_topic(name, "pose"), messages.PoseStamped)
 
-    def untrack(self, bodies: list[str]) -> None:
-        """A removed model's poses leave the bus."""
-        for name in bodies:
+    def model_removed(self, event: ModelEvent) -> None:
+        for name in event.bodies:
             if (publisher := self._pubs.pop(name, None)) is not None:
                 publisher.close()
 

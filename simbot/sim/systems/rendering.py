@@ -1,7 +1,9 @@
 """Rendering: the one system that renders every camera-type sensor of the world.
 
-Camera sensors (`camera`, `depth_camera`, `rgbd_camera`, and any sensor module that follows the
-`RenderedSensor` contract) register here when they are built; this system owns the render pool
+A world system (built in, no `<plugin>`). Camera sensors (`camera`, `depth_camera`,
+`rgbd_camera`, and any sensor module that follows the `RenderedSensor` contract of
+simbot/sim/render/contract.py) are found among the systems of each model that enters the world
+(`model_added`); this system owns the render pool
 (simbot/sim/render/), started in the background when the first image is wanted, and decides at
 each step which cameras render. The sensors themselves only say what they render (a
 `CameraSpec`), whether anyone wants it, and turn a finished `Frame` into messages. As Gazebo's
@@ -38,41 +40,16 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import Protocol
 
 from simbot.description.model import World
-from simbot.description.poses import Pose
-from simbot.sim.physics import Physics
-from simbot.sim.render import BodyState, CameraSpec, Frame, Light, RenderPool, SceneBody, plan_pool
-from simbot.sim.system import SensorSettings, UpdateInfo
+from simbot.sim.render import BodyState, CameraSpec, Light, RenderPool, SceneBody, plan_pool
+from simbot.sim.render.contract import RenderedSensor, RenderStatus
+from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)
 
 LOCKSTEP_TIMEOUT_S = 120.0
 """How long lockstep waits for one frame before it gives the cameras up as broken."""
-
-
-class RenderedSensor(Protocol):
-    """What a camera-type sensor gives the rendering system."""
-
-    spec: CameraSpec
-    where: tuple[str, str, Pose]
-    """(model, link, pose in the link): where the camera is, looking along its +x with z up."""
-    skipped: int
-
-    def due(self, info: UpdateInfo) -> bool: ...
-
-    def wanted(self) -> bool:
-        """Someone subscribes to an output that needs rendering."""
-        ...
-
-    def publish_info(self, stamp_ns: int) -> None:
-        """camera_info alone, for a tick with no frame to render."""
-        ...
-
-    def publish(self, frame: Frame) -> None:
-        """The frame's messages and its camera_info, under the frame's stamp."""
-        ...
 
 
 def world_light(world: World) -> Light:
@@ -82,17 +59,22 @@ def world_light(world: World) -> Light:
 
 
 class Rendering:
-    """Schedules the cameras and owns their render pool; see the module docstring."""
+    """Schedules the cameras and owns their render pool; see the module docstring.
 
-    name = "rendering"
+    Command-line parameters (`RunOptions.overrides`): `rendering.renderer` (auto | gl | tiny,
+    default auto), `rendering.workers` (render processes; default every core but one)."""
 
-    def __init__(self, physics: Physics, settings: SensorSettings, light: Light) -> None:
-        self.physics = physics
-        self.settings = settings
-        self.light = light
+    name = "Rendering"
+
+    def __init__(self, ctx: SystemContext) -> None:
+        self.physics = ctx.physics
+        self.lockstep = ctx.options.lockstep
+        self.renderer_asked: str = ctx.override("rendering.renderer") or "auto"
+        self.workers: int | None = ctx.override("rendering.workers")
+        self.light = world_light(ctx.world)
+        self.status = RenderStatus()
         self.cameras: list[RenderedSensor] = []
         self.pool: RenderPool | None = None
-        self.failure: str | None = None
         self._starting: threading.Thread | None = None
         self._waiting: set[int] = set()
         self._gone: set[int] = set()
@@ -100,21 +82,20 @@ class Rendering:
         self._changes: list[SceneBody | str] = []
         """Since the pool's snapshot of the world, not yet sent to it: bodies added (a SceneBody) and removed (a name)."""
 
-    def add(self, camera: RenderedSensor) -> int:
-        """Register a camera; its index in the pool (a running pool takes it at once)."""
-        self.cameras.append(camera)
-        self._sync()
-        return len(self.cameras) - 1
-
-    def add_model(self, bodies: list[str]) -> None:
-        """Bodies new in the physics enter the render scenes; call it once the physics holds them."""
+    def model_added(self, event: ModelEvent) -> None:
+        """Its bodies enter the render scenes, then its cameras take the next indices (a running pool
+        takes them at once)."""
         if self._following:
-            self._changes += [self._scene_body(body) for body in bodies]
-            self._sync()
+            self._changes += [self._scene_body(body) for body in event.bodies]
+        for camera in event.systems:
+            if isinstance(camera, RenderedSensor):
+                camera.status = self.status
+                self.cameras.append(camera)
+        self._sync()
 
-    def remove_model(self, name: str, bodies: list[str]) -> None:
-        """The model `name` (its `bodies`) leaves the world: its cameras stop, its bodies leave the
-        scenes. Call it before the physics removes them."""
+    def model_removed(self, event: ModelEvent) -> None:
+        """Its cameras stop, its bodies leave the scenes (before the physics removes them)."""
+        name, bodies = event.name, event.bodies
         for index, camera in enumerate(self.cameras):
             if camera.where[0] in bodies:
                 self._gone.add(index)
@@ -130,7 +111,7 @@ class Rendering:
     @property
     def _following(self) -> bool:
         """A pool has taken (or is taking) its snapshot of the world and works on: it must follow the changes."""
-        return self._starting is not None and self.failure is None
+        return self._starting is not None and self.status.failure is None
 
     def _stop_pool(self) -> None:
         """No camera is left: the pool closes, and the next camera watched starts a fresh one."""
@@ -165,7 +146,7 @@ class Rendering:
         for index, camera in enumerate(self.cameras):
             if index in self._gone or not camera.due(info):
                 continue
-            if camera.wanted() and self.failure is None:
+            if camera.wanted() and self.status.failure is None:
                 camera.skipped += index in self._waiting  # real time: the physics never waits for a frame
                 self._waiting.add(index)
             else:
@@ -178,7 +159,7 @@ class Rendering:
         """Whether the pool takes requests; starts it (in the background) on first call."""
         if self.pool is not None:
             return True
-        if self.failure is not None:
+        if self.status.failure is not None:
             return False
         if self._starting is None:  # the snapshot of the world: what changes after it goes to `_changes`
             bodies = [self._scene_body(name) for name in self.physics.bodies]
@@ -187,25 +168,24 @@ class Rendering:
                 target=self._start, args=(bodies, specs), name="render-pool-start", daemon=True
             )
             self._starting.start()
-        if self.settings.lockstep:
+        if self.lockstep:
             self._starting.join()
         return self.pool is not None
 
     def _start(self, bodies: list[SceneBody], specs: list[CameraSpec]) -> None:
         """Runs in a thread (PyBullet is not touched here): spawning workers and loading the scene
         takes seconds the loop must not wait."""
-        plan = plan_pool(len(specs), self.settings.render_workers)
+        plan = plan_pool(len(specs), self.workers)
         try:
-            pool = RenderPool(
-                bodies, specs, plan.workers, self.settings.renderer, self.light, gl_threads=plan.gl_threads
-            )
+            pool = RenderPool(bodies, specs, plan.workers, self.renderer_asked, self.light, gl_threads=plan.gl_threads)
         except (OSError, RuntimeError, ValueError) as exc:
-            self.failure = f"the camera render workers did not start: {exc}"
-            log.error("%s; no images will be published", self.failure)
+            self.status.failure = f"the camera render workers did not start: {exc}"
+            log.error("%s; no images will be published", self.status.failure)
             return
         if pool.fallback_reason:
             log.warning("cameras render with TinyRenderer: %s", pool.fallback_reason)
         self.pool = pool
+        self.status.renderer = pool.renderer_used
 
     def _idle(self) -> bool:
         """No frame of any camera outstanding (lockstep never has one here)."""
@@ -230,7 +210,7 @@ class Rendering:
         if self.pool is None:
             return
         try:
-            waits = [i for i in range(len(self.cameras)) if i not in self._gone] if self.settings.lockstep else [None]
+            waits = [i for i in range(len(self.cameras)) if i not in self._gone] if self.lockstep else [None]
             frames = [
                 frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)
             ]
@@ -244,13 +224,9 @@ class Rendering:
     def fail(self, reason: str) -> None:
         """A broken pool stops the cameras, not the simulation."""
         log.error("cameras stopped: %s", reason)
-        self.failure = reason
+        self.status.failure = reason
         self._waiting.clear()
         self.close()
-
-    @property
-    def renderer(self) -> str | None:
-        return None if self.pool is None else self.pool.renderer_used
 
     def reset(self, info: UpdateInfo) -> None:
         """The world was reset: waiting ticks belong to the old timeline."""
@@ -262,3 +238,4 @@ class Rendering:
         if self.pool is not None:
             self.pool.close()
             self.pool = None
+            self.status.renderer = None

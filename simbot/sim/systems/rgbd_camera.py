@@ -15,7 +15,7 @@ All four share one stamp. The SDF parameters are the camera's (`camera.py`).
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.system import SimBus
+from simbot.sim.bus_view import SimBus
 from simbot.sim.systems.camera import Camera, Output
 
 

@@ -26,8 +26,10 @@ from simbot.bus.frames import OPTICAL_RPY, optical_frame
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf
+from simbot.sim.naming import sensor_frame
 from simbot.sim.physics import Transform, compose, pose_to_transform
-from simbot.sim.system import Every, SystemContext, UpdateInfo, sensor_frame
+from simbot.sim.rates import Every
+from simbot.sim.system import SystemContext, UpdateInfo
 from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 
 
@@ -104,6 +106,8 @@ def static_transforms(model: Model, urdf: str) -> list[tuple[str, str, Pose]]:
 
 class RobotStatePublisher:
     """Built into the server for the robot: the description and static tree once, latched; the movable joints at their rate."""
+
+    name = "RobotStatePublisher"
 
     def __init__(self, ctx: SystemContext) -> None:
         model, self._name = ctx.require_model("RobotStatePublisher")

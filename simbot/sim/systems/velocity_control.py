@@ -14,12 +14,15 @@ where nothing holds it). Gazebo's per-link commands (`<link_name>`) are not supp
 
 from __future__ import annotations
 
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo, param
-from simbot.sim.systems.drive import check_twist, vector_param
+from simbot.sim.drive import check_twist, vector_param
+from simbot.sim.plugin_params import param
+from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 class VelocityControl:
     """Sets the model's velocity to the last command before each physics step."""
+
+    name = "VelocityControl"
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

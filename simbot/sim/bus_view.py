@@ -1,0 +1,127 @@
+"""What systems may do on the bus: publish, and take commands that the loop drains and checks.
+
+`SimBus` is a system's view of the server's node (scoped to its model's namespace); `Input` queues
+a key's commands in a bus callback and decodes and checks them in the loop; `Drops` counts what
+was refused, per key, for world state.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from simbot.bus import DecodeError, Node, Publisher, decode
+
+log = logging.getLogger(__name__)
+
+WARN_INTERVAL_S = 1.0
+"""At most one warning per key and second about dropped input: a flood must not flood the log."""
+
+
+@dataclass
+class Drops:
+    """Dropped inputs per key, with the last reason: world control's `state` reports them."""
+
+    counts: dict[str, int] = field(default_factory=dict)
+    last_error: dict[str, str] = field(default_factory=dict)
+    _last_warning: dict[str, float] = field(default_factory=dict)
+
+    def drop(self, key: str, reason: str, count: int = 1) -> None:
+        """Counts dropped inputs and warns, rate-limited per key."""
+        self.counts[key] = self.counts.get(key, 0) + count
+        self.last_error[key] = reason
+        now = time.monotonic()
+        if now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
+            self._last_warning[key] = now
+            log.warning("dropped input on %s (%d so far): %s", key, self.counts[key], reason)
+
+
+Check = Callable[[Any], "str | None"]
+"""Returns why a decoded message is unacceptable, or None."""
+
+
+class Input:
+    """Commands on one key: queued by the bus, decoded and checked in the loop; bad ones dropped and counted."""
+
+    def __init__(self, node: Node, drops: Drops, topic: str, typename: str, check: Check | None = None) -> None:
+        self.key = node.key(topic)
+        self._inbox = node.inbox(topic, typename)
+        self._drops = drops
+        self._typename = typename
+        self._check = check
+        self._overflowed = 0
+
+    @property
+    def received(self) -> int:
+        """Payloads that reached the server on this key, valid or not, drained or not."""
+        return self._inbox.received
+
+    def close(self) -> None:
+        self._inbox.close()
+
+    def drain(self) -> list[Any]:
+        """The valid messages that arrived since the last call, oldest first."""
+        if self._inbox.overflowed != self._overflowed:
+            lost, self._overflowed = self._inbox.overflowed - self._overflowed, self._inbox.overflowed
+            self._drops.drop(
+                self.key, "more commands arrived within one step than the queue holds; the oldest were dropped", lost
+            )
+        messages = []
+        for payload in self._inbox.drain():
+            try:
+                message = decode(payload, self._typename)
+            except DecodeError as exc:
+                self._drops.drop(self.key, f"not a {self._typename}: {exc}")
+                continue
+            problem = self._check(message) if self._check else None
+            if problem:
+                self._drops.drop(self.key, problem)
+                continue
+            messages.append(message)
+        return messages
+
+
+@dataclass
+class SimBus:
+    """What systems may do on the bus: publish, and take commands through an `Input`.
+
+    `scoped(namespace)` gives the view one model's systems get: its keys under the namespace
+    (`tug_2/cmd_vel`), the frame ids of what it publishes prefixed (`tug_2/base_link`), and what
+    it declared undeclared together by `close()` when the model leaves the world."""
+
+    node: Node
+    drops: Drops = field(default_factory=Drops)
+    inputs: list[Input] = field(default_factory=list)
+    namespace: str = ""
+    _declared: list[Publisher | Input] = field(default_factory=list)
+
+    def scoped(self, namespace: str) -> SimBus:
+        """A view for one model's systems (`namespace` empty: the world's keys and frames); shares
+        the dropped-input counters and the list of inputs world state reports."""
+        return SimBus(self.node, self.drops, self.inputs, namespace)
+
+    def topic(self, topic: str) -> str:
+        return f"{self.namespace}/{topic}" if self.namespace else topic
+
+    def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
+        """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""
+        publisher = self.node.publisher(self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace)
+        self._declared.append(publisher)
+        return publisher
+
+    def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
+        self.inputs.append(Input(self.node, self.drops, self.topic(topic), typename, check))
+        self._declared.append(self.inputs[-1])
+        return self.inputs[-1]
+
+    def close(self) -> None:
+        """Undeclares every key this view declared: they leave the graph."""
+        for entity in self._declared:
+            entity.close()
+            if isinstance(entity, Input):
+                self.inputs.remove(entity)
+        self._declared.clear()

@@ -1,0 +1,89 @@
+"""Rates in sim time: a system's own period (`Every`), the rate a subscriber sees (`RateMeter`), and what
+every sensor shares (`Sampled`)."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from simbot.sim.system import UpdateInfo
+
+
+@dataclass
+class Every:
+    """Fires at a fixed sim-time period: a system's own rate, independent of the step size."""
+
+    period_ns: int
+    next_ns: int = 0
+
+    @staticmethod
+    def hz(rate: float) -> Every:
+        return Every(max(1, round(1e9 / rate)))
+
+    def due(self, now_ns: int) -> bool:
+        """True at the first step at or after each multiple of the period (so 30 Hz stays 30 Hz on 1 ms steps)."""
+        if now_ns < self.next_ns:
+            return False
+        self.next_ns = (now_ns // self.period_ns + 1) * self.period_ns
+        return True
+
+    def restart(self) -> None:
+        self.next_ns = 0
+
+
+@dataclass
+class RateMeter:
+    """Messages per second of sim time over the last 3 s: the rate a subscriber sees.
+
+    Three seconds, because a camera's frames are published up to a few hundred milliseconds
+    after their stamps, and a one-second window would hold too few of a slow camera's frames."""
+
+    window_ns: int = 3_000_000_000
+    stamps: deque[int] = field(default_factory=deque)
+    count: int = 0
+
+    def tick(self, stamp_ns: int) -> None:
+        self.count += 1
+        self.stamps.append(stamp_ns)
+        while self.stamps and self.stamps[0] <= stamp_ns - self.window_ns:
+            self.stamps.popleft()
+
+    def rate(self, now_ns: int) -> float:
+        """Intervals per second between the stamps of the window ending `now_ns`; 0 with fewer than two."""
+        recent = [stamp for stamp in self.stamps if stamp > now_ns - self.window_ns]
+        if len(recent) < 2 or recent[-1] == recent[0]:
+            return 0.0
+        return (len(recent) - 1) * 1e9 / (recent[-1] - recent[0])
+
+    def reset(self) -> None:
+        self.stamps.clear()
+
+
+class Sampled:
+    """What every sensor shares: its name, its rate, the rate it achieved, and forgetting on reset.
+
+    A sensor system derives from it, calls `due(info)` each step and `published(stamp_ns)` for
+    each message; world state's `sensors` reports what it achieved.
+    """
+
+    def __init__(self, name: str, rate_hz: float) -> None:
+        self.name = name
+        self.every = Every.hz(rate_hz)
+        self.meter = RateMeter()
+        self._now_ns = 0
+
+    def due(self, info: UpdateInfo) -> bool:
+        self._now_ns = info.sim_time_ns
+        return self.every.due(info.sim_time_ns)
+
+    def published(self, stamp_ns: int) -> None:
+        self.meter.tick(stamp_ns)
+
+    def report(self) -> dict[str, Any]:
+        return {"rate_hz": round(self.meter.rate(self._now_ns), 3), "messages": self.meter.count}
+
+    def reset(self, info: UpdateInfo) -> None:
+        self.every.restart()
+        self.meter.reset()
+        self._now_ns = info.sim_time_ns

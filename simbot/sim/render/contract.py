@@ -1,0 +1,51 @@
+"""What a camera-type sensor and the rendering system agree on, so that neither imports the other.
+
+A sensor that renders implements `RenderedSensor`; the world's rendering system
+(simbot/sim/systems/rendering.py) finds such sensors among the systems of each model that enters
+the world, schedules them, and tells them how rendering goes through their `status`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+from simbot.description.poses import Pose
+from simbot.sim.render.specs import CameraSpec, Frame
+from simbot.sim.system import UpdateInfo
+
+
+@dataclass
+class RenderStatus:
+    """How a camera's rendering goes: which renderer draws it, or why it stopped. The rendering
+    system writes it; the camera reports it in world state."""
+
+    renderer: str | None = None
+    """"gl" or "tiny" once the render pool runs."""
+    failure: str | None = None
+    """Why the cameras stopped (a worker died, the pool did not start)."""
+
+
+@runtime_checkable
+class RenderedSensor(Protocol):
+    """What a camera-type sensor gives the rendering system."""
+
+    spec: CameraSpec
+    where: tuple[str, str, Pose]
+    """(model, link, pose in the link): where the camera is, looking along its +x with z up."""
+    skipped: int
+    status: RenderStatus
+
+    def due(self, info: UpdateInfo) -> bool: ...
+
+    def wanted(self) -> bool:
+        """Someone subscribes to an output that needs rendering."""
+        ...
+
+    def publish_info(self, stamp_ns: int) -> None:
+        """camera_info alone, for a tick with no frame to render."""
+        ...
+
+    def publish(self, frame: Frame) -> None:
+        """The frame's messages and its camera_info, under the frame's stamp."""
+        ...
