@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from simbot.bus import Node, ServiceError
-from simbot.rotations import yaw_of
+from simbot.transform import yaw_of
 
 from .common import ClientError, client_parser, number, run_client
 from .topics import live_topics, world_names

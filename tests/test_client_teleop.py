@@ -25,7 +25,7 @@ from bus_helpers import endpoint, free_port
 from client_helpers import PtyClient, bus_args, client_command, pty_client, run_without_terminal
 from server_helpers import REPO, TWIST, SimServer, module_server, reset_before_each, wait_until
 
-from simbot.rotations import yaw_of
+from simbot.transform import yaw_of
 
 WORLD = REPO / "tests" / "fixtures" / "teleop_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"

@@ -44,7 +44,7 @@ from server_helpers import (
 
 from simbot.bus import messages
 from simbot.bus.graph import discover
-from simbot.rotations import quaternion_to_matrix
+from simbot.transform import quaternion_to_matrix
 
 SCAN = "sensor_msgs/msg/LaserScan"
 TUGS = 9

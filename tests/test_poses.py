@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from simbot.description.poses import Pose, matrix_to_rpy, rpy_to_matrix
-from simbot.rotations import quaternion_to_matrix
+from simbot.transform import quaternion_to_matrix
 
 
 def test_rpy_is_fixed_axis_xyz() -> None:

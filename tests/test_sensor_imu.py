@@ -29,7 +29,7 @@ from server_helpers import (
     unwrap,
 )
 
-from simbot.rotations import quaternion_to_matrix, yaw_of
+from simbot.transform import quaternion_to_matrix, yaw_of
 
 IMU = "sensor_msgs/msg/Imu"
 CHEAP_CAMERAS = ("--camera-size", "8x6", "--camera-rate", "1")

@@ -26,10 +26,10 @@ from server_helpers import POSE_STAMPED, Collector, SimServer, pose_of, reset_be
 
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.physics import Physics
 from simbot.sim.systems.imu import ImuParams
 from simbot.sim.systems.lidar import LidarParams
+from simbot.transform import quaternion_to_matrix
 
 WORLD = REPO / "tests" / "fixtures" / "lidar_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"

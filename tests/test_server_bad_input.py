@@ -35,7 +35,7 @@ from server_helpers import (
 )
 
 from simbot.bus import encode, messages
-from simbot.rotations import yaw_of
+from simbot.transform import yaw_of
 
 SEED = 20240611
 SETTLE_STEPS = 300

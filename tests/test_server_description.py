@@ -37,8 +37,8 @@ from simbot.description import load_model
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.physics import ball_castors
+from simbot.transform import quaternion_to_matrix
 
 TOL = 1e-6
 ROOT = "base_footprint"

@@ -22,7 +22,7 @@ from server_helpers import (
 )
 
 from simbot.bus import messages
-from simbot.rotations import yaw_of
+from simbot.transform import yaw_of
 
 sim = module_server("warehouse")
 fresh_world = reset_before_each()

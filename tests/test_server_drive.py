@@ -31,7 +31,7 @@ from server_helpers import (
     wrap,
 )
 
-from simbot.rotations import yaw_of
+from simbot.transform import yaw_of
 
 STEP_NS = 1_000_000  # the empty world steps at 1 kHz
 SETTLE_STEPS = 500  # the robot spawns 0.1 m up and settles on its tyres first

@@ -23,10 +23,10 @@ import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
-from simbot.rotations import yaw_of
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig
 from simbot.sim.simulation import Mode
 from simbot.sim.system import SystemConfigError
+from simbot.transform import yaw_of
 
 BOT = f"model/{ROBOT_NAME}"
 STEP_S = 0.001

@@ -15,8 +15,8 @@ from simbot.description import load_model, load_world
 from simbot.description.model import Box, Collision, Inertial, Link, Model, Sphere
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
-from simbot.rotations import yaw_of
 from simbot.sim.physics import Physics
+from simbot.transform import yaw_of
 
 G = 9.8
 ROBOT_MASS = 100 + 4 * 0.765 + 4 * 0.103 + 2 * 1.17 + 0.001  # chassis, wheels, castors, lidars, token root

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from simbot.rotations import quaternion_to_matrix, yaw_of
+from simbot.transform import quaternion_to_matrix, yaw_of
 
 Matrix = npt.NDArray[np.float64]
 

@@ -58,7 +58,7 @@ from simbot.description.model import (
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.rotations import quaternion_to_matrix
+from simbot.transform import quaternion_to_matrix
 
 logger = logging.getLogger(__name__)
 

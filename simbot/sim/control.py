@@ -36,10 +36,10 @@ import numpy as np
 
 from simbot.bus import BadRequest, Node, Request
 from simbot.description.poses import Pose
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.bus_view import SimBus
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import Reporting
+from simbot.transform import quaternion_to_matrix
 
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""

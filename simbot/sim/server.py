@@ -27,13 +27,13 @@ from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_a
 from simbot.description import DescriptionError, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
-from simbot.rotations import yaw_of
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import WorldControl
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import RunOptions, System, SystemConfigError
 from simbot.sim.world import Placement, SimWorld, load_robot
+from simbot.transform import yaw_of
 
 log = logging.getLogger("simbot.server")
 

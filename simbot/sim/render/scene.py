@@ -13,8 +13,8 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.render.specs import BodyState, SceneBody, Transform
+from simbot.transform import quaternion_to_matrix
 
 Matrix = npt.NDArray[np.float64]
 

@@ -29,9 +29,9 @@ import numpy as np
 from simbot.bus import messages
 from simbot.description.model import Joint, Model, Sensor
 from simbot.description.poses import Pose
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.transform import quaternion_to_matrix
 
 FRAMES = ("child", "parent", "sensor")
 DIRECTIONS = ("child_to_parent", "parent_to_child")

@@ -27,11 +27,11 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
 from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.transform import quaternion_to_matrix
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""

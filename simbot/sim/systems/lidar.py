@@ -42,11 +42,11 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.transform import quaternion_to_matrix
 
 
 @dataclass(frozen=True)

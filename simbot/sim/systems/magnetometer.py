@@ -23,9 +23,9 @@ import numpy as np
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.rotations import quaternion_to_matrix
 from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
 from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.transform import quaternion_to_matrix
 
 
 @dataclass(frozen=True)
