@@ -1,0 +1,112 @@
+"""The shape of the package, held: no import cycles inside simbot/, no module over 500 lines, and
+`simbot/sim/systems/` holding exactly the registered systems (issue 22's measures).
+
+The import graph is read from the source (every `import` and `from ... import` of a simbot
+module, at any depth, those under `if TYPE_CHECKING:` included: a cycle that typing hides is still
+a cycle a reader follows)."""
+
+from __future__ import annotations
+
+import ast
+from importlib.metadata import entry_points
+from pathlib import Path
+
+from conftest import REPO
+
+from simbot.sim.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
+
+PACKAGE = REPO / "simbot"
+MAX_LINES = 500
+
+
+def _module(path: Path) -> str:
+    parts = path.relative_to(REPO).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path, modules: set[str]) -> set[str]:
+    """The simbot modules `path` imports (a `from package import name` of a submodule counts as that submodule)."""
+    found = set()
+    package = _module(path) if path.name == "__init__.py" else _module(path).rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {alias.name for alias in node.names if alias.name in modules}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+            for alias in node.names:
+                full = f"{base}.{alias.name}"
+                found.add(full if full in modules else base)
+    return found & modules
+
+
+def _graph() -> dict[str, set[str]]:
+    files = {_module(path): path for path in PACKAGE.rglob("*.py")}
+    modules = set(files)
+    return {name: _imports(path, modules) - {name} for name, path in files.items()}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan's algorithm)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for other in sorted(graph[node]):
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                member = stack.pop()
+                component.append(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return found
+
+
+def test_no_import_cycle_inside_simbot() -> None:
+    """Dependencies point one way: description → bus/sim core → systems → server."""
+    graph = _graph()
+    assert len(graph) > 50, f"only {len(graph)} modules found under {PACKAGE}"
+    assert any(graph.values()), "no imports found: the reader is broken"
+    assert _cycles(graph) == []
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    """The check above can fail: a two-module and a three-module cycle are found, a chain is not."""
+    graph = {"a": {"b"}, "b": {"a"}, "c": {"d"}, "d": {"e"}, "e": {"c"}, "f": {"a"}}
+    assert sorted(_cycles(graph)) == [["a", "b"], ["c", "d", "e"]]
+
+
+def test_no_module_of_simbot_is_over_500_lines() -> None:
+    sizes = {str(path.relative_to(REPO)): len(path.read_text().splitlines()) for path in PACKAGE.rglob("*.py")}
+    assert {name: lines for name, lines in sizes.items() if lines > MAX_LINES} == {}
+
+
+def test_the_systems_folder_holds_exactly_the_registered_systems() -> None:
+    """Each module of simbot/sim/systems/ is named by an entry point of a system group, and each of
+    simbot's own entry points names a module there: helpers live beside what uses them."""
+    groups = (GROUP, SENSOR_GROUP, WORLD_GROUP, ROBOT_GROUP)
+    registered = {
+        point.value.split(":")[0]
+        for group in groups
+        for point in entry_points(group=group)
+        if point.value.startswith("simbot.")
+    }
+    folder = {_module(path) for path in (PACKAGE / "sim" / "systems").glob("*.py") if path.name != "__init__.py"}
+    assert folder == registered
