@@ -114,7 +114,16 @@ class SimWorld:
         self._options = options or RunOptions()
         self.models: dict[str, Placed] = {}
         self.sim: Simulation | None = None
-        for model in world.models:
+        self._world_systems: list[Scheduled] = []
+        try:
+            self._load(robot, placements)
+        except BaseException:
+            self.close()
+            raise
+
+    def _load(self, robot: Model | None, placements: list[Placement]) -> None:
+        """The world's models and the robots into the physics, then every system."""
+        for model in self.description.models:
             self._place(model, model.name)
         if robot is not None:
             for place in placements:
