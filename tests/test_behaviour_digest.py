@@ -17,7 +17,8 @@ arrived. A key's digest is SHA-256 over its payloads.
 
 Images drawn by GL are compared only where the rasteriser is the one they were recorded on
 (`device` in the digest file: llvmpipe's vector width changes its rounding); everything else is
-compared everywhere. `SIMBOT_RECORD_DIGESTS=1 pytest tests/test_behaviour_digest.py` records them
+compared everywhere. The checkout's path is taken out of each payload before hashing (the
+description names its meshes by absolute URIs). `SIMBOT_RECORD_DIGESTS=1 pytest tests/test_behaviour_digest.py` records them
 anew; do that only for a change meant to alter behaviour, and say so in its commit.
 """
 
@@ -34,10 +35,11 @@ from typing import Any
 
 import pytest
 import zenoh
+from conftest import REPO
 from gl_helpers import NO_EGL
-from server_helpers import CLOCK, SimServer, keyed_payload, raw_samples, running_server
+from server_helpers import CLOCK, STRING, SimServer, keyed_payload, raw_samples, running_server
 
-from simbot.bus import DecodeError, decode, messages
+from simbot.bus import DecodeError, decode, encode, messages
 
 DIGESTS = Path(__file__).parent / "fixtures" / "digests.json"
 RECORD = os.environ.get("SIMBOT_RECORD_DIGESTS") == "1"
@@ -98,7 +100,7 @@ def _record(run: Run) -> tuple[dict[str, str], set[str]]:
     hashes: dict[str, Any] = {}
     first: dict[str, bytes] = {}
     for key, payload in received:
-        hashes.setdefault(key.removeprefix(prefix), hashlib.sha256()).update(payload)
+        hashes.setdefault(key.removeprefix(prefix), hashlib.sha256()).update(_placeless(payload))
         first.setdefault(key.removeprefix(prefix), payload)
     return {key: digest.hexdigest() for key, digest in sorted(hashes.items())}, _drawn(first)
 
@@ -111,6 +113,15 @@ def _latched(session: zenoh.Session, prefix: str, keys: tuple[str, ...]) -> list
         assert len(replies) == 1, f"{key}: {len(replies)} replies to a get of a latched key"
         found.append((prefix + key, replies[0].payload.to_bytes()))
     return found
+
+
+def _placeless(payload: bytes) -> bytes:
+    """The payload with the checkout's path taken out: `robot_description` (a std_msgs/String)
+    names its meshes by absolute `file://` URIs, which differ from one clone to the next."""
+    if str(REPO).encode() not in payload:
+        return payload
+    text = decode(payload, STRING).data.replace(str(REPO), "<repo>")
+    return encode(messages.string(text))
 
 
 def _drawn(payloads: dict[str, bytes]) -> set[str]:
