@@ -38,17 +38,17 @@ from simbot.description.model import (
     Heightmap,
     Inertial,
     Joint,
-    Light,
     Link,
     Material,
     Mesh,
     Model,
     Param,
-    Physics,
     Plane,
     Plugin,
     Polyline,
     Scene,
+    SdfLight,
+    SdfPhysics,
     Sensor,
     Sphere,
     SphericalCoordinates,
@@ -587,16 +587,16 @@ def _read_atmosphere(reader: Reader, element: Element | None) -> Atmosphere:
     )
 
 
-def _read_physics(reader: Reader, world: Element) -> Physics:
+def _read_physics(reader: Reader, world: Element) -> SdfPhysics:
     """The physics marked default, else the first, as Gazebo picks it."""
     candidates = world.findall("physics")
     if not candidates:
-        return Physics()
+        return SdfPhysics()
     chosen = next((p for p in candidates if p.get("default", "").lower() in ("1", "true")), candidates[0])
     step = reader.number(chosen, "max_step_size", 0.001)
     if not step > 0:
         raise reader.error(chosen, f"max_step_size must be positive, got {step}")
-    return Physics(
+    return SdfPhysics(
         max_step_size=step,
         real_time_factor=reader.number(chosen, "real_time_factor", 1.0),
         real_time_update_rate=reader.number(chosen, "real_time_update_rate", 1000.0),
@@ -614,9 +614,9 @@ def _read_scene(reader: Reader, element: Element | None) -> Scene:
     )
 
 
-def _read_light(reader: Reader, element: Element) -> Light:
-    defaults = Light("", "")
-    return Light(
+def _read_light(reader: Reader, element: Element) -> SdfLight:
+    defaults = SdfLight("", "")
+    return SdfLight(
         name=element.get("name", ""),
         type=element.get("type", "point"),
         pose=_pose(reader, element)[0],
