@@ -58,7 +58,7 @@ from simbot.description.model import (
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import Transform
 
 logger = logging.getLogger(__name__)
 
@@ -129,10 +129,7 @@ def _pose(reader: Reader, element: Element) -> tuple[Pose, str | None]:
     if not values:
         return IDENTITY, relative_to
     if fmt == "quat_xyzw" and len(values) == 7:
-        mat = IDENTITY.matrix()
-        mat[:3, :3] = quaternion_to_matrix(values[3:7])
-        mat[:3, 3] = values[:3]
-        return Pose.from_matrix(mat), relative_to
+        return Pose.from_transform(Transform.of(values[:3], values[3:7])), relative_to
     if fmt != "euler_rpy" or len(values) != 6:
         raise reader.error(found, f"expected 6 numbers 'x y z roll pitch yaw', got {len(values)}")
     rpy = tuple(math.radians(v) if degrees else v for v in values[3:])
