@@ -30,8 +30,8 @@ import numpy.typing as npt
 from timing import per_call_ms
 
 from simbot.bus import decode, encode, messages
-from simbot.bus.transforms import transform_matrix
 from simbot.clients.merger import Binning, ScanMerger, to_message
+from simbot.transform import Transform
 
 TARGET_MS = 2.0
 SAMPLES, ANGLE_MAX, RANGE = 720, 1.396263, (0.08, 10.0)
@@ -46,7 +46,7 @@ Floats = npt.NDArray[np.float64]
 
 def pose(frame: str) -> Floats:
     xyz, yaw = POSES[frame]
-    return transform_matrix(xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+    return Transform.of(xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))).matrix()
 
 
 def scans(seed: int = 0) -> list[tuple[Any, Floats]]:

@@ -149,7 +149,7 @@ class StatusLine:
         print(f"\r\x1b[2K{line}" if self.live else line, end="" if self.live else "\n", file=sys.stderr, flush=True)
 
 
-class SimClock:
+class ClockSubscriber:
     """Sim time from `clock`, in seconds: what the clients' freshness windows, docking checks and
     teleop ticks count, so that a world running at 0.5× or 4× (or paused, or stepped) behaves the same.
 

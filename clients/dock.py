@@ -38,9 +38,9 @@ from simbot.bus.transforms import planar_pose
 
 from .common import (
     POLL_S,
+    ClockSubscriber,
     Mailbox,
     Recent,
-    SimClock,
     SimTicker,
     client_parser,
     followed_model,
@@ -152,7 +152,7 @@ class Docking:
 
 def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys at once, a check every period, the joint's state as it changes."""
-    clock = SimClock(node)
+    clock = ClockSubscriber(node)
     robot, trolley = PoseWatch(node, args.robot or followed_model(args.robot_namespace)), PoseWatch(node, args.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)

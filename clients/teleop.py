@@ -39,7 +39,7 @@ import numpy.typing as npt
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
 
-from .common import POLL_S, Recent, SimClock, SimTicker, StaticTransforms, client_parser, number, run_client
+from .common import POLL_S, ClockSubscriber, Recent, SimTicker, StaticTransforms, client_parser, number, run_client
 from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)
@@ -167,7 +167,7 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
     front = PathWatch(node, "lidar_front", True, settings)
     back = PathWatch(node, "lidar_back", False, settings)
     cmd_vel = node.publisher("cmd_vel", messages.Twist, drop=False)
-    clock = SimClock(node)
+    clock = ClockSubscriber(node)
     ticker = SimTicker(settings.period)
     teleop = Teleop(settings)
     try:

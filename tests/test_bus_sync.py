@@ -9,7 +9,7 @@ import pytest
 
 from simbot.bus import messages as m
 from simbot.bus.sync import StampSync
-from simbot.bus.transforms import TransformTree, planar_pose, transform_matrix
+from simbot.bus.transforms import TransformTree, planar_pose
 
 MS = 1_000_000
 
@@ -85,4 +85,9 @@ def test_planar_pose_reads_the_heading() -> None:
     half = math.radians(120) / 2
     msg = m.pose_stamped(0, "world", (1.0, -2.0, 0.1), (0.0, 0.0, math.sin(half), math.cos(half)))
     assert planar_pose(msg.pose) == pytest.approx((1.0, -2.0, math.radians(120)))
-    assert transform_matrix((1, 2, 3), (0, 0, 0, 1))[:3, 3] == pytest.approx([1, 2, 3])
+
+
+def test_a_zero_quaternion_in_tf_is_refused() -> None:
+    tree = TransformTree()
+    with pytest.raises(ValueError, match="zero norm"):
+        tree.update(m.tf_message([m.transform_stamped(0, "base_link", "lidar", (0, 0, 0), (0, 0, 0, 0))]))

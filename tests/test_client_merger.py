@@ -40,8 +40,8 @@ from conftest import REPO
 from server_helpers import Collector, SimServer, running_server, stamp_ns
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
-from simbot.bus.transforms import transform_matrix
 from simbot.clients.merger import BadScan, Binning, ScanMerger
+from simbot.transform import Transform
 
 WORLD = REPO / "tests" / "fixtures" / "merger_boxes.sdf"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
@@ -125,7 +125,7 @@ def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
 
 def sensor_pose(frame: str) -> Floats:
     xyz, yaw = SENSORS_IN_BASE_LINK[frame]
-    return transform_matrix(xyz, yaw_quaternion(yaw))
+    return Transform.of(xyz, yaw_quaternion(yaw)).matrix()
 
 
 def synthetic_scan(ns: int, frame: str, ranges: Sequence[float] | Floats, half_angle: float = ANGLE_MAX) -> Any:
@@ -391,7 +391,8 @@ def test_a_moved_sensor_or_new_angles_are_not_served_stale_rays() -> None:
     scan = synthetic_scan(0, "base_scan_front", np.full(SAMPLES, 2.0))
     first = merger.rebin(scan, sensor_pose("base_scan_front")).ranges
     again = merger.rebin(scan, sensor_pose("base_scan_front")).ranges
-    turned = merger.rebin(scan, transform_matrix((0.99, 0.0, 0.17), yaw_quaternion(math.pi))).ranges  # now looking back
+    looking_back = Transform.of((0.99, 0.0, 0.17), yaw_quaternion(math.pi)).matrix()
+    turned = merger.rebin(scan, looking_back).ranges
     assert np.array_equal(first, again)
     assert np.isposinf(turned[bin_of(0.0)]) and np.isfinite(first[bin_of(0.0)])
     # looking back from 0.99 m ahead, its nearest return is the one straight back, 2 − 0.99 m behind base_link

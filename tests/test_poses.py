@@ -1,4 +1,4 @@
-"""Pose algebra: the rpy convention shared by SDF and URDF, composition and inversion."""
+"""Pose algebra: the rpy convention shared by SDF and URDF, composition and inversion, poses from transforms."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from simbot.description.poses import Pose, matrix_to_rpy, rpy_to_matrix
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import Transform, quaternion_to_matrix
 
 
 def test_rpy_is_fixed_axis_xyz() -> None:
@@ -39,3 +39,10 @@ def test_quaternion() -> None:
     """A quaternion of 90° about z is the same rotation as yaw 90°."""
     s = math.sqrt(0.5)
     assert np.allclose(quaternion_to_matrix((0.0, 0.0, s, s)), rpy_to_matrix((0, 0, math.pi / 2)))
+
+
+def test_pose_from_transform() -> None:
+    """A position and a quaternion of 90° about z are the pose at that position with yaw 90°."""
+    s = math.sqrt(0.5)
+    pose = Pose.from_transform(Transform((1.0, 2.0, 3.0), (0.0, 0.0, s, s)))
+    assert np.allclose(pose.matrix(), Pose((1.0, 2.0, 3.0), (0.0, 0.0, math.pi / 2)).matrix())

@@ -7,25 +7,21 @@ recording, or on a real robot's topics. Plain numpy, 4×4 homogeneous matrices.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
-from simbot.transform import quaternion_to_matrix, yaw_of
-
-Matrix = npt.NDArray[np.float64]
+from simbot.transform import Matrix, Transform, yaw_of
 
 
-def transform_matrix(xyz: Sequence[float], quat_xyzw: Sequence[float]) -> Matrix:
-    """The 4×4 matrix that maps points of a frame posed at (xyz, quat) into its parent."""
-    if not np.linalg.norm(quat_xyzw) > 0:
-        raise ValueError(f"quaternion {tuple(quat_xyzw)} has no rotation (zero norm)")
-    matrix = np.eye(4)
-    matrix[:3, :3] = quaternion_to_matrix(quat_xyzw)
-    matrix[:3, 3] = [float(v) for v in xyz]
-    return matrix
+def _transform_of(msg: Any) -> Transform:
+    """The Transform of a geometry_msgs/Transform; ValueError for a zero quaternion, which is no rotation
+    (a malformed tf message must not turn every pose looked up through it into NaN)."""
+    t, r = msg.translation, msg.rotation
+    quat = (r.x, r.y, r.z, r.w)
+    if not np.linalg.norm(quat) > 0:
+        raise ValueError(f"quaternion {quat} has no rotation (zero norm)")
+    return Transform.of((t.x, t.y, t.z), quat)
 
 
 def planar_pose(pose: Any) -> tuple[float, float, float]:
@@ -43,10 +39,9 @@ class TransformTree:
     def update(self, tf_message: Any) -> None:
         """Take every transform of a tf2_msgs/TFMessage (a later one of a child replaces the earlier)."""
         for stamped in tf_message.transforms:
-            t, r = stamped.transform.translation, stamped.transform.rotation
             child = stamped.child_frame_id.lstrip("/")
             parent = stamped.header.frame_id.lstrip("/")
-            self._parents[child] = (parent, transform_matrix((t.x, t.y, t.z), (r.x, r.y, r.z, r.w)))
+            self._parents[child] = (parent, _transform_of(stamped.transform).matrix())
 
     @property
     def frames(self) -> set[str]:

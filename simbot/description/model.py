@@ -247,7 +247,9 @@ class Model:
 
 
 @dataclass(frozen=True)
-class Physics:
+class SdfPhysics:
+    """SDF `<physics>`: the step size and pace a world asks for (simbot.sim.physics.Physics is the engine)."""
+
     max_step_size: float = 0.001
     real_time_factor: float = 1.0
     real_time_update_rate: float = 1000.0
@@ -255,7 +257,9 @@ class Physics:
 
 
 @dataclass(frozen=True)
-class Light:
+class SdfLight:
+    """SDF `<light>` as the world declares it (simbot.sim.render's Light is what the renderers shade with)."""
+
     name: str
     type: str
     pose: Pose = IDENTITY
@@ -300,10 +304,10 @@ EARTH_MAGNETIC_FIELD: Vec3 = (5.5645e-6, 22.8758e-6, -42.3884e-6)
 @dataclass(frozen=True)
 class World:
     name: str
-    physics: Physics = field(default_factory=Physics)
+    physics: SdfPhysics = field(default_factory=SdfPhysics)
     gravity: Vec3 = (0.0, 0.0, -9.8)
     scene: Scene = field(default_factory=Scene)
-    lights: tuple[Light, ...] = ()
+    lights: tuple[SdfLight, ...] = ()
     models: tuple[Model, ...] = ()
     plugins: tuple[Plugin, ...] = ()
     source: Path | None = None

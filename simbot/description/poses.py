@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbot.transform import Transform
+
 Vec3 = tuple[float, float, float]
 
 
@@ -50,6 +52,11 @@ class Pose:
         """The pose of a 4x4 homogeneous transform."""
         x, y, z = (float(v) for v in mat[:3, 3])
         return Pose((x, y, z), matrix_to_rpy(mat[:3, :3]))
+
+    @staticmethod
+    def from_transform(transform: Transform) -> Pose:
+        """The pose of a position and quaternion (SDF's `quat_xyzw` poses, the create service's poses)."""
+        return Pose.from_matrix(transform.matrix())
 
     def matrix(self) -> np.ndarray:
         """The 4x4 homogeneous transform parent_T_frame."""

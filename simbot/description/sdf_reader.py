@@ -38,17 +38,17 @@ from simbot.description.model import (
     Heightmap,
     Inertial,
     Joint,
-    Light,
     Link,
     Material,
     Mesh,
     Model,
     Param,
-    Physics,
     Plane,
     Plugin,
     Polyline,
     Scene,
+    SdfLight,
+    SdfPhysics,
     Sensor,
     Sphere,
     SphericalCoordinates,
@@ -58,7 +58,7 @@ from simbot.description.model import (
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import Transform
 
 logger = logging.getLogger(__name__)
 
@@ -129,10 +129,7 @@ def _pose(reader: Reader, element: Element) -> tuple[Pose, str | None]:
     if not values:
         return IDENTITY, relative_to
     if fmt == "quat_xyzw" and len(values) == 7:
-        mat = IDENTITY.matrix()
-        mat[:3, :3] = quaternion_to_matrix(values[3:7])
-        mat[:3, 3] = values[:3]
-        return Pose.from_matrix(mat), relative_to
+        return Pose.from_transform(Transform.of(values[:3], values[3:7])), relative_to
     if fmt != "euler_rpy" or len(values) != 6:
         raise reader.error(found, f"expected 6 numbers 'x y z roll pitch yaw', got {len(values)}")
     rpy = tuple(math.radians(v) if degrees else v for v in values[3:])
@@ -587,16 +584,16 @@ def _read_atmosphere(reader: Reader, element: Element | None) -> Atmosphere:
     )
 
 
-def _read_physics(reader: Reader, world: Element) -> Physics:
+def _read_physics(reader: Reader, world: Element) -> SdfPhysics:
     """The physics marked default, else the first, as Gazebo picks it."""
     candidates = world.findall("physics")
     if not candidates:
-        return Physics()
+        return SdfPhysics()
     chosen = next((p for p in candidates if p.get("default", "").lower() in ("1", "true")), candidates[0])
     step = reader.number(chosen, "max_step_size", 0.001)
     if not step > 0:
         raise reader.error(chosen, f"max_step_size must be positive, got {step}")
-    return Physics(
+    return SdfPhysics(
         max_step_size=step,
         real_time_factor=reader.number(chosen, "real_time_factor", 1.0),
         real_time_update_rate=reader.number(chosen, "real_time_update_rate", 1000.0),
@@ -614,9 +611,9 @@ def _read_scene(reader: Reader, element: Element | None) -> Scene:
     )
 
 
-def _read_light(reader: Reader, element: Element) -> Light:
-    defaults = Light("", "")
-    return Light(
+def _read_light(reader: Reader, element: Element) -> SdfLight:
+    defaults = SdfLight("", "")
+    return SdfLight(
         name=element.get("name", ""),
         type=element.get("type", "point"),
         pose=_pose(reader, element)[0],

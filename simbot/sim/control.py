@@ -32,14 +32,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-import numpy as np
-
 from simbot.bus import BadRequest, Node, Request
 from simbot.description.poses import Pose
 from simbot.sim.bus_view import SimBus
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import Reporting
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import Transform
 
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
@@ -209,10 +207,7 @@ def _pose(value: Any) -> Pose:
         raise TypeError(f"pose: expected an object with position and orientation, got {value!r}")
     position = _vector(value.get("position", {}), "xyz", "pose.position", 0.0)
     quat = _unit_quaternion(_vector(value.get("orientation", {"w": 1.0}), "xyzw", "pose.orientation", 0.0))
-    matrix = np.eye(4)
-    matrix[:3, :3] = quaternion_to_matrix(quat)
-    matrix[:3, 3] = position
-    return Pose.from_matrix(matrix)
+    return Pose.from_transform(Transform.of(position, quat))
 
 
 def _unit_quaternion(values: list[float]) -> tuple[float, float, float, float]:
