@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -25,38 +24,33 @@ from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
     EARTH_MAGNETIC_FIELD,
-    Atmosphere,
     Axis,
-    Box,
-    Capsule,
     Collision,
-    Cone,
-    Cylinder,
-    Ellipsoid,
-    Friction,
-    Geometry,
-    Heightmap,
     Inertial,
     Joint,
     Link,
-    Material,
-    Mesh,
     Model,
     Param,
-    Plane,
     Plugin,
-    Polyline,
-    Scene,
     SdfLight,
-    SdfPhysics,
     Sensor,
-    Sphere,
-    SphericalCoordinates,
     Visual,
     World,
 )
 from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
 from simbot.description.resources import resolve
+from simbot.description.sdf_elements import (
+    model_file,
+    read_atmosphere,
+    read_friction,
+    read_geometry,
+    read_material,
+    read_physics,
+    read_scene,
+    read_spherical_coordinates,
+    rgba,
+    version_key,
+)
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
 from simbot.transform import Transform
 
@@ -105,7 +99,7 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
     if root.tag != "sdf":
         raise reader.error(root, "not an SDF file: the root element must be <sdf>")
     text = reader.attr(root, "version")
-    version = _version_key(text)
+    version = version_key(text)
     if len(version) != 2:
         raise reader.error(root, f"malformed version {text!r}")
     low, high = SUPPORTED_VERSIONS
@@ -315,107 +309,23 @@ def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
     return Inertial(mass=mass, pose=_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
 
 
-def _read_geometry(reader: Reader, owner: Element) -> Geometry:
-    """The shape, with SDF's defaults for the sizes a file leaves out (as Gazebo reads them)."""
-    geometry = reader.child(owner, "geometry")
-    shape = next(iter(geometry), None)
-    if shape is None:
-        raise reader.error(geometry, f"empty <geometry>: expected one of {', '.join(_SHAPES)}")
-    read = _SHAPES.get(str(shape.tag))
-    if read is None:
-        raise reader.error(shape, f"unsupported geometry <{sdf_tag(shape)}>")
-    return read(reader, shape)
-
-
-def _read_mesh(reader: Reader, shape: Element) -> Mesh:
-    uri = reader.text(shape, "uri")
-    if not uri:
-        raise reader.error(shape, "missing required element <uri>")
-    scale = reader.vector(shape, "scale", 3, (1.0, 1.0, 1.0))
-    return Mesh(uri, scale, resolve(uri, reader.file.parent).path)  # type: ignore[arg-type]
-
-
-def _read_polyline(reader: Reader, shape: Element) -> Polyline:
-    """Every <polyline> of the geometry: each its outline of <point>s and its <height>."""
-    outlines, heights = [], []
-    for polyline in shape.getparent().findall("polyline"):
-        points = tuple(reader.floats(p, 2) for p in polyline.findall("point"))
-        if len(points) < 3:
-            raise reader.error(polyline, f"a polyline needs at least 3 <point>s, got {len(points)}")
-        outlines.append(points)
-        heights.append(reader.number(polyline, "height", 1.0))
-    return Polyline(tuple(outlines), tuple(heights))  # type: ignore[arg-type]
-
-
-def _read_heightmap(reader: Reader, shape: Element) -> Heightmap:
-    uri = reader.text(shape, "uri")
-    if not uri:
-        raise reader.error(shape, "missing required element <uri>")
-    resolution = resolve(uri, reader.file.parent)
-    path = resolution.path
-    if path is None:
-        raise reader.error(shape, f"cannot find heightmap image {uri!r} (tried {resolution.describe_tried()})")
-    size = reader.vector(shape, "size", 3, (1.0, 1.0, 1.0))
-    pos = reader.vector(shape, "pos", 3, (0.0, 0.0, 0.0))
-    return Heightmap(uri, size, pos, path)  # type: ignore[arg-type]
-
-
-_SHAPES: dict[str, Callable[[Reader, Element], Geometry]] = {
-    "box": lambda r, e: Box(r.vector(e, "size", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
-    "cylinder": lambda r, e: Cylinder(r.number(e, "radius", 1.0), r.number(e, "length", 1.0)),
-    "sphere": lambda r, e: Sphere(r.number(e, "radius", 1.0)),
-    "capsule": lambda r, e: Capsule(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
-    "ellipsoid": lambda r, e: Ellipsoid(r.vector(e, "radii", 3, (1.0, 1.0, 1.0))),  # type: ignore[arg-type]
-    "cone": lambda r, e: Cone(r.number(e, "radius", 0.5), r.number(e, "length", 1.0)),
-    "plane": lambda r, e: Plane(r.vector(e, "normal", 3, (0.0, 0.0, 1.0)), r.vector(e, "size", 2, (100.0, 100.0))),  # type: ignore[arg-type]
-    "mesh": _read_mesh,
-    "polyline": _read_polyline,
-    "heightmap": _read_heightmap,
-}
-"""Each SDF shape and how to read it; sizes default as in SDF's own specification."""
-
-
 def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
     return Collision(
         reader.attr(element, "name"),
-        _read_geometry(reader, element),
+        read_geometry(reader, element),
         frames.in_link(link, element),
-        _read_friction(reader, element),
+        read_friction(reader, element),
     )
-
-
-def _read_friction(reader: Reader, collision: Element) -> Friction | None:
-    ode = collision.find("surface/friction/ode")
-    if ode is None:
-        return None
-    fdir1 = reader.vector(ode, "fdir1", 3)
-    return Friction(reader.number(ode, "mu", 1.0), reader.number(ode, "mu2", 1.0), fdir1)  # type: ignore[arg-type]
 
 
 def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -> Visual:
     material = element.find("material")
     return Visual(
         name=reader.attr(element, "name"),
-        geometry=_read_geometry(reader, element),
+        geometry=read_geometry(reader, element),
         pose=frames.in_link(link, element),
-        material=None if material is None else _read_material(reader, material),
+        material=None if material is None else read_material(reader, material),
     )
-
-
-def _rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, float, float] | None:
-    found = element.find(tag)
-    if found is None:
-        return None
-    values = reader.floats(found)
-    if len(values) == 3:
-        values = values + (1.0,)
-    if len(values) != 4:
-        raise reader.error(found, f"expected 4 numbers 'r g b a', got {len(values)}")
-    return values
-
-
-def _read_material(reader: Reader, element: Element) -> Material:
-    return Material(*(_rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")))
 
 
 # ---------------------------------------------------------------- joints
@@ -538,76 +448,20 @@ def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> W
         if model.name in seen:
             raise reader.error(element, f"two models are named {model.name!r}")
         seen.add(model.name)
-    physics = _read_physics(reader, element)
+    physics = read_physics(reader, element)
     gravity = reader.vector(element, "gravity", 3)
     return World(
         name=reader.attr(element, "name"),
         physics=physics,
         gravity=gravity or (0.0, 0.0, -9.8),  # type: ignore[arg-type]
-        scene=_read_scene(reader, element.find("scene")),
+        scene=read_scene(reader, element.find("scene")),
         lights=tuple(_read_light(reader, e) for e in element.findall("light")),
         models=tuple(models),
         plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
         source=reader.file,
-        spherical_coordinates=_read_spherical_coordinates(reader, element.find("spherical_coordinates")),
+        spherical_coordinates=read_spherical_coordinates(reader, element.find("spherical_coordinates")),
         magnetic_field=reader.vector(element, "magnetic_field", 3, EARTH_MAGNETIC_FIELD),  # type: ignore[arg-type]
-        atmosphere=_read_atmosphere(reader, element.find("atmosphere")),
-    )
-
-
-def _read_spherical_coordinates(reader: Reader, element: Element | None) -> SphericalCoordinates:
-    """The world origin on the Earth; only Gazebo's ENU world frame has a meaning here."""
-    if element is None:
-        return SphericalCoordinates()
-    defaults = SphericalCoordinates()
-    orientation = reader.text(element, "world_frame_orientation") or defaults.world_frame_orientation
-    if orientation != "ENU":
-        raise reader.error(element, f"world_frame_orientation {orientation!r} is not supported (ENU only, as Gazebo)")
-    return SphericalCoordinates(
-        surface_model=reader.text(element, "surface_model") or defaults.surface_model,
-        world_frame_orientation=orientation,
-        latitude_deg=reader.number(element, "latitude_deg", defaults.latitude_deg),
-        longitude_deg=reader.number(element, "longitude_deg", defaults.longitude_deg),
-        elevation=reader.number(element, "elevation", defaults.elevation),
-        heading_deg=reader.number(element, "heading_deg", defaults.heading_deg),
-    )
-
-
-def _read_atmosphere(reader: Reader, element: Element | None) -> Atmosphere:
-    if element is None:
-        return Atmosphere()
-    defaults = Atmosphere()
-    return Atmosphere(
-        temperature=reader.number(element, "temperature", defaults.temperature),
-        pressure=reader.number(element, "pressure", defaults.pressure),
-        temperature_gradient=reader.number(element, "temperature_gradient", defaults.temperature_gradient),
-    )
-
-
-def _read_physics(reader: Reader, world: Element) -> SdfPhysics:
-    """The physics marked default, else the first, as Gazebo picks it."""
-    candidates = world.findall("physics")
-    if not candidates:
-        return SdfPhysics()
-    chosen = next((p for p in candidates if p.get("default", "").lower() in ("1", "true")), candidates[0])
-    step = reader.number(chosen, "max_step_size", 0.001)
-    if not step > 0:
-        raise reader.error(chosen, f"max_step_size must be positive, got {step}")
-    return SdfPhysics(
-        max_step_size=step,
-        real_time_factor=reader.number(chosen, "real_time_factor", 1.0),
-        real_time_update_rate=reader.number(chosen, "real_time_update_rate", 1000.0),
-        type=chosen.get("type", "ode"),
-    )
-
-
-def _read_scene(reader: Reader, element: Element | None) -> Scene:
-    if element is None:
-        return Scene()
-    defaults = Scene()
-    return Scene(
-        ambient=_rgba(reader, element, "ambient") or defaults.ambient,
-        background=_rgba(reader, element, "background") or defaults.background,
+        atmosphere=read_atmosphere(reader, element.find("atmosphere")),
     )
 
 
@@ -617,36 +471,11 @@ def _read_light(reader: Reader, element: Element) -> SdfLight:
         name=element.get("name", ""),
         type=element.get("type", "point"),
         pose=_pose(reader, element)[0],
-        diffuse=_rgba(reader, element, "diffuse") or defaults.diffuse,
-        specular=_rgba(reader, element, "specular") or defaults.specular,
+        diffuse=rgba(reader, element, "diffuse") or defaults.diffuse,
+        specular=rgba(reader, element, "specular") or defaults.specular,
         direction=reader.vector(element, "direction", 3, defaults.direction),  # type: ignore[arg-type]
         cast_shadows=reader.flag(element, "cast_shadows", False),
     )
-
-
-def _model_file(reader: Reader, include: Element, found: Path) -> Path:
-    """The SDF file of an included model: the file itself, or the one its model.config names."""
-    if found.is_file():
-        return found
-    config = found / "model.config"
-    if config.is_file():
-        root = parse_file(config)
-        entries = [e for e in root.findall("sdf") if (e.text or "").strip()]
-        if not entries:
-            raise Reader(config).error(root, "model.config names no <sdf> file")
-        best = max(entries, key=lambda e: _version_key(e.get("version")))
-        return found / (best.text or "").strip()
-    if (found / "model.sdf").is_file():
-        return found / "model.sdf"
-    raise reader.error(include, f"{found} holds neither model.config nor model.sdf")
-
-
-def _version_key(text: str | None) -> tuple[int, ...]:
-    """(major, minor) of an SDF version; () when unreadable, which sorts first."""
-    try:
-        return tuple(int(part) for part in (text or "").split("."))
-    except ValueError:
-        return ()
 
 
 def _read_include(reader: Reader, element: Element) -> Model:
@@ -655,7 +484,7 @@ def _read_include(reader: Reader, element: Element) -> Model:
     resolution = resolve(uri, reader.file.parent)
     if resolution.path is None:
         raise reader.error(uri_element, f"cannot resolve {uri!r} (tried {resolution.describe_tried()})")
-    model = load_model(_model_file(reader, element, resolution.path))
+    model = load_model(model_file(reader, element, resolution.path))
     pose_element = element.find("pose")
     return replace(
         model,
