@@ -15,8 +15,8 @@
 - Workers run at nice 10, so on a busy machine the physics wins the CPU and frames come late
   rather than the simulation slowing down.
 - A request carries the camera's world pose and the poses and joint positions of the bodies that
-  move; the worker sets its copy of the scene to them and renders. The outputs (colour, depth,
-  points) go back through shared memory, one block per camera; only a small message goes
+  move; the worker sets its copy of the scene to them and renders. The camera's outputs (colour,
+  depth, points: `kinds.py`) go back through shared memory, one block per camera; only a small message goes
   through the pipe.
 - One request per camera may be outstanding: its shared memory holds one frame. Whether to skip a
   frame while the camera is busy (real time: the physics never waits) or to wait for it
@@ -322,7 +322,7 @@ class RenderPool:
         kind, camera, stamp = message[0], message[1], message[2]
         if kind == "frame":
             buffers = self._buffers[camera]
-            self._finished.append(Frame(camera, stamp, buffers.color, buffers.depth, buffers.points, message[3]))
+            self._finished.append(Frame(camera, stamp, dict(buffers.arrays), message[3]))
         else:
             del self._outstanding[camera]
             self._failures.append(f"camera {camera} {self.cameras[camera].name!r} at {stamp} ns: {message[3]}")

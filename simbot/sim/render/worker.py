@@ -5,7 +5,7 @@ The worker loads the scene (`BulletScene`), opens the renderer it was asked for 
 pool's messages in order until told to stop or the server is gone: render requests, and the
 changes of a world that runs (a body added or removed, a camera added), each before any request
 sent after it. Each frame is drawn straight into the camera's shared memory and finished there
-(`outputs.py`); only a small message goes back. A change that fails is reported (`scene_failed`)
+(each output kind's finishing step, `kinds.py`); only a small message goes back. A change that fails is reported (`scene_failed`)
 and the worker goes on.
 """
 
@@ -24,9 +24,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from simbot.sim.render.outputs import PointGrid, add_noise, linear_depth
+from simbot.sim.render.kinds import Array, Finish, Raw
 from simbot.sim.render.scene import BulletScene
-from simbot.sim.render.specs import BodyState, CameraSpec, Depths, Light, Pixels, Points, SceneBody, Transform
+from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody, Transform
 
 RENDERERS = ("auto", "gl", "tiny")
 
@@ -35,7 +35,9 @@ class Renderer(Protocol):
     name: str
     device: str
 
-    def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None: ...
+    def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
+        """Draw camera `camera` at `pose` into the raw buffers it draws (`CameraSpec.drawn`)."""
+        ...
 
     def add_camera(self, index: int, spec: CameraSpec) -> None: ...
 
@@ -69,22 +71,14 @@ class CameraBuffers:
     def __init__(self, spec: CameraSpec, shm: SharedMemory) -> None:
         self.spec = spec
         self.shm = shm
-        self.arrays: dict[str, Any] = {
+        self.arrays: dict[str, Array] = {
             name: np.ndarray(shape, dtype=dtype, buffer=shm.buf, offset=offset)
             for name, (dtype, shape, offset) in spec.layout().items()
         }
 
-    @property
-    def color(self) -> Pixels | None:
-        return self.arrays.get("color")
-
-    @property
-    def depth(self) -> Depths | None:
-        return self.arrays.get("depth")
-
-    @property
-    def points(self) -> Points | None:
-        return self.arrays.get("points")
+    def drawn(self) -> dict[Raw, Array]:
+        """The outputs a renderer draws straight into, by the raw buffer each takes."""
+        return {kind.draws: self.arrays[kind.name] for kind in self.spec.kinds if kind.draws is not None}
 
     def release(self) -> None:
         """Drop the views first: a mapping with live views cannot be closed."""
@@ -95,8 +89,8 @@ class CameraBuffers:
 class _Camera:
     index: int
     buffers: CameraBuffers
-    rng: np.random.Generator
-    grid: PointGrid | None
+    finishes: list[tuple[str, Finish]]
+    """Each output's finishing step, in the order of the kinds (an output after those it needs)."""
 
 
 def worker_main(conn: Connection, plan: WorkerPlan) -> None:
@@ -146,8 +140,8 @@ def open_renderer(
 
 
 def _camera(index: int, spec: CameraSpec, shm_name: str) -> _Camera:
-    buffers = CameraBuffers(spec, SharedMemory(name=shm_name))
-    return _Camera(index, buffers, np.random.default_rng(spec.seed), PointGrid(spec) if spec.points else None)
+    finishes = [(kind.name, step) for kind in spec.kinds if kind.finisher and (step := kind.finisher(spec))]
+    return _Camera(index, CameraBuffers(spec, SharedMemory(name=shm_name)), finishes)
 
 
 @dataclass
@@ -214,16 +208,10 @@ def render(
 ) -> None:
     """Pose the scene, draw, and finish the outputs in the camera's shared memory."""
     scene.apply(states)
-    buffers = camera.buffers
-    spec = buffers.spec
-    color, depth = buffers.color, buffers.depth
-    renderer.render(camera.index, pose, color, depth)
-    if depth is not None:
-        linear_depth(depth, spec.near, spec.far)
-    if color is not None and spec.noise_stddev > 0.0:
-        add_noise(color, spec.noise_stddev, camera.rng)
-    if camera.grid is not None and depth is not None and color is not None and buffers.points is not None:
-        camera.grid.fill(depth, color, buffers.points)
+    arrays = camera.buffers.arrays
+    renderer.render(camera.index, pose, camera.buffers.drawn())
+    for name, finish in camera.finishes:
+        finish(arrays[name], arrays)
 
 
 def _silence_stdio() -> None:
