@@ -1,9 +1,9 @@
 """The render pool with real PyBullet in real worker processes, with both renderers (OpenGL on EGL
 and TinyRenderer): geometry of the images (pinhole facts), the light convention, moving bodies and
-joints, pixel formats and noise, depth and points, the two renderers agreeing, the one
-outstanding request per camera, bodies and cameras added to a running pool (and bodies
-removed), the fallback where no EGL context opens, and a dead or busy worker never hanging the
-caller."""
+joints, pixel formats and noise, depth and points, an output kind simbot does not ship, the two
+renderers agreeing, the one outstanding request per camera, bodies and cameras added to a running
+pool (and bodies removed), the fallback where no EGL context opens, and a dead or busy worker
+never hanging the caller."""
 
 from __future__ import annotations
 
@@ -22,8 +22,19 @@ import numpy.typing as npt
 import pytest
 from gl_helpers import NO_EGL
 
-from simbot.sim.render import BodyState, CameraSpec, Frame, Light, PoolPlan, RenderPool, SceneBody, plan_pool
-from simbot.sim.render.kinds import Array, Finish, OutputKind, output_kinds
+from simbot.sim.render import (
+    BodyState,
+    CameraSpec,
+    Frame,
+    Light,
+    OutputKind,
+    PoolPlan,
+    RenderPool,
+    SceneBody,
+    output_kinds,
+    plan_pool,
+)
+from simbot.sim.render.kinds import Array, Finish
 from simbot.sim.render.specs import Transform
 
 W, H = 160, 120

@@ -11,9 +11,9 @@ world's sun, no specular), per vertex, so a fragment costs one colour write.
 
 The projection flips y, so the framebuffer's first row is the image's top row and the pixels are
 read straight into the camera's shared memory, with no copy. A depth camera reads the depth
-buffer too and turns it into metres (`outputs.py`); it draws with depth clamping, so geometry
-nearer than the near plane is kept (and reads −inf) rather than cut away, and it discards what
-lies beyond the far plane (+inf, the background).
+buffer too, which its depth output turns into metres (`outputs.py`); it draws with depth
+clamping, so geometry nearer than the near plane is kept (and reads −inf) rather than cut away,
+and it discards what lies beyond the far plane (+inf, the background).
 """
 
 from __future__ import annotations
