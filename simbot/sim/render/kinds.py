@@ -15,6 +15,7 @@ be used (a test may add one to `output_kinds()`).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
@@ -26,6 +27,8 @@ import numpy.typing as npt
 
 if TYPE_CHECKING:
     from simbot.sim.render.specs import CameraSpec
+
+log = logging.getLogger(__name__)
 
 GROUP = "simbot.camera_outputs"
 Array = npt.NDArray[Any]
@@ -58,11 +61,20 @@ class OutputKind:
 
 @cache
 def output_kinds() -> dict[str, OutputKind]:
-    """Name → kind, for every installed entry point of `simbot.camera_outputs`."""
-    kinds = {point.name: point.load() for point in entry_points(group=GROUP)}
-    for name, kind in kinds.items():
-        if not isinstance(kind, OutputKind) or kind.name != name:
-            raise TypeError(f"camera output {name!r}: the entry point must name an OutputKind called {name!r}")
+    """Name → kind, for every installed entry point of `simbot.camera_outputs` that loads as one."""
+    kinds = {}
+    for point in entry_points(group=GROUP):
+        try:
+            kind = point.load()
+        except Exception as exc:  # noqa: BLE001 - a broken third-party package must not stop the server
+            log.warning("camera output %s from %s cannot be loaded: %s", point.name, point.value, exc)
+            continue
+        if isinstance(kind, OutputKind) and kind.name == point.name:
+            kinds[point.name] = kind
+        else:
+            log.warning(
+                "camera output %s from %s is no OutputKind named %r; ignored", point.name, point.value, point.name
+            )
     return kinds
 
 
