@@ -190,7 +190,8 @@ class GlRenderer:
 
     def _target(self, spec: CameraSpec) -> _Target:
         size, drawn = (spec.width, spec.height), spec.drawn()
-        mono, read_depth = len(drawn.get("color", ())) == 2, "depth" in drawn
+        mono = len(drawn.get("color", ())) == 2  # an H×W colour buffer: luminance
+        read_depth = "depth" in drawn
         color = self.ctx.renderbuffer(size, components=1 if mono else 3)
         depth = self.ctx.depth_texture(size) if read_depth else self.ctx.depth_renderbuffer(size)
         projection = FLIP_Y @ projection_matrix(spec.vfov_deg, spec.width / spec.height, spec.near, spec.far)
