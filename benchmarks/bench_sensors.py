@@ -61,6 +61,7 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
 from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
+from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
@@ -160,12 +161,12 @@ def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: 
     scene = BulletScene(pb, bodies)
     renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
     poses = [physics.frame_pose(*where) for where in camera_mounts(physics)]
-    pixels = np.zeros(views[0].spec.shape, dtype=np.uint8)
+    drawn: dict[Raw, Any] = {"color": np.zeros(views[0].spec.drawn()["color"], dtype=np.uint8)}
     try:
-        renderer.render(0, poses[0], pixels, None)
+        renderer.render(0, poses[0], drawn)
         frames, start, cpu = 0, time.perf_counter(), time.process_time()
         while time.perf_counter() - start < seconds or frames % len(views):
-            renderer.render(frames % len(views), poses[frames % len(views)], pixels, None)
+            renderer.render(frames % len(views), poses[frames % len(views)], drawn)
             frames += 1
         return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu), renderer.device
     finally:

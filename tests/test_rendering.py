@@ -1,9 +1,9 @@
 """The render pool with real PyBullet in real worker processes, with both renderers (OpenGL on EGL
 and TinyRenderer): geometry of the images (pinhole facts), the light convention, moving bodies and
-joints, pixel formats and noise, depth and points, the two renderers agreeing, the one
-outstanding request per camera, bodies and cameras added to a running pool (and bodies
-removed), the fallback where no EGL context opens, and a dead or busy worker never hanging the
-caller."""
+joints, pixel formats and noise, depth and points, an output kind simbot does not ship, the two
+renderers agreeing, the one outstanding request per camera, bodies and cameras added to a running
+pool (and bodies removed), the fallback where no EGL context opens, and a dead or busy worker
+never hanging the caller."""
 
 from __future__ import annotations
 
@@ -13,7 +13,8 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,19 @@ import numpy.typing as npt
 import pytest
 from gl_helpers import NO_EGL
 
-from simbot.sim.render import BodyState, CameraSpec, Frame, Light, PoolPlan, RenderPool, SceneBody, plan_pool
+from simbot.sim.render import (
+    BodyState,
+    CameraSpec,
+    Frame,
+    Light,
+    OutputKind,
+    PoolPlan,
+    RenderPool,
+    SceneBody,
+    output_kinds,
+    plan_pool,
+)
+from simbot.sim.render.kinds import Array, Finish
 from simbot.sim.render.specs import Transform
 
 W, H = 160, 120
@@ -94,8 +107,8 @@ def scene() -> list[SceneBody]:
 
 CAMERAS = [
     CameraSpec("rgb", W, H, HFOV, 0.05, 50.0),
-    CameraSpec("rgbd", W, H, HFOV, 0.05, 50.0, depth=True, points=True),
-    CameraSpec("mono", W, H, HFOV, 0.05, 50.0, channels=1),
+    CameraSpec("rgbd", W, H, HFOV, 0.05, 50.0, outputs=("color", "depth", "points")),
+    CameraSpec("mono", W, H, HFOV, 0.05, 50.0, outputs=("mono",)),
     CameraSpec("full", 640, 480, HFOV, 0.05, 50.0),
     CameraSpec("noisy_a", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
     CameraSpec("noisy_b", W, H, HFOV, 0.05, 50.0, noise_stddev=0.02, seed=7),
@@ -134,11 +147,7 @@ def render(pool: RenderPool, camera: int, pose: Transform, states: dict[str, Bod
     frames = [f for f in pool.collect(wait_for=camera, timeout=WAIT) if f.camera == camera]
     assert len(frames) == 1
     frame = frames[0]
-    copied = {
-        name: None if getattr(frame, name) is None else getattr(frame, name).copy()
-        for name in ("color", "depth", "points")
-    }
-    return frame._replace(**copied)
+    return replace(frame, arrays={name: array.copy() for name, array in frame.items()})
 
 
 def mask(pixels: npt.NDArray[np.uint8], channel: int) -> npt.NDArray[np.bool_]:
@@ -154,29 +163,29 @@ def centroid_column(m: npt.NDArray[np.bool_]) -> float:
 
 def test_box_ahead_fills_the_centre_with_its_pinhole_width(pool: RenderPool) -> None:
     """A 1 m red face 2 m ahead: red at the centre, fx·size/d pixels wide; looking back, nothing."""
-    pixels = render(pool, RGB, AHEAD).color
+    pixels = render(pool, RGB, AHEAD)["color"]
     assert pixels.shape == (H, W, 3) and pixels.dtype == np.uint8
     red = mask(pixels, 0)
     assert red[H // 2, W // 2]
     assert red[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
     assert red[:, W // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)  # square pixels: fy = fx
-    behind = render(pool, RGB, yawed((0.0, 0.0, 0.0), math.pi)).color
+    behind = render(pool, RGB, yawed((0.0, 0.0, 0.0), math.pi))["color"]
     assert not mask(behind, 0).any()
 
 
 def test_camera_pose_moves_the_image(pool: RenderPool) -> None:
     """A camera 0.2 m to the left sees the box 10 px further right; tilted up, the box moves down."""
-    left = render(pool, RGB, at((0.0, 0.2, 0.0))).color
+    left = render(pool, RGB, at((0.0, 0.2, 0.0)))["color"]
     assert centroid_column(mask(left, 0)) == pytest.approx(W / 2 + FX * 0.2 / RED_FACE - 0.5, abs=2)
     pitch = -0.1  # a negative pitch about y raises the optical axis (z up)
-    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2)))).color
+    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2))))["color"]
     rows = np.nonzero(mask(up, 0))[0]
     assert rows.mean() == pytest.approx(H / 2 + FX * math.tan(0.1) - 0.5, abs=2)  # row 0 is the top
 
 
 def test_full_size_image(pool: RenderPool) -> None:
     """640×480 RGB, the box in the middle, four times as wide as at 160×120 with the same fov."""
-    pixels = render(pool, FULL, AHEAD).color
+    pixels = render(pool, FULL, AHEAD)["color"]
     assert pixels.shape == (480, 640, 3) and pixels.dtype == np.uint8
     assert mask(pixels, 0)[240].sum() == pytest.approx(4 * FX * RED_SIZE / RED_FACE, abs=2)
 
@@ -185,9 +194,9 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
     """The green box moved 0.3 m to the left (+y) shifts left by fx·dy/d pixels."""
     camera = at(MOVER_AT)
     centre = (MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0)
-    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), {})}).color, 1))
+    before = centroid_column(mask(render(pool, RGB, camera, {"mover": BodyState(at(centre), {})})["color"], 1))
     moved = BodyState(at((centre[0], 0.3, 0.0)), {})
-    after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved}).color, 1))
+    after = centroid_column(mask(render(pool, RGB, camera, {"mover": moved})["color"], 1))
     assert before == pytest.approx(W / 2 - 0.5, abs=1)
     assert after - before == pytest.approx(-FX * 0.3 / MOVER_FACE, abs=2)
 
@@ -195,8 +204,10 @@ def test_moving_a_body_moves_it_in_the_image(pool: RenderPool) -> None:
 def test_joint_positions_move_links(pool: RenderPool) -> None:
     """The arm swung by 0.1 rad about z puts its box fx·tan(0.1) pixels to the left."""
     camera = at(ARM_AT)
-    straight = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.0})}).color, 1))
-    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.1})}).color, 1))
+    straight = centroid_column(
+        mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.0})})["color"], 1)
+    )
+    swung = centroid_column(mask(render(pool, RGB, camera, {"arm": BodyState(at(ARM_AT), {"swing": 0.1})})["color"], 1))
     assert straight == pytest.approx(W / 2 - 0.5, abs=1)
     assert swung - straight == pytest.approx(-FX * math.tan(0.1), abs=2)
 
@@ -204,26 +215,26 @@ def test_joint_positions_move_links(pool: RenderPool) -> None:
 def test_base_poses_are_centre_of_mass_frames(pool: RenderPool) -> None:
     """A body whose centre of mass is 0.4 m beside its visual, placed by PyBullet's base pose, shows its visual
     where the server has it (centred), not 0.4 m (20 px) off."""
-    pixels = render(pool, RGB, at(OFFSET_AT)).color
+    pixels = render(pool, RGB, at(OFFSET_AT))["color"]
     assert centroid_column(mask(pixels, 0)) == pytest.approx(W / 2 - 0.5, abs=1)
 
 
 def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, renderer: str) -> None:
     """Lit from behind the camera, an orange face shows its material colour; the default light (travelling
     towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
-    lit = render(pool, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
+    lit = render(pool, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
     np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
     with RenderPool(
         [b for b in scene() if b.name == "orange"], CAMERAS[:1], workers=1, renderer=renderer
     ) as default_light:
-        shaded = render(default_light, RGB, at(ORANGE_AT)).color[H // 2, W // 2].astype(float)
+        shaded = render(default_light, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
     np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
 
 
 def test_mono_is_luminance(pool: RenderPool) -> None:
-    """channels=1: H×W uint8, the BT.601 luminance of the RGB image."""
-    rgb = render(pool, RGB, AHEAD).color.astype(float)
-    mono = render(pool, MONO, AHEAD).color
+    """The mono output: H×W uint8, the BT.601 luminance of the RGB image."""
+    rgb = render(pool, RGB, AHEAD)["color"].astype(float)
+    mono = render(pool, MONO, AHEAD)["mono"]
     assert mono.shape == (H, W) and mono.dtype == np.uint8
     np.testing.assert_allclose(mono, rgb @ [0.299, 0.587, 0.114], atol=1)
 
@@ -231,9 +242,9 @@ def test_mono_is_luminance(pool: RenderPool) -> None:
 def test_noise_has_the_configured_spread_and_follows_the_seed(pool: RenderPool) -> None:
     """σ 0.02 of full scale is ≈ 5.1 levels on a flat region; same seed, same image; another seed, another."""
     wall = at(GREY_AT)
-    clean = render(pool, RGB, wall).color.astype(float)
+    clean = render(pool, RGB, wall)["color"].astype(float)
     assert clean.std() == 0 and clean[0, 0, 0] == pytest.approx(128, abs=2)  # mid-grey: no clipping
-    a, b, c = (render(pool, cam, wall).color for cam in (NOISY_A, NOISY_B, NOISY_C))
+    a, b, c = (render(pool, cam, wall)["color"] for cam in (NOISY_A, NOISY_B, NOISY_C))
     assert (a - clean).std() == pytest.approx(0.02 * 255, rel=0.2)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
@@ -243,20 +254,17 @@ def test_depth_is_z_along_the_optical_axis_and_points_lie_on_the_surface(pool: R
     """A wall square to the axis 2 m ahead reads 2.00 m at every pixel (z-depth, not range), its points lie on
     the plane z = 2 in the optical frame within 1 cm and carry the wall's colour; nothing in view reads +inf."""
     frame = render(pool, RGBD, at(GREY_AT))
-    assert frame.depth is not None and frame.points is not None and frame.color is not None
-    assert frame.depth.shape == (H, W) and frame.depth.dtype == np.float32
-    np.testing.assert_allclose(frame.depth, 2.0, atol=0.01)
-    points = frame.points
+    depth, points, color = frame["depth"], frame["points"], frame["color"]
+    assert depth.shape == (H, W) and depth.dtype == np.float32
+    np.testing.assert_allclose(depth, 2.0, atol=0.01)
     np.testing.assert_allclose(points[..., 2], 2.0, atol=0.01)
     u, v = np.meshgrid(np.arange(W) - (W - 1) / 2, np.arange(H) - (H - 1) / 2)
     np.testing.assert_allclose(points[..., 0], u * 2.0 / FX, atol=0.01)  # x right
     np.testing.assert_allclose(points[..., 1], v * 2.0 / FX, atol=0.01)  # y down
     packed = np.ascontiguousarray(points[..., 3]).view(np.uint32)
-    assert int(packed[0, 0]) == (int(frame.color[0, 0, 0]) << 16) | (int(frame.color[0, 0, 1]) << 8) | int(
-        frame.color[0, 0, 2]
-    )
+    assert int(packed[0, 0]) == (int(color[0, 0, 0]) << 16) | (int(color[0, 0, 1]) << 8) | int(color[0, 0, 2])
     sky = render(pool, RGBD, at((GREY_AT[0] + 100.0, 0.0, 0.0)))  # past the last region: nothing within the far clip
-    assert np.isposinf(sky.depth).all() and np.isnan(sky.points[..., :3]).all()
+    assert np.isposinf(sky["depth"]).all() and np.isnan(sky["points"][..., :3]).all()
 
 
 def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: RenderPool) -> None:
@@ -335,7 +343,7 @@ def test_gl_and_tiny_draw_every_shape_with_the_same_silhouette() -> None:
     images = {}
     for name in ("gl", "tiny"):
         with RenderPool(bodies, [camera], workers=1, renderer=name) as one:
-            images[name] = render(one, 0, AHEAD).color
+            images[name] = render(one, 0, AHEAD)["color"]
     gl, tiny = _silhouettes(images["gl"]), _silhouettes(images["tiny"])
     for shape in ("box", "cylinder", "mesh"):
         iou = (gl[shape] & tiny[shape]).sum() / (gl[shape] | tiny[shape]).sum()
@@ -364,7 +372,7 @@ def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
     with pytest.raises(RuntimeError, match="arm"):
         pool.collect(wait_for=RGB, timeout=WAIT)
     assert not pool.busy(RGB)
-    assert mask(render(pool, RGB, AHEAD).color, 0)[H // 2, W // 2]
+    assert mask(render(pool, RGB, AHEAD)["color"], 0)[H // 2, W // 2]
 
 
 def late_box(name: str, rgba: tuple[float, ...], side: float, static: bool) -> SceneBody:
@@ -378,24 +386,61 @@ def test_bodies_added_to_a_running_pool_are_drawn_where_placed_and_removed_ones_
     each fx·0.4/2 = 20 px wide, centred fx·0.5/2 = 25 px off the centre column; the static bodies loaded at the
     start are still drawn as before (GL re-bakes its static world). Removed, they are gone from the image."""
     camera = at(LATE_AT)
-    assert not mask(render(pool, RGB, camera).color, 1).any()
+    assert not mask(render(pool, RGB, camera)["color"], 1).any()
     green, red = late_box("late_green", GREEN, LATE_SIDE, False), late_box("late_red", RED, -LATE_SIDE, True)
     pool.add_body(green)
     pool.add_body(red)
     assert {"late_green", "late_red"} <= pool.body_names
-    pixels = render(pool, RGB, camera, {"late_green": BodyState(green.base, {})}).color
+    pixels = render(pool, RGB, camera, {"late_green": BodyState(green.base, {})})["color"]
     offset = FX * LATE_SIDE / LATE_FACE
     for m, side in ((mask(pixels, 1), -1), (mask(pixels, 0), 1)):
         assert centroid_column(m) == pytest.approx(W / 2 - 0.5 + side * offset, abs=1)
         assert m[H // 2].sum() == pytest.approx(FX * LATE_SIZE / LATE_FACE, abs=2)
-    assert mask(render(pool, RGB, AHEAD).color, 0)[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+    assert mask(render(pool, RGB, AHEAD)["color"], 0)[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
     pool.remove_body("late_green")
     pool.remove_body("late_red")
     assert not {"late_green", "late_red"} & pool.body_names
-    emptied = render(pool, RGB, camera).color
+    emptied = render(pool, RGB, camera)["color"]
     assert not mask(emptied, 0).any() and not mask(emptied, 1).any()
     with pytest.raises(ValueError, match="late_green"):
         pool.request(RGB, 0, camera, {"late_green": BodyState(green.base, {})})
+
+
+def nearer_than_3m(spec: CameraSpec) -> Finish:
+    """The test kind's finishing step: 255 where the depth (finished into metres before it) is under 3 m."""
+
+    def fill(out: Array, arrays: Mapping[str, Array]) -> None:
+        out[...] = np.where(arrays["depth"] < 3.0, 255, 0)
+
+    return fill
+
+
+NEAR = OutputKind("near", np.uint8, 1, encoding="mono8", needs=("depth",), finisher=nearer_than_3m)
+"""A kind simbot does not ship, computed from depth: it reaches the worker inside the camera's spec."""
+
+
+def test_a_new_output_kind_flows_through_a_real_pool(renderer: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A camera asking only for `near` gets it, and the depth it needs, finished in that order: the red
+    box's face, 2 m ahead and fx·1/2 = 50 px wide, is the only thing nearer than 3 m."""
+    monkeypatch.setitem(output_kinds(), "near", NEAR)
+    camera = CameraSpec("near", W, H, HFOV, 0.05, 50.0, outputs=("near",))
+    assert [kind.name for kind in camera.kinds] == ["depth", "near"]
+    with RenderPool(scene()[:1], [camera], workers=1, renderer=renderer) as one:
+        frame = render(one, 0, AHEAD)
+    assert set(frame) == {"depth", "near"} and frame["near"].dtype == np.uint8
+    near = frame["near"] == 255
+    assert near[H // 2, W // 2] and near[H // 2].sum() == pytest.approx(FX * RED_SIZE / RED_FACE, abs=2)
+    np.testing.assert_array_equal(near, frame["depth"] < 3.0)
+
+
+def test_camera_outputs_are_checked_at_configuration() -> None:
+    """An unknown output, or two outputs drawing the same buffer (points need rgb colour, not mono), fail in the
+    server; a camera's memory holds the outputs it asks for and those they need."""
+    with pytest.raises(ValueError, match="'c'.*no camera output 'heat'"):
+        CameraSpec("c", W, H, HFOV, 0.05, 50.0, outputs=("heat",))
+    with pytest.raises(ValueError, match="'c'.*draw the same buffer"):
+        CameraSpec("c", W, H, HFOV, 0.05, 50.0, outputs=("mono", "points"))
+    assert list(CameraSpec("c", W, H, HFOV, 0.05, 50.0, outputs=("points",)).layout()) == ["color", "depth", "points"]
 
 
 def test_a_camera_added_to_a_running_pool_renders_its_own_view(renderer: str) -> None:
@@ -404,12 +449,12 @@ def test_a_camera_added_to_a_running_pool_renders_its_own_view(renderer: str) ->
     late = CameraSpec("late", 80, 60, 2.0 * math.atan(40 / 50), 0.05, 50.0)
     with RenderPool(scene()[:1], CAMERAS[:2], workers=2, renderer=renderer, light=FRONT_LIT) as growing:
         assert growing.add_camera(late) == 2
-        pixels = render(growing, 2, at((0.0, 0.2, 0.0))).color
+        pixels = render(growing, 2, at((0.0, 0.2, 0.0)))["color"]
         assert pixels.shape == (60, 80, 3)
         red = mask(pixels, 0)
         assert red[30].sum() == pytest.approx(late.fx * RED_SIZE / RED_FACE, abs=2)
         assert centroid_column(red) == pytest.approx(40 - 0.5 + late.fx * 0.2 / RED_FACE, abs=2)
-        assert mask(render(growing, RGB, AHEAD).color, 0)[H // 2].sum() == pytest.approx(
+        assert mask(render(growing, RGB, AHEAD)["color"], 0)[H // 2].sum() == pytest.approx(
             FX * RED_SIZE / RED_FACE, abs=2
         )
 
@@ -433,7 +478,7 @@ def test_a_body_that_does_not_load_fails_the_next_collect_and_the_worker_goes_on
         with pytest.raises(RuntimeError, match="add_body 'broken'"):
             render_pool.collect(wait_for=RGB, timeout=WAIT)
         (frame,) = render_pool.collect()
-        assert mask(frame.rgb(), 0)[H // 2, W // 2]
+        assert mask(frame["color"], 0)[H // 2, W // 2]
 
 
 QUIET_SCRIPT = """
@@ -461,7 +506,7 @@ def test_auto_falls_back_to_tiny_with_the_reason_where_no_egl_context_opens(monk
     with RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="auto") as fallback:
         assert fallback.renderer_used == "tiny"
         assert fallback.fallback_reason and "EGL" in fallback.fallback_reason
-        assert mask(render(fallback, RGB, AHEAD).color, 0)[H // 2, W // 2]
+        assert mask(render(fallback, RGB, AHEAD)["color"], 0)[H // 2, W // 2]
     with pytest.raises(RuntimeError, match="--renderer gl: no OpenGL 3.3 EGL context"):
         RenderPool(scene()[:1], CAMERAS[:1], workers=1, renderer="gl", start_timeout=WAIT)
 

@@ -11,9 +11,9 @@ world's sun, no specular), per vertex, so a fragment costs one colour write.
 
 The projection flips y, so the framebuffer's first row is the image's top row and the pixels are
 read straight into the camera's shared memory, with no copy. A depth camera reads the depth
-buffer too and turns it into metres (`outputs.py`); it draws with depth clamping, so geometry
-nearer than the near plane is kept (and reads −inf) rather than cut away, and it discards what
-lies beyond the far plane (+inf, the background).
+buffer too, which its depth output turns into metres (`outputs.py`); it draws with depth
+clamping, so geometry nearer than the near plane is kept (and reads −inf) rather than cut away,
+and it discards what lies beyond the far plane (+inf, the background).
 """
 
 from __future__ import annotations
@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
 from simbot.sim.render.shapes import triangles
-from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, SceneBody, Transform
+from simbot.sim.render.specs import CameraSpec, Light, SceneBody, Transform
 
 log = logging.getLogger(__name__)
 
@@ -95,6 +96,10 @@ class _Target:
     spec: CameraSpec
     fbo: Any
     projection: Matrix
+    mono: bool
+    """The colour buffer holds luminance (drawn so by the shader)."""
+    depth: bool
+    """Depth is read back: drawn with depth clamping (see the module docstring)."""
 
 
 class GlRenderer:
@@ -184,37 +189,39 @@ class GlRenderer:
         return _Part(vao, buffer, body, link)
 
     def _target(self, spec: CameraSpec) -> _Target:
-        size = (spec.width, spec.height)
-        color = self.ctx.renderbuffer(size, components=3 if spec.channels != 1 else 1)
-        depth = self.ctx.depth_texture(size) if spec.depth else self.ctx.depth_renderbuffer(size)
+        size, drawn = (spec.width, spec.height), spec.drawn()
+        mono = len(drawn.get("color", ())) == 2  # an H×W colour buffer: luminance
+        read_depth = "depth" in drawn
+        color = self.ctx.renderbuffer(size, components=1 if mono else 3)
+        depth = self.ctx.depth_texture(size) if read_depth else self.ctx.depth_renderbuffer(size)
         projection = FLIP_Y @ projection_matrix(spec.vfov_deg, spec.width / spec.height, spec.near, spec.far)
-        return _Target(spec, self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth), projection)
+        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        return _Target(spec, fbo, projection, mono, read_depth)
 
     # --- a frame
 
-    def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None:
+    def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
         """Draw camera `camera` at `pose` (the scene already posed); read colour (uint8) and window
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
-        spec = target.spec
         view = view_matrix(pose)
         uniforms = self.uniforms
         uniforms["view_projection"].write(_gl(target.projection @ view))
         uniforms["view"].write(_gl(view))
-        uniforms["far"].value = spec.far
-        uniforms["mono"].value = spec.channels == 1
+        uniforms["far"].value = target.spec.far
+        uniforms["mono"].value = target.mono
         target.fbo.use()
         target.fbo.clear(*BACKGROUND, 1.0, depth=1.0)
-        if spec.depth:
+        if target.depth:
             self.ctx.enable_direct(GL_DEPTH_CLAMP)
         try:
             self._draw()
         finally:
-            if spec.depth:
+            if target.depth:
                 self.ctx.disable_direct(GL_DEPTH_CLAMP)
-        if color is not None:
-            target.fbo.read_into(color, components=spec.channels, alignment=1)
-        if depth is not None:
+        if (color := drawn.get("color")) is not None:
+            target.fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
+        if (depth := drawn.get("depth")) is not None:
             target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
     def _draw(self) -> None:

@@ -1,11 +1,15 @@
-"""From what a renderer drew to what a camera publishes, in place in the camera's shared memory:
-depth in metres, pixel noise, and the organised point cloud of an RGBD camera. Both renderers
-hand over the same raw form (uint8 colour, window depth 0..1), so this is shared by both."""
+"""The built-in camera outputs (`kinds.py`): colour (rgb8) or mono (mono8) with pixel noise,
+depth in metres, and the organised point cloud of an RGBD camera; and the finishing steps that
+turn what a renderer drew into them, in place in the camera's shared memory. Both renderers hand
+over the same raw form (uint8 colour, window depth 0..1), so this is shared by both."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
+from simbot.sim.render.kinds import Array, Finish, OutputKind
 from simbot.sim.render.specs import CameraSpec, Depths, Pixels, Points
 
 LUMA = (0.299, 0.587, 0.114)
@@ -54,3 +58,33 @@ class PointGrid:
         out[..., 2] = z
         packed = (rgb[..., 0].astype(np.uint32) << 16) | (rgb[..., 1].astype(np.uint32) << 8) | rgb[..., 2]
         out[..., 3] = packed.view(np.float32)
+
+
+def noise(spec: CameraSpec) -> Finish | None:
+    """The camera's seeded pixel noise; none at stddev 0."""
+    if spec.noise_stddev <= 0.0:
+        return None
+    rng = np.random.default_rng(spec.seed)
+    return lambda pixels, _: add_noise(pixels, spec.noise_stddev, rng)
+
+
+def metres(spec: CameraSpec) -> Finish:
+    return lambda depth, _: linear_depth(depth, spec.near, spec.far)
+
+
+def points(spec: CameraSpec) -> Finish:
+    grid = PointGrid(spec)
+
+    def fill(out: Array, arrays: Mapping[str, Array]) -> None:
+        grid.fill(arrays["depth"], arrays["color"], out)
+
+    return fill
+
+
+COLOR = OutputKind("color", np.uint8, 3, encoding="rgb8", draws="color", finisher=noise)
+MONO = OutputKind("mono", np.uint8, 1, encoding="mono8", draws="color", finisher=noise)
+"""The colour buffer as luminance (the renderer draws it so: GL in its shader, TinyRenderer by `luminance`)."""
+DEPTH = OutputKind("depth", np.float32, 1, encoding="32FC1", draws="depth", finisher=metres)
+"""float32 metres along the optical axis (REP 118); pixel noise is not applied to depth."""
+POINTS = OutputKind("points", np.float32, 4, needs=("color", "depth"), finisher=points)
+"""x y z rgb float32 per pixel in the optical frame: the layout of an organised PointCloud2."""

@@ -15,8 +15,8 @@
 - Workers run at nice 10, so on a busy machine the physics wins the CPU and frames come late
   rather than the simulation slowing down.
 - A request carries the camera's world pose and the poses and joint positions of the bodies that
-  move; the worker sets its copy of the scene to them and renders. The outputs (colour, depth,
-  points) go back through shared memory, one block per camera; only a small message goes
+  move; the worker sets its copy of the scene to them and renders. The camera's outputs (colour,
+  depth, points: `kinds.py`) go back through shared memory, one block per camera; only a small message goes
   through the pipe.
 - One request per camera may be outstanding: its shared memory holds one frame. Whether to skip a
   frame while the camera is busy (real time: the physics never waits) or to wait for it
@@ -44,8 +44,20 @@ from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from multiprocessing.shared_memory import SharedMemory
 from types import TracebackType
-from typing import Any
 
+from simbot.sim.render.pipe import (
+    AddBody,
+    AddCamera,
+    FrameDone,
+    Ready,
+    RemoveBody,
+    RenderFailed,
+    RenderRequest,
+    SceneChange,
+    SceneFailed,
+    StartError,
+    Stop,
+)
 from simbot.sim.render.specs import BodyState, CameraSpec, Frame, Light, SceneBody, Transform
 from simbot.sim.render.worker import RENDERERS, CameraBuffers, WorkerPlan, worker_main
 
@@ -86,13 +98,6 @@ class _Worker:
     cameras: list[int]
     death: str | None = None
     """Why it is gone, once it is."""
-
-
-@dataclass
-class _Ready:
-    renderer: str
-    fallback_reason: str | None
-    device: str
 
 
 class RenderPool:
@@ -157,7 +162,7 @@ class RenderPool:
         self._check_open()
         if body.name in self._body_names:
             raise ValueError(f"body {body.name!r} is in the scene already")
-        self._broadcast(("add_body", body))
+        self._broadcast(AddBody(body))
         self._body_names.add(body.name)
 
     def remove_body(self, name: str) -> None:
@@ -165,7 +170,7 @@ class RenderPool:
         self._check_open()
         if name not in self._body_names:
             raise ValueError(f"no body {name!r} in the scene")
-        self._broadcast(("remove_body", name))
+        self._broadcast(RemoveBody(name))
         self._body_names.remove(name)
 
     def add_camera(self, spec: CameraSpec) -> int:
@@ -181,7 +186,7 @@ class RenderPool:
         self._buffers.append(CameraBuffers(spec, shm))
         self._worker_of.append(worker.index)
         worker.cameras.append(index)
-        self._send(worker, ("add_camera", index, spec, shm.name))
+        self._send(worker, AddCamera(index, spec, shm.name))
         return index
 
     def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
@@ -199,9 +204,9 @@ class RenderPool:
         unknown = set(states) - self._body_names
         if unknown:
             raise ValueError(f"camera {spec.name!r}: no such bodies in the scene: {sorted(unknown)}")
-        pos, quat = camera_pose
-        pose = (tuple(float(v) for v in pos), tuple(float(v) for v in quat))
-        self._send(worker, ("render", camera, int(stamp_ns), pose, dict(states)))
+        (x, y, z), (qx, qy, qz, qw) = (tuple(float(v) for v in part) for part in camera_pose)
+        pose = ((x, y, z), (qx, qy, qz, qw))
+        self._send(worker, RenderRequest(camera, int(stamp_ns), pose, dict(states)))
         self._outstanding[camera] = int(stamp_ns)
 
     def busy(self, camera: int) -> bool:
@@ -262,10 +267,10 @@ class RenderPool:
             child_end.close()  # so that the worker's death reads as EOF here
             self._workers.append(_Worker(index, process, parent_end, mine))
 
-    def _await_ready(self, timeout: float) -> list[_Ready]:
+    def _await_ready(self, timeout: float) -> list[Ready]:
         """Every worker's ready message; a clear error when one fails, dies or takes too long."""
         deadline = time.monotonic() + timeout
-        ready: dict[int, _Ready] = {}
+        ready: dict[int, Ready] = {}
         while len(ready) < len(self._workers):
             waiting = [w for w in self._workers if w.index not in ready]
             left = deadline - time.monotonic()
@@ -279,7 +284,7 @@ class RenderPool:
                     ready[worker.index] = message
         return [ready[w.index] for w in self._workers]
 
-    def _poll_start(self, worker: _Worker) -> _Ready | None:
+    def _poll_start(self, worker: _Worker) -> Ready | None:
         try:
             if not worker.conn.poll():
                 if worker.process.is_alive():
@@ -289,12 +294,12 @@ class RenderPool:
         except (EOFError, OSError):
             self._mark_dead(worker)
             raise RuntimeError(f"render {worker.death} while loading the scene") from None
-        if message[0] == "error":
-            raise RuntimeError(f"render worker {worker.index} failed to start: {message[1]}")
-        _, renderer, reason, device = message
-        return _Ready(renderer, reason, device)
+        if isinstance(message, StartError):
+            raise RuntimeError(f"render worker {worker.index} failed to start: {message.reason}")
+        assert isinstance(message, Ready), message  # a worker's first message is one of the two
+        return message
 
-    def _summarise(self, ready: list[_Ready]) -> None:
+    def _summarise(self, ready: list[Ready]) -> None:
         reasons = [r.fallback_reason for r in ready if r.fallback_reason]
         self.renderer_used = "gl" if ready and all(r.renderer == "gl" for r in ready) else "tiny"
         self.fallback_reason = reasons[0] if reasons else None
@@ -315,17 +320,15 @@ class RenderPool:
         if exited:
             self._mark_dead(worker)
 
-    def _receive(self, worker: _Worker, message: tuple[Any, ...]) -> None:
-        if message[0] == "scene_failed":
-            self._failures.append(f"render worker {worker.index}: {message[1]}")
-            return
-        kind, camera, stamp = message[0], message[1], message[2]
-        if kind == "frame":
-            buffers = self._buffers[camera]
-            self._finished.append(Frame(camera, stamp, buffers.color, buffers.depth, buffers.points, message[3]))
-        else:
-            del self._outstanding[camera]
-            self._failures.append(f"camera {camera} {self.cameras[camera].name!r} at {stamp} ns: {message[3]}")
+    def _receive(self, worker: _Worker, message: FrameDone | RenderFailed | SceneFailed) -> None:
+        match message:
+            case FrameDone(camera, stamp, render_s):
+                self._finished.append(Frame(camera, stamp, dict(self._buffers[camera].arrays), render_s))
+            case RenderFailed(camera, stamp, reason):
+                del self._outstanding[camera]
+                self._failures.append(f"camera {camera} {self.cameras[camera].name!r} at {stamp} ns: {reason}")
+            case SceneFailed(reason):
+                self._failures.append(f"render worker {worker.index}: {reason}")
 
     def _wait(self, camera: int, timeout: float | None) -> None:
         """Block until camera's frame (or its failure) has arrived."""
@@ -354,14 +357,14 @@ class RenderPool:
 
     # --- sending
 
-    def _broadcast(self, message: tuple[Any, ...]) -> None:
+    def _broadcast(self, message: SceneChange) -> None:
         """To every live worker; a dead one's cameras raise at their next request."""
         for worker in self._workers:
             if worker.death is None:
                 with contextlib.suppress(RuntimeError):
                     self._send(worker, message)
 
-    def _send(self, worker: _Worker, message: tuple[Any, ...]) -> None:
+    def _send(self, worker: _Worker, message: RenderRequest | SceneChange) -> None:
         """RuntimeError naming the worker and its cameras when it is gone."""
         try:
             worker.conn.send(message)
@@ -408,7 +411,7 @@ def _stop_workers(workers: Sequence[_Worker]) -> None:
     """Ask politely, give a frame's time, then terminate, then kill."""
     for worker in workers:
         with contextlib.suppress(OSError):  # a dead worker's pipe: it is stopped already
-            worker.conn.send(("stop",))
+            worker.conn.send(Stop())
     deadline = time.monotonic() + STOP_GRACE_S
     for worker in workers:
         worker.process.join(max(0.0, deadline - time.monotonic()))

@@ -4,12 +4,13 @@ outputs, the light, and a finished frame. Plain frozen data: it crosses the proc
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import NamedTuple
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+
+from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -48,10 +49,10 @@ class BodyState:
 class CameraSpec:
     """A camera's intrinsics and what it produces; the pose comes with each request.
 
-    Outputs: `channels` uint8 colour channels (3 rgb8, 1 mono8, 0 none), `depth` (float32 metres
-    along the optical axis, REP 118) and `points` (x y z rgb float32 per pixel in the optical frame,
-    the layout of an organised PointCloud2). They lie one after the other in the camera's shared
-    memory block (see `layout`)."""
+    `outputs` names the outputs it publishes (`kinds.py`; the built-in `color`, `mono`, `depth`
+    and `points` are in `outputs.py`). Resolved once here, they and the outputs they need are
+    `kinds`, which travel to the workers with the spec; their arrays lie one after the other in
+    the camera's shared memory block (see `layout`)."""
 
     name: str
     width: int
@@ -60,12 +61,12 @@ class CameraSpec:
     """Horizontal field of view, radians; pixels are square, so fx = fy = (width/2)/tan(hfov/2)."""
     near: float
     far: float
-    channels: int = 3
-    depth: bool = False
-    points: bool = False
+    outputs: tuple[str, ...] = ("color",)
     noise_stddev: float = 0.0
     """Gaussian pixel noise in units of full scale, as SDF camera noise (0..1)."""
     seed: int = 0
+    kinds: tuple[OutputKind, ...] = field(init=False, repr=False, compare=False)
+    """The outputs' kinds, each after those it needs."""
 
     def __post_init__(self) -> None:
         """Fail at configuration, not in a worker."""
@@ -75,30 +76,28 @@ class CameraSpec:
             raise ValueError(f"camera {self.name!r}: horizontal fov {self.hfov} must be in (0, pi)")
         if not 0.0 < self.near < self.far:
             raise ValueError(f"camera {self.name!r}: clip near {self.near} / far {self.far} must be 0 < near < far")
-        if self.channels not in (0, 1, 3):
-            raise ValueError(f"camera {self.name!r}: channels {self.channels} must be 0, 1 (mono8) or 3 (rgb8)")
-        if self.points and not (self.depth and self.channels == 3):
-            raise ValueError(f"camera {self.name!r}: points need depth and rgb")
         if not self.noise_stddev >= 0.0:
             raise ValueError(f"camera {self.name!r}: noise stddev {self.noise_stddev} must be >= 0")
+        try:
+            kinds = resolve(self.outputs)
+        except ValueError as exc:
+            raise ValueError(f"camera {self.name!r}: {exc}") from None
+        drawn = [kind.draws for kind in kinds if kind.draws is not None]
+        if len(set(drawn)) != len(drawn):
+            names = [kind.name for kind in kinds if kind.draws is not None]
+            raise ValueError(f"camera {self.name!r}: outputs {names} draw the same buffer twice ({drawn})")
+        object.__setattr__(self, "kinds", kinds)
 
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """The colour image's shape: H×W×3, or H×W for mono."""
-        return (self.height, self.width, 3) if self.channels == 3 else (self.height, self.width)
+    def drawn(self) -> dict[Raw, tuple[int, ...]]:
+        """The raw buffers a renderer draws for this camera, with their shapes."""
+        return {kind.draws: kind.shape(self) for kind in self.kinds if kind.draws is not None}
 
     def layout(self) -> dict[str, tuple[np.dtype[np.generic], tuple[int, ...], int]]:
         """Each output's dtype, shape and byte offset in the camera's shared memory."""
-        outputs: list[tuple[str, np.dtype[np.generic], tuple[int, ...]]] = []
-        if self.channels:
-            outputs.append(("color", np.dtype(np.uint8), self.shape))
-        if self.depth:
-            outputs.append(("depth", np.dtype(np.float32), (self.height, self.width)))
-        if self.points:
-            outputs.append(("points", np.dtype(np.float32), (self.height, self.width, 4)))
         placed, offset = {}, 0
-        for name, dtype, shape in outputs:
-            placed[name] = (dtype, shape, offset)
+        for kind in self.kinds:
+            dtype, shape = np.dtype(kind.dtype), kind.shape(self)
+            placed[kind.name] = (dtype, shape, offset)
             offset += dtype.itemsize * math.prod(shape)
             offset += -offset % 16  # float blocks start aligned
         return placed
@@ -138,32 +137,26 @@ class Light:
     color: Vec3 = (1.0, 1.0, 1.0)
 
 
-class Frame(NamedTuple):
-    """A rendered frame. Its arrays are views of the camera's shared memory, valid until the next
-    request for that camera; None for an output the camera does not produce."""
+@dataclass(frozen=True, eq=False)
+class Frame(Mapping[str, Array]):
+    """A rendered frame: the camera's outputs by name. Its arrays are views of the camera's shared
+    memory, valid until the next request for that camera."""
 
     camera: int
     stamp_ns: int
-    color: Pixels | None
-    depth: Depths | None
-    points: Points | None
+    arrays: Mapping[str, Array]
     render_s: float
     """Seconds the worker spent on it (scene update, render, conversion, copy)."""
 
-    def rgb(self) -> Pixels:
-        """The colour image; ValueError for a camera that renders none."""
-        if self.color is None:
-            raise ValueError(f"camera {self.camera} renders no colour")
-        return self.color
+    def __getitem__(self, name: str) -> Array:
+        """KeyError naming the camera for an output it does not render."""
+        try:
+            return self.arrays[name]
+        except KeyError:
+            raise KeyError(f"camera {self.camera} renders no {name!r}") from None
 
-    def metres(self) -> Depths:
-        """The depth image; ValueError for a camera that renders none."""
-        if self.depth is None:
-            raise ValueError(f"camera {self.camera} renders no depth")
-        return self.depth
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.arrays)
 
-    def cloud(self) -> Points:
-        """The point cloud; ValueError for a camera that renders none."""
-        if self.points is None:
-            raise ValueError(f"camera {self.camera} renders no points")
-        return self.points
+    def __len__(self) -> int:
+        return len(self.arrays)

@@ -7,9 +7,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import luminance
 from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
-from simbot.sim.render.specs import CameraSpec, Depths, Light, Pixels, Transform
+from simbot.sim.render.specs import CameraSpec, Light, Transform
 
 CLEARED_DEPTH = 1.0 - 1e-6
 """TinyRenderer clears its depth buffer to just under 1; at or above this, nothing was drawn (a
@@ -40,7 +41,7 @@ class TinyRenderer:
     def remove_body(self, name: str) -> None:
         """Nothing to do: PyBullet draws the scene's bodies as they are."""
 
-    def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None:
+    def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
         spec = self.cameras[camera]
         pb = self.scene.pb
         image = pb.getCameraImage(
@@ -58,10 +59,10 @@ class TinyRenderer:
             lightSpecularCoeff=self.light.specular,
             physicsClientId=self.scene.client,
         )
-        if color is not None:
+        if (color := drawn.get("color")) is not None:
             rgb = np.asarray(image[2], dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
-            color[...] = luminance(rgb) if spec.channels == 1 else rgb
-        if depth is not None:
+            color[...] = luminance(rgb) if color.ndim == 2 else rgb
+        if (depth := drawn.get("depth")) is not None:
             depth[...] = np.asarray(image[3], dtype=np.float32).reshape(spec.height, spec.width)
             depth[depth >= CLEARED_DEPTH] = 1.0
 

@@ -2,11 +2,11 @@
 
 The worker loads the scene (`BulletScene`), opens the renderer it was asked for (`gl`, `tiny`, or
 `auto`: gl when an EGL context opens, else tiny with the reason), reports ready, then takes the
-pool's messages in order until told to stop or the server is gone: render requests, and the
-changes of a world that runs (a body added or removed, a camera added), each before any request
-sent after it. Each frame is drawn straight into the camera's shared memory and finished there
-(`outputs.py`); only a small message goes back. A change that fails is reported (`scene_failed`)
-and the worker goes on.
+pool's messages (typed: `pipe.py`) in order until told to stop or the server is gone: render
+requests, and the changes of a world that runs (a body added or removed, a camera added), each
+before any request sent after it. Each frame is drawn straight into the camera's shared memory
+and finished there (each output kind's finishing step, `kinds.py`); only a small message goes
+back. A change that fails is reported (`SceneFailed`) and the worker goes on.
 """
 
 from __future__ import annotations
@@ -16,17 +16,30 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
-from simbot.sim.render.outputs import PointGrid, add_noise, linear_depth
+from simbot.sim.render.kinds import Array, Finish, Raw
+from simbot.sim.render.pipe import (
+    AddBody,
+    AddCamera,
+    FrameDone,
+    Ready,
+    RemoveBody,
+    RenderFailed,
+    RenderRequest,
+    SceneChange,
+    SceneFailed,
+    StartError,
+    Stop,
+)
 from simbot.sim.render.scene import BulletScene
-from simbot.sim.render.specs import BodyState, CameraSpec, Depths, Light, Pixels, Points, SceneBody, Transform
+from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody, Transform
 
 RENDERERS = ("auto", "gl", "tiny")
 
@@ -35,7 +48,9 @@ class Renderer(Protocol):
     name: str
     device: str
 
-    def render(self, camera: int, pose: Transform, color: Pixels | None, depth: Depths | None) -> None: ...
+    def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
+        """Draw camera `camera` at `pose` into the raw buffers it draws (`CameraSpec.drawn`)."""
+        ...
 
     def add_camera(self, index: int, spec: CameraSpec) -> None: ...
 
@@ -69,22 +84,14 @@ class CameraBuffers:
     def __init__(self, spec: CameraSpec, shm: SharedMemory) -> None:
         self.spec = spec
         self.shm = shm
-        self.arrays: dict[str, Any] = {
+        self.arrays: dict[str, Array] = {
             name: np.ndarray(shape, dtype=dtype, buffer=shm.buf, offset=offset)
             for name, (dtype, shape, offset) in spec.layout().items()
         }
 
-    @property
-    def color(self) -> Pixels | None:
-        return self.arrays.get("color")
-
-    @property
-    def depth(self) -> Depths | None:
-        return self.arrays.get("depth")
-
-    @property
-    def points(self) -> Points | None:
-        return self.arrays.get("points")
+    def drawn(self) -> dict[Raw, Array]:
+        """The outputs a renderer draws straight into, by the raw buffer each takes."""
+        return {kind.draws: self.arrays[kind.name] for kind in self.spec.kinds if kind.draws is not None}
 
     def release(self) -> None:
         """Drop the views first: a mapping with live views cannot be closed."""
@@ -95,8 +102,8 @@ class CameraBuffers:
 class _Camera:
     index: int
     buffers: CameraBuffers
-    rng: np.random.Generator
-    grid: PointGrid | None
+    finishes: list[tuple[str, Finish]]
+    """Each output's finishing step, in the order of the kinds (an output after those it needs)."""
 
 
 def worker_main(conn: Connection, plan: WorkerPlan) -> None:
@@ -112,9 +119,9 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         renderer, fallback = open_renderer(plan.renderer, scene, plan.light, specs, plan.gl_threads)
         held = _Held(scene, renderer, {i: _camera(i, spec, name) for i, (spec, name) in plan.jobs.items()})
     except Exception as exc:
-        conn.send(("error", _reason(exc)))
+        conn.send(StartError(_reason(exc)))
         return
-    conn.send(("ready", renderer.name, fallback, renderer.device))
+    conn.send(Ready(renderer.name, fallback, renderer.device))
     try:
         _serve(conn, held)
     finally:
@@ -146,8 +153,8 @@ def open_renderer(
 
 
 def _camera(index: int, spec: CameraSpec, shm_name: str) -> _Camera:
-    buffers = CameraBuffers(spec, SharedMemory(name=shm_name))
-    return _Camera(index, buffers, np.random.default_rng(spec.seed), PointGrid(spec) if spec.points else None)
+    finishes = [(kind.name, step) for kind in spec.kinds if kind.finisher and (step := kind.finisher(spec))]
+    return _Camera(index, CameraBuffers(spec, SharedMemory(name=shm_name)), finishes)
 
 
 @dataclass
@@ -158,51 +165,43 @@ class _Held:
     renderer: Renderer
     cameras: dict[int, _Camera]
 
-    def add_body(self, body: SceneBody) -> None:
-        self.scene.add(body)
-        self.renderer.add_body(body.name)
-
-    def remove_body(self, name: str) -> None:
-        self.renderer.remove_body(name)
-        self.scene.remove(name)
-
-    def add_camera(self, index: int, spec: CameraSpec, shm_name: str) -> None:
-        self.cameras[index] = _camera(index, spec, shm_name)
-        self.renderer.add_camera(index, spec)
+    def change(self, change: SceneChange) -> None:
+        """A change of the world that runs, each before any request sent after it."""
+        match change:
+            case AddBody(body):
+                self.scene.add(body)
+                self.renderer.add_body(body.name)
+            case RemoveBody(name):
+                self.renderer.remove_body(name)
+                self.scene.remove(name)
+            case AddCamera(index, spec, shm_name):
+                self.cameras[index] = _camera(index, spec, shm_name)
+                self.renderer.add_camera(index, spec)
 
 
 def _serve(conn: Connection, held: _Held) -> None:
     """The pool's messages in order until told to stop or the server is gone (EOF, broken pipe)."""
-    changes: dict[str, Callable[..., None]] = {
-        "add_body": held.add_body,
-        "remove_body": held.remove_body,
-        "add_camera": held.add_camera,
-    }
     try:
-        while (message := conn.recv())[0] != "stop":
-            kind, *args = message
-            if kind == "render":
-                conn.send(_render_request(held, *args))
+        while not isinstance(message := conn.recv(), Stop):
+            if isinstance(message, RenderRequest):
+                conn.send(_render_request(held, message))
                 continue
             try:
-                changes[kind](*args)
+                held.change(message)
             except Exception as exc:
-                subject = getattr(args[0], "name", args[0])  # a SceneBody by its name; a body name; a camera index
-                conn.send(("scene_failed", f"{kind} {subject!r}: {_reason(exc)}"))
+                conn.send(SceneFailed(f"{message}: {_reason(exc)}"))
     except (EOFError, OSError):
         return
 
 
-def _render_request(
-    held: _Held, camera: int, stamp: int, pose: Transform, states: Mapping[str, BodyState]
-) -> tuple[Any, ...]:
+def _render_request(held: _Held, request: RenderRequest) -> FrameDone | RenderFailed:
     """The message that answers a request: its frame is done, or why it failed."""
     start = time.perf_counter()
     try:
-        render(held.scene, held.renderer, held.cameras[camera], pose, states)
+        render(held.scene, held.renderer, held.cameras[request.camera], request.pose, request.states)
     except Exception as exc:
-        return ("failed", camera, stamp, f"{type(exc).__name__}: {exc}")
-    return ("frame", camera, stamp, time.perf_counter() - start)
+        return RenderFailed(request.camera, request.stamp_ns, f"{type(exc).__name__}: {exc}")
+    return FrameDone(request.camera, request.stamp_ns, time.perf_counter() - start)
 
 
 def _reason(exc: Exception) -> str:
@@ -214,16 +213,10 @@ def render(
 ) -> None:
     """Pose the scene, draw, and finish the outputs in the camera's shared memory."""
     scene.apply(states)
-    buffers = camera.buffers
-    spec = buffers.spec
-    color, depth = buffers.color, buffers.depth
-    renderer.render(camera.index, pose, color, depth)
-    if depth is not None:
-        linear_depth(depth, spec.near, spec.far)
-    if color is not None and spec.noise_stddev > 0.0:
-        add_noise(color, spec.noise_stddev, camera.rng)
-    if camera.grid is not None and depth is not None and color is not None and buffers.points is not None:
-        camera.grid.fill(depth, color, buffers.points)
+    arrays = camera.buffers.arrays
+    renderer.render(camera.index, pose, camera.buffers.drawn())
+    for name, finish in camera.finishes:
+        finish(arrays[name], arrays)
 
 
 def _silence_stdio() -> None:

@@ -4,7 +4,9 @@ The world's one `Rendering` system (simbot/sim/systems/rendering.py) finds the c
 `RenderedSensor` contract (simbot/sim/render/contract.py), schedules it and renders it in worker
 processes. This module says what a camera renders
 and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same camera with
-other outputs.
+other products. A camera's products are data (`Product`: the key under its topic, the output it
+shows, how that becomes a message): a camera of a new kind declares its products, and its
+outputs' kinds (simbot/sim/render/kinds.py) say how they are rendered.
 
 Images are stamped in the camera's optical frame (z forward, x right, y down; tf_static places
 it), as ROS expects of camera data. Its image key is `<topic>`, else Gazebo's
@@ -49,8 +51,8 @@ from simbot.sim.render.contract import RenderStatus
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
-CHANNELS = {"R8G8B8": 3, "RGB_INT8": 3, "L8": 1, "L_INT8": 1}
-"""SDF image formats simbot renders, by the number of uint8 channels (rgb8, mono8)."""
+COLOR_OUTPUTS = {"R8G8B8": "color", "RGB_INT8": "color", "L8": "mono", "L_INT8": "mono"}
+"""SDF image formats simbot renders, by the output that renders them (rgb8, mono8)."""
 DEFAULT_RATE_HZ = 30.0
 MAX_SIDE = 8192
 
@@ -89,8 +91,8 @@ class CameraParams:
             raise camera.error("horizontal_fov", f"must be in (0, π) radians, got {params.horizontal_fov}")
         if not 0.0 < params.near < params.far:
             raise clip.error("near", f"and <far> need 0 < near < far, got near {params.near} far {params.far}")
-        if color and params.format not in CHANNELS:
-            raise image.error("format", f"{params.format!r} is not rendered; use one of {', '.join(CHANNELS)}")
+        if color and params.format not in COLOR_OUTPUTS:
+            raise image.error("format", f"{params.format!r} is not rendered; use one of {', '.join(COLOR_OUTPUTS)}")
         if params.noise_stddev < 0:
             raise camera.error("noise", f"stddev must be >= 0, got {params.noise_stddev}")
         return params
@@ -103,26 +105,54 @@ def camera_info_key(image_key: str) -> str:
 
 
 @dataclass(frozen=True)
-class Output:
-    """One published product of a frame: its publisher and how the frame becomes its message."""
+class Message:
+    """How an output's array becomes a message: its type, and its builder (stamp ns, frame id, array)."""
 
+    type: type[Any]
+    build: Callable[[int, str, Any], Any]
+
+
+IMAGES = {
+    "rgb8": Message(messages.Image, messages.image),
+    "mono8": Message(messages.Image, messages.image),
+    "32FC1": Message(messages.Image, messages.depth_image),
+}
+"""sensor_msgs/Image builders by the encoding an output kind gives (`OutputKind.encoding`)."""
+POINT_CLOUD = Message(messages.PointCloud2, messages.point_cloud)
+
+
+@dataclass(frozen=True)
+class Product:
+    """One published product of a camera, as data."""
+
+    key: str
+    """Under the camera's topic (`<topic>/<key>`); "" for the topic itself."""
+    output: str
+    """The output it shows, by kind name; `color` is rendered as the SDF image format says (`COLOR_OUTPUTS`)."""
+    message: Message | None = None
+    """None: a sensor_msgs/Image in the encoding of the output's kind (`IMAGES`)."""
+
+
+@dataclass(frozen=True)
+class _Published:
     publisher: Publisher
-    message: Callable[[Frame], Any]
+    output: str
+    build: Callable[[int, str, Any], Any]
 
 
 class Camera(Sampled):
     """sensor_msgs/Image on `<topic>` and CameraInfo beside it, at the camera's rate."""
 
-    depth = False
-    """Whether the camera renders depth (a subclass that publishes depth sets it)."""
+    products: tuple[Product, ...] = (Product("", "color"),)
     kind = "image"
     """The last segment of Gazebo's default key (`world/<w>/model/<m>/link/<l>/sensor/<s>/image`)."""
-    color = True
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
-        params = CameraParams.from_sdf(sensor, self.color)
+        color = any(product.output == "color" for product in self.products)
+        params = CameraParams.from_sdf(sensor, color)
         width, height = ctx.override("camera.size") or (params.width, params.height)
+        outputs = [COLOR_OUTPUTS[params.format] if p.output == "color" else p.output for p in self.products]
         self.spec = CameraSpec(
             sensor.name,
             width,
@@ -130,9 +160,7 @@ class Camera(Sampled):
             params.horizontal_fov,
             params.near,
             params.far,
-            channels=CHANNELS.get(params.format, 3) if self.color else 0,
-            depth=self.depth,
-            points=self.depth and self.color,
+            outputs=tuple(dict.fromkeys(outputs)),
             noise_stddev=params.noise_stddev,
             seed=int(ctx.rng.integers(2**31)),
         )
@@ -140,17 +168,24 @@ class Camera(Sampled):
         self.where = (model, link.name, sensor.pose)
         self.frame_id = optical_frame(sensor_frame(sensor))
         topic = ctx.sensor_topic(self.kind)
-        self.outputs = self.advertise(ctx.bus, topic)
+        self.outputs = [
+            self._advertise(ctx.bus, topic, product, output)
+            for product, output in zip(self.products, outputs, strict=True)
+        ]
         self._info = ctx.bus.publisher(self.info_key(topic), messages.CameraInfo)
         self.status = RenderStatus()
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
 
-    def advertise(self, bus: SimBus, topic: str) -> list[Output]:
-        """The camera's products: here the colour image on the sensor's topic."""
-        return [
-            Output(bus.publisher(topic, messages.Image), lambda f: messages.image(f.stamp_ns, self.frame_id, f.rgb()))
-        ]
+    def _advertise(self, bus: SimBus, topic: str, product: Product, output: str) -> _Published:
+        kind = next(kind for kind in self.spec.kinds if kind.name == output)
+        message = product.message or IMAGES.get(kind.encoding or "")
+        if message is None:
+            raise SystemConfigError(
+                f"camera {self.spec.name}: output {output!r} is no image; its product needs a message"
+            )
+        key = f"{topic}/{product.key}" if product.key else topic
+        return _Published(bus.publisher(key, message.type), output, message.build)
 
     def info_key(self, topic: str) -> str:
         return camera_info_key(topic)
@@ -162,7 +197,7 @@ class Camera(Sampled):
         """Each subscribed product, then camera_info, all under the frame's stamp (the sim time it shows)."""
         for output in self.outputs:
             if output.publisher.has_subscribers:
-                output.publisher.put(output.message(frame))
+                output.publisher.put(output.build(frame.stamp_ns, self.frame_id, frame[output.output]))
         self.publish_info(frame.stamp_ns)
         self.published(frame.stamp_ns)
 

@@ -9,22 +9,11 @@ applied to depth.
 
 from __future__ import annotations
 
-from simbot.bus import messages
-from simbot.sim.bus_view import SimBus
-from simbot.sim.systems.camera import Camera, Output
+from simbot.sim.systems.camera import Camera, Product
 
 
 class DepthCamera(Camera):
     """sensor_msgs/Image (32FC1) on `<topic>` and CameraInfo beside it."""
 
-    depth = True
-    color = False
+    products = (Product("", "depth"),)
     kind = "depth_image"
-
-    def advertise(self, bus: SimBus, topic: str) -> list[Output]:
-        return [
-            Output(
-                bus.publisher(topic, messages.Image),
-                lambda f: messages.depth_image(f.stamp_ns, self.frame_id, f.metres()),
-            )
-        ]

@@ -14,34 +14,15 @@ All four share one stamp. The SDF parameters are the camera's (`camera.py`).
 
 from __future__ import annotations
 
-from simbot.bus import messages
-from simbot.sim.bus_view import SimBus
-from simbot.sim.systems.camera import Camera, Output
+from simbot.sim.systems.camera import POINT_CLOUD, Camera, Product
 
 
 class RgbdCamera(Camera):
     """Image, depth image and points under `<topic>/`, with camera_info."""
 
-    depth = True
-    color = True
+    products = (Product("image", "color"), Product("depth_image", "depth"), Product("points", "points", POINT_CLOUD))
     kind = ""
     """Gazebo's default key of an RGBD camera is the sensor's scoped name; its products lie under it."""
-
-    def advertise(self, bus: SimBus, topic: str) -> list[Output]:
-        frame = self.frame_id
-        return [
-            Output(
-                bus.publisher(f"{topic}/image", messages.Image), lambda f: messages.image(f.stamp_ns, frame, f.rgb())
-            ),
-            Output(
-                bus.publisher(f"{topic}/depth_image", messages.Image),
-                lambda f: messages.depth_image(f.stamp_ns, frame, f.metres()),
-            ),
-            Output(
-                bus.publisher(f"{topic}/points", messages.PointCloud2),
-                lambda f: messages.point_cloud(f.stamp_ns, frame, f.cloud()),
-            ),
-        ]
 
     def info_key(self, topic: str) -> str:
         return f"{topic}/camera_info"
