@@ -20,13 +20,10 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
-
-if TYPE_CHECKING:
-    from simbot.sim.render.specs import CameraSpec
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +33,27 @@ Raw = Literal["color", "depth"]
 """The buffers a renderer draws: uint8 colour (H×W×3 rgb, or H×W luminance), window depth (float32, 0..1)."""
 Finish = Callable[[Array, Mapping[str, Array]], None]
 """Finishes an output in place, given its array and every output of the camera by name."""
+
+
+class Intrinsics(Protocol):
+    """What a kind may read of its camera (a `CameraSpec` is one): size, clip, noise, focal length."""
+
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def near(self) -> float: ...
+    @property
+    def far(self) -> float: ...
+    @property
+    def noise_stddev(self) -> float: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def fx(self) -> float: ...
+    @property
+    def principal_point(self) -> tuple[float, float]: ...
 
 
 @dataclass(frozen=True)
@@ -52,10 +70,10 @@ class OutputKind:
     """The raw buffer the renderer draws straight into this output's memory."""
     needs: tuple[str, ...] = ()
     """The outputs it is computed from: they are in the camera's memory and finished before it."""
-    finisher: Callable[[CameraSpec], Finish | None] | None = None
+    finisher: Callable[[Intrinsics], Finish | None] | None = None
     """Makes the camera's finishing step, once per camera in its worker; None (or a None step): none."""
 
-    def shape(self, spec: CameraSpec) -> tuple[int, ...]:
+    def shape(self, spec: Intrinsics) -> tuple[int, ...]:
         return (spec.height, spec.width) if self.channels == 1 else (spec.height, spec.width, self.channels)
 
 

@@ -9,8 +9,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from simbot.sim.render.kinds import Array, Finish, OutputKind
-from simbot.sim.render.specs import CameraSpec, Depths, Pixels, Points
+from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
+from simbot.sim.render.specs import Depths, Pixels, Points
 
 LUMA = (0.299, 0.587, 0.114)
 """ITU-R BT.601 luminance weights, as OpenCV's RGB2GRAY and Gazebo's L8 conversion."""
@@ -44,7 +44,7 @@ def add_noise(pixels: Pixels, stddev: float, rng: np.random.Generator) -> None:
 class PointGrid:
     """Per-pixel ray slopes of a camera, (u − cx)/fx and (v − cy)/fy, worked out once."""
 
-    def __init__(self, spec: CameraSpec) -> None:
+    def __init__(self, spec: Intrinsics) -> None:
         cx, cy = spec.principal_point
         self.x = ((np.arange(spec.width, dtype=np.float32) - cx) / spec.fx)[np.newaxis, :]
         self.y = ((np.arange(spec.height, dtype=np.float32) - cy) / spec.fx)[:, np.newaxis]
@@ -60,7 +60,7 @@ class PointGrid:
         out[..., 3] = packed.view(np.float32)
 
 
-def noise(spec: CameraSpec) -> Finish | None:
+def noise(spec: Intrinsics) -> Finish | None:
     """The camera's seeded pixel noise; none at stddev 0."""
     if spec.noise_stddev <= 0.0:
         return None
@@ -68,11 +68,11 @@ def noise(spec: CameraSpec) -> Finish | None:
     return lambda pixels, _: add_noise(pixels, spec.noise_stddev, rng)
 
 
-def metres(spec: CameraSpec) -> Finish:
+def metres(spec: Intrinsics) -> Finish:
     return lambda depth, _: linear_depth(depth, spec.near, spec.far)
 
 
-def points(spec: CameraSpec) -> Finish:
+def points(spec: Intrinsics) -> Finish:
     grid = PointGrid(spec)
 
     def fill(out: Array, arrays: Mapping[str, Array]) -> None:
