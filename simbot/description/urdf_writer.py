@@ -15,7 +15,7 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   become OBJ meshes made by generated_meshes, written to `generated_dir`; a polyline's collision
   in a static model is marked `concave="yes"`, so PyBullet collides with the outline itself and
   not its convex hull. A heightmap's collision is left out: URDF has no heightfield, and the
-  simulator adds it as a PyBullet heightfield (sim/physics.py).
+  simulator adds it as a PyBullet heightfield (sim/physics/heightfields.py).
 - A link whose one sensor reports in the link's own frame (`<frame_name>` is the link's name)
   has its URDF frame at that sensor, so a message stamped with that frame is where the sensor
   is (the reference lidars sit 0.22 m above their link origin, turned by π). Everything the

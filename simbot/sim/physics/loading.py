@@ -49,24 +49,14 @@ class Loader:
         return Loaded(body, configure(self.client, body), add_heightfields(self.client, model, frame))
 
     def _load_urdf(self, model: Model, name: str, frame: Transform) -> Body:
-        """The tree's URDF loaded (leaner, `held` castors fixed), and its names indexed."""
+        """The tree's URDF loaded (leaner where it may be), and its names indexed."""
         urdf = model_to_urdf(model, generated_dir=self.folder)
         castors = ball_castors(model)
         held = castors if self.fixed_castors else frozenset()
-        path = self.folder / f"{name}.urdf"
-        path.write_text(model_to_urdf(model, generated_dir=self.folder, held=held) if held else urdf)
-        root = urdf_root(model)
-        root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
         merge = self.merge_fixed_links and not _reads_own_links(model)
-        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
-        with quiet(1):
-            body_id = pb.loadURDF(
-                str(path),
-                *root_pose,
-                useFixedBase=model.static,
-                flags=flags | (pb.URDF_MERGE_FIXED_LINKS if merge else 0),
-                physicsClientId=self.client,
-            )
+        lean = model_to_urdf(model, generated_dir=self.folder, held=held) if held else urdf
+        root = urdf_root(model)
+        body_id = self._load_file(model, name, lean, root, frame, merge)
         tree = KinematicTree.of_urdf(urdf)
         hosts = tree.fixed_hosts({joint.name for joint in tree.joints if joint.part_of(held)}) if merge else {}
         links, joints, moving = self._names(body_id, root, hosts)
@@ -77,6 +67,22 @@ class Loader:
             name, model, body_id, links, joints, com_to_root, compose(com_to_root, invert(root_in_model)), urdf, tree,
             castors, hosts={link: hosts.get(link, link) for link in links}, drawn=drawn, held=frozenset(drawn) - moving,
         )  # fmt: skip
+
+    def _load_file(self, model: Model, name: str, urdf: str, root: str, frame: Transform, merge: bool) -> int:
+        """PyBullet's body of `urdf`, written to the folder as `name`, its root link placed for the model frame at `frame`."""
+        path = self.folder / f"{name}.urdf"
+        path.write_text(urdf)
+        root_pose = frame if root == "world" else compose(frame, pose_to_transform(link_frame(model.link(root))))
+        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+        with quiet(1):
+            body_id = pb.loadURDF(
+                str(path),
+                *root_pose,
+                useFixedBase=model.static,
+                flags=flags | (pb.URDF_MERGE_FIXED_LINKS if merge else 0),
+                physicsClientId=self.client,
+            )
+        return int(body_id)
 
     def _names(self, body_id: int, root: str, hosts: dict[str, str]) -> tuple[dict[str, int], dict[str, int], set[str]]:
         """(links, joints, moving joints): PyBullet's links and joints by name, then each merged link at its host's index."""

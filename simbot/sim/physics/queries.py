@@ -26,8 +26,8 @@ class Queries:
     bodies: dict[str, Body]
     constraints: dict[int, tuple[str, str]]
     """Joints made by `attach`: each one's (parent model, child model)."""
-    rays: Rays
-    offsets: dict[tuple[str, str, Pose], Transform]
+    _rays: Rays
+    _offsets: dict[tuple[str, str, Pose], Transform]
     """Frames fixed to links, in their link's URDF frame (`_offset`)."""
 
     @property
@@ -118,11 +118,11 @@ class Queries:
     def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
         """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""
         key = (body.name, link, pose_in_link)
-        offset = self.offsets.get(key)
+        offset = self._offsets.get(key)
         if offset is None:
             host = body.hosts.get(link, link)
             host_frame = IDENTITY if host == "world" else link_frame(body.model.link(host))
-            offset = self.offsets[key] = pose_to_transform(
+            offset = self._offsets[key] = pose_to_transform(
                 host_frame.inverse() @ body.model.link(link).pose @ pose_in_link
             )
         return offset
@@ -178,11 +178,11 @@ class Queries:
     def blind_rays_to(self, model: str) -> int:
         """Gives `model` a ray group of its own (once; call it before stepping, as a sensor's setup
         does): rays cast `blind_to` it pass through it and hit every other body. Returns the group."""
-        return self.rays.blind_to(self.body(model))
+        return self._rays.blind_to(self.body(model))
 
     def cast_rays(
         self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], blind_to: str | None = None
     ) -> npt.NDArray[np.float64]:
         """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
         the rays pass through the model `blind_to` (the sensor's own robot) and no other."""
-        return self.rays.cast(starts, ends, ~self.blind_rays_to(blind_to) if blind_to is not None else -1)
+        return self._rays.cast(starts, ends, ~self.blind_rays_to(blind_to) if blind_to is not None else -1)

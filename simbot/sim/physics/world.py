@@ -38,8 +38,8 @@ class Physics(Commands):
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
     constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
-    rays: Rays = field(init=False)
-    offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
+    _rays: Rays = field(init=False)
+    _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _loader: Loader = field(init=False)
@@ -56,7 +56,7 @@ class Physics(Commands):
         pb.setGravity(*self.world.gravity, physicsClientId=self.client)
         pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
-        self.rays = Rays(self.client)
+        self._rays = Rays(self.client)
         self._loader = Loader(self.client, Path(self._tmp.name), self.fixed_castors, self.merge_fixed_links)
 
     def close(self) -> None:
@@ -101,8 +101,8 @@ class Physics(Commands):
         for part in names:
             body = self.bodies.pop(part)
             self._wheels.pop(part, None)
-            self.offsets = {k: v for k, v in self.offsets.items() if k[0] != part}
-            self.rays.release(part)
+            self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
+            self._rays.release(part)
             for heightfield in self._heightfields.pop(part, []):
                 pb.removeBody(heightfield, physicsClientId=self.client)
             pb.removeBody(body.id, physicsClientId=self.client)
