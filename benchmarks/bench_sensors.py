@@ -57,8 +57,8 @@ from timing import per_call_ms
 from simbot.bus import BusOptions, Node, messages
 from simbot.description import load_model
 from simbot.description.resources import asset
-from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
+from simbot.sim.physics.bullet import pb
 from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw
@@ -105,7 +105,7 @@ def robot_views(physics: Physics, size: tuple[int, int]) -> list[View]:
     """The robot's cameras at `size`, from their world poses now: the scene content the server's
     workers render, so the bare loop draws the same triangles."""
     views = []
-    for link, sensor in physics.body(ROBOT_NAME).model.sensors():
+    for link, sensor in physics.model_of(ROBOT_NAME).sensors():
         if sensor.type != "camera":
             continue
         cam = CameraParams.from_sdf(sensor)
@@ -155,8 +155,8 @@ def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: 
     """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
     the same scene and views, one llvmpipe thread, pixels read back into an array."""
     bodies = [
-        SceneBody(name, body.urdf, body.model.static, physics.body_state(name)[0])
-        for name, body in physics.bodies.items()
+        SceneBody(name, physics.urdf_of(name), physics.model_of(name).static, physics.body_state(name)[0])
+        for name in physics.body_names()
     ]
     scene = BulletScene(pb, bodies)
     renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
@@ -176,9 +176,7 @@ def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: 
 
 def camera_mounts(physics: Physics) -> list[tuple[str, str, Any]]:
     """(model, link, pose) of each of the robot's cameras, in SDF order."""
-    return [
-        (ROBOT_NAME, link.name, s.pose) for link, s in physics.body(ROBOT_NAME).model.sensors() if s.type == "camera"
-    ]
+    return [(ROBOT_NAME, link.name, s.pose) for link, s in physics.model_of(ROBOT_NAME).sensors() if s.type == "camera"]
 
 
 class Counter:
@@ -267,7 +265,7 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
         lidar.every.restart()  # due now: post_update does exactly what it does at each tick
         lidar.post_update(now)
 
-    link, sensor = next((lk, s) for lk, s in physics.body(ROBOT_NAME).model.sensors() if s.name == lidar.name)
+    link, sensor = next((lk, s) for lk, s in physics.model_of(ROBOT_NAME).sensors() if s.name == lidar.name)
     params = LidarParams.from_sdf(sensor)
     position, quat = physics.frame_pose(ROBOT_NAME, link.name, sensor.pose)
     fan = ray_fan(params)

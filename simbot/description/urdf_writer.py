@@ -15,7 +15,7 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   become OBJ meshes made by generated_meshes, written to `generated_dir`; a polyline's collision
   in a static model is marked `concave="yes"`, so PyBullet collides with the outline itself and
   not its convex hull. A heightmap's collision is left out: URDF has no heightfield, and the
-  simulator adds it as a PyBullet heightfield (sim/physics.py).
+  simulator adds it as a PyBullet heightfield (sim/physics/heightfields.py).
 - A link whose one sensor reports in the link's own frame (`<frame_name>` is the link's name)
   has its URDF frame at that sensor, so a message stamped with that frame is where the sensor
   is (the reference lidars sit 0.22 m above their link origin, turned by π). Everything the
@@ -31,6 +31,7 @@ import logging
 import os
 import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Collection
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -87,6 +88,8 @@ class _Urdf:
     mesh_dir: Path | None
     generated_dir: Path
     mesh_uris: bool = False
+    held: Collection[str] = ()
+    """SDF joints written fixed (see `model_to_urdf`)."""
     robot: ET.Element = field(init=False)
     frames: dict[str, Pose] = field(default_factory=dict)
 
@@ -180,7 +183,8 @@ class _Urdf:
         axis_xyz: tuple[float, ...] | None = None,
     ) -> None:
         """A URDF joint; the child's frame must already be registered."""
-        element = ET.SubElement(self.robot, "joint", name=name, type=kind)
+        written = "fixed" if sdf_joint(name) in self.held else kind
+        element = ET.SubElement(self.robot, "joint", name=name, type=written)
         self.origin(element, self.frames[parent].inverse() @ self.frames[child])
         ET.SubElement(element, "parent", link=parent)
         ET.SubElement(element, "child", link=child)
@@ -334,17 +338,32 @@ def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
         urdf.add_joint(f"{joint.name}__offset", "fixed", end, child.name)
 
 
+def sdf_joint(urdf_joint: str) -> str:
+    """The SDF joint a URDF joint is written for: itself, or the joint its name extends (a ball
+    joint's parts JOINT__yaw, JOINT__pitch, JOINT__roll; JOINT__offset to its child link)."""
+    return urdf_joint.split("__", 1)[0]
+
+
 def model_to_urdf(
-    model: Model, mesh_dir: Path | None = None, generated_dir: Path | None = None, *, mesh_uris: bool = False
+    model: Model,
+    mesh_dir: Path | None = None,
+    generated_dir: Path | None = None,
+    *,
+    mesh_uris: bool = False,
+    held: Collection[str] = (),
 ) -> str:
     """URDF text of `model`; mesh paths relative to `mesh_dir` (the URDF's folder) if given, absolute otherwise,
     or `file://` URIs with `mesh_uris` (what ROS tools resolve: `robot_description`).
+
+    The joints `held` (SDF names) are written fixed, every part keeping its name, links and axis: a
+    simulator loads them so (the physics' ball castors) and still knows them by name.
 
     Meshes for shapes URDF lacks go to `generated_dir`: by default `mesh_dir`, beside the URDF,
     or else a folder in the system's temporary directory."""
     root, children = _tree(model)
     links = {link.name: link for link in model.links}
-    urdf = _Urdf(model, mesh_dir, generated_dir or mesh_dir or Path(tempfile.gettempdir()) / "simbot-meshes", mesh_uris)
+    generated = generated_dir or mesh_dir or Path(tempfile.gettempdir()) / "simbot-meshes"
+    urdf = _Urdf(model, mesh_dir, generated, mesh_uris, held)
     if root == "world":
         urdf.robot.append(ET.Element("link", name="world"))
         urdf.frames["world"] = IDENTITY

@@ -135,13 +135,13 @@ class WorldControl:
             raise TypeError('set_pose needs a model "name"')
         position = _vector(body.get("position", {}), "xyz", "position", 0.0)
         quat = _unit_quaternion(_vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0))
-        self.sim.physics.set_model_pose(name, ((position[0], position[1], position[2]), quat))
+        self.sim.physics.set_model_pose(name, Transform((position[0], position[1], position[2]), quat))
         request.reply(self._time(ok=True))
 
     def _state(self, request: Request, body: dict[str, Any]) -> None:
         physics = self.sim.physics
         models = {}
-        for name in physics.bodies:
+        for name in physics.body_names():
             xyz, quat = physics.model_pose(name)
             models[name] = {"position": _finite(xyz), "orientation": _finite(quat)}
         state = self._time(ok=True) | {

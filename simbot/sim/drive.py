@@ -16,7 +16,7 @@ from simbot.bus import messages
 from simbot.description.model import Model, Plugin
 from simbot.sim.bus_view import SimBus
 from simbot.sim.naming import scoped_key
-from simbot.sim.physics import Physics
+from simbot.sim.physics import WorldReader
 from simbot.sim.plugin_params import bool_param, number_param, param
 from simbot.sim.rates import Every
 from simbot.sim.system import SystemConfigError, SystemContext
@@ -149,7 +149,7 @@ def vector_param(plugin: Plugin, tag: str, default: Vec3 = (0.0, 0.0, 0.0)) -> V
 class Encoders:
     """Wheel joints' rotation since the last reading: what dead reckoning integrates."""
 
-    def __init__(self, physics: Physics, model: str, joints: tuple[str, ...]) -> None:
+    def __init__(self, physics: WorldReader, model: str, joints: tuple[str, ...]) -> None:
         self._physics, self._model, self._joints = physics, model, list(joints)
         self._last: list[float] | None = None
 

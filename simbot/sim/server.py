@@ -119,7 +119,7 @@ class Server:
     def print_status(self) -> None:
         mode = "paused" if self.sim.paused else self.sim.mode.value
         line = f"sim {self.sim.clock.now_ns / 1e9:9.3f} s | rtf {self.sim.rtf.value():5.2f} | {mode}"
-        if ROBOT_NAME in self.physics.bodies:
+        if ROBOT_NAME in self.physics.body_names():
             (x, y, _), quat = self.physics.model_pose(ROBOT_NAME)
             line += f" | {ROBOT_NAME} x {x:+7.3f} y {y:+7.3f} yaw {math.degrees(yaw_of(quat)):+7.1f}°"
         print(line, flush=True)

@@ -41,7 +41,7 @@ import numpy as np
 from simbot.description.model import Link, Model, Plugin, Sensor, World
 from simbot.sim.bus_view import SimBus
 from simbot.sim.naming import model_topic, scoped_key
-from simbot.sim.physics import Physics
+from simbot.sim.physics.protocols import WorldAccess
 
 
 class SystemConfigError(ValueError):
@@ -150,7 +150,7 @@ class RunOptions:
 class SystemContext:
     """Everything a system is built from."""
 
-    physics: Physics
+    physics: WorldAccess
     bus: SimBus
     world: World
     rng: np.random.Generator

@@ -161,14 +161,14 @@ class SimWorld:
         self, model: Model, name: str, pose: Pose | None = None, namespace: str = "", describe: bool = False
     ) -> Placed:
         """Adds `model` to the physics as `name`, its keys and frames under `namespace`; no systems yet (`_build`)."""
-        before = set(self.physics.bodies)
+        before = set(self.physics.body_names())
         try:
             self.physics.add_model(model, name, pose)
         except BaseException:
-            if name in self.physics.bodies:  # a model of several joint trees failed after the first
+            if name in self.physics.body_names():  # a model of several joint trees failed after the first
                 self.physics.remove_model(name)
             raise
-        bodies = [body for body in self.physics.bodies if body not in before]
+        bodies = [body for body in self.physics.body_names() if body not in before]
         self.models[name] = Placed(name, bodies, self.bus.scoped(namespace), describe or bool(namespace))
         return self.models[name]
 
@@ -180,8 +180,8 @@ class SimWorld:
             placed.sensors = self._sensors(placed)
             systems += [(sensor, None) for sensor in placed.sensors.values()]
             if placed.describe:  # its main tree of joints: what a URDF can hold (see Physics.add_model)
-                body = self.physics.body(placed.name)
-                systems += self._builtin(ROBOT_GROUP, self._context(body.model, placed.name, bus=placed.bus))
+                model = self.physics.model_of(placed.name)
+                systems += self._builtin(ROBOT_GROUP, self._context(model, placed.name, bus=placed.bus))
         except BaseException:
             Simulation.close_all([system for system, _ in systems])
             placed.bus.close()
@@ -218,7 +218,7 @@ class SimWorld:
 
     def _free_name(self, name: str, allow_renaming: bool) -> str:
         """`name`, or with allow_renaming the first free `name_1`, `name_2`, ... (as Gazebo renames)."""
-        if name not in self.models and name not in self.physics.bodies:
+        if name not in self.models and name not in self.physics.body_names():
             return name
         if not allow_renaming:
             raise ValueError(f"name: a model named {name!r} is already in the world (set allow_renaming)")
@@ -283,7 +283,7 @@ class SimWorld:
         if placed is None:
             found: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.description.plugins]
         else:
-            bodies = [(self.physics.body(name).model, name) for name in placed.bodies]
+            bodies = [(self.physics.model_of(name), name) for name in placed.bodies]
             found = [(model, name, p) for model, name in bodies for p in model.plugins]
         makers = []
         for model, name, plugin in found:
@@ -299,12 +299,12 @@ class SimWorld:
         sensors: dict[str, System] = {}
         try:
             for body_name in placed.bodies:
-                body = self.physics.body(body_name)
-                for link, sensor in body.model.sensors():
+                model = self.physics.model_of(body_name)
+                for link, sensor in model.sensors():
                     factory = sensor_lookup(sensor)
                     if factory is not None:
                         scoped = "/".join(map(scoped_key, (body_name, link.name, sensor.name)))
-                        context = self._context(body.model, body_name, sensor=(link, sensor), bus=placed.bus)
+                        context = self._context(model, body_name, sensor=(link, sensor), bus=placed.bus)
                         sensors[scoped] = factory(context)
         except BaseException:
             Simulation.close_all(list(sensors.values()))

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from simbot.bus import messages
 from simbot.description.model import Link, Sensor
 from simbot.sim.naming import sensor_frame, sensor_rate
-from simbot.sim.physics import ContactPoint, Physics
+from simbot.sim.physics import ContactPoint, WorldReader
 from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import SdfElement
 from simbot.sim.system import SystemContext, UpdateInfo
@@ -58,11 +58,11 @@ class ContactParams:
         return ContactParams(names, None if topic in (None, DEFAULT_TOPIC) else topic)
 
 
-def collision_name(physics: Physics, model: str, link: str) -> str:
+def collision_name(physics: WorldReader, model: str, link: str) -> str:
     """The scoped name of a link's (first) collision, `model::link::collision`; the link's where it has none."""
     if not model:
         return "unknown"
-    collisions = physics.body(model).model.link(link).collisions
+    collisions = physics.model_of(model).link(link).collisions
     return "::".join((model, link, collisions[0].name) if collisions else (model, link))
 
 

@@ -30,11 +30,11 @@ from simbot.bus import messages
 from simbot.description.poses import Pose
 from simbot.sim.drive import OdometryOutput, diagonal, vector_param
 from simbot.sim.naming import scoped_key
-from simbot.sim.physics import Transform, compose, pose_to_transform
+from simbot.sim.physics import compose, pose_to_transform
 from simbot.sim.plugin_params import number_param, param
 from simbot.sim.rates import Every
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.transform import quaternion_to_matrix, yaw_of
+from simbot.transform import Transform, quaternion_to_matrix, yaw_of
 
 
 class OdometryPublisher:

@@ -26,7 +26,7 @@ class PosePublisher:
 
     def model_added(self, event: ModelEvent) -> None:
         for name in event.bodies:
-            if not self._physics.body(name).model.static:
+            if not self._physics.model_of(name).static:
                 self._pubs[name] = self._bus.publisher(model_topic(name, "pose"), messages.PoseStamped)
 
     def model_removed(self, event: ModelEvent) -> None:

@@ -136,8 +136,8 @@ class Rendering:
 
     def _scene_body(self, name: str) -> SceneBody:
         """A body as the physics loaded it, where it is now."""
-        body = self.physics.bodies[name]
-        return SceneBody(name, body.urdf, body.model.static, self.physics.body_state(name)[0])
+        static = self.physics.model_of(name).static
+        return SceneBody(name, self.physics.urdf_of(name), static, self.physics.body_state(name)[0])
 
     # --- the update
 
@@ -162,7 +162,7 @@ class Rendering:
         if self.status.failure is not None:
             return False
         if self._starting is None:  # the snapshot of the world: what changes after it goes to `_changes`
-            bodies = [self._scene_body(name) for name in self.physics.bodies]
+            bodies = [self._scene_body(name) for name in self.physics.body_names()]
             specs = [camera.spec for camera in self.cameras]
             self._starting = threading.Thread(
                 target=self._start, args=(bodies, specs), name="render-pool-start", daemon=True

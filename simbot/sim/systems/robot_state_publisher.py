@@ -18,86 +18,61 @@ are stamped in.
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.bus.frames import OPTICAL_RPY, optical_frame
+from simbot.description.kinematics import KinematicTree, UrdfJoint
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf
 from simbot.sim.naming import sensor_frame
-from simbot.sim.physics import Transform, compose, pose_to_transform
+from simbot.sim.physics import compose, pose_to_transform
 from simbot.sim.rates import Every
 from simbot.sim.system import SystemContext, UpdateInfo
 from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
-
-
-def _numbers(text: str | None) -> tuple[float, float, float]:
-    x, y, z = (float(v) for v in (text or "0 0 0").split())
-    return x, y, z
-
-
-def _origin(joint: ET.Element) -> Pose:
-    origin = joint.find("origin")
-    return Pose(_numbers(origin.get("xyz")), _numbers(origin.get("rpy"))) if origin is not None else Pose()
+from simbot.transform import Transform, Vec3
 
 
 @dataclass(frozen=True)
 class MovableJoint:
-    """A URDF joint that moves: its links, its origin in the parent and its axis (URDF's default x)."""
+    """A URDF joint that moves: its links, its origin in the parent and its axis."""
 
     name: str
     parent: str
     child: str
     origin: Transform
-    axis: tuple[float, float, float]
+    axis: Vec3
     prismatic: bool
+
+    @staticmethod
+    def of(joint: UrdfJoint) -> MovableJoint:
+        origin = pose_to_transform(joint.origin)
+        return MovableJoint(joint.name, joint.parent, joint.child, origin, joint.axis, joint.type == "prismatic")
 
     def transform(self, position: float) -> Transform:
         """The child's frame in the parent's at `position` (rad or m): the origin, then the motion along the axis."""
         if self.prismatic:
             x, y, z = self.axis
-            return compose(self.origin, ((x * position, y * position, z * position), (0.0, 0.0, 0.0, 1.0)))
+            return compose(self.origin, Transform((x * position, y * position, z * position)))
         s = math.sin(position / 2)
         return compose(
             self.origin,
-            ((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))),
+            Transform((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))),
         )
 
 
-def movable_joints(urdf: str) -> list[MovableJoint]:
+def movable_joints(tree: KinematicTree) -> list[MovableJoint]:
     """The URDF's revolute, continuous and prismatic joints, in document order."""
-    found = []
-    for joint in ET.fromstring(urdf).iter("joint"):
-        if joint.get("type") not in MOVABLE:
-            continue
-        axis = joint.find("axis")
-        found.append(
-            MovableJoint(
-                joint.get("name", ""),
-                joint.find("parent").get("link", ""),  # type: ignore[union-attr]
-                joint.find("child").get("link", ""),  # type: ignore[union-attr]
-                pose_to_transform(_origin(joint)),
-                _numbers(axis.get("xyz")) if axis is not None else (1.0, 0.0, 0.0),
-                joint.get("type") == "prismatic",
-            )
-        )
-    return found
+    return [MovableJoint.of(joint) for joint in tree.joints if joint.type in MOVABLE]
 
 
-def static_transforms(model: Model, urdf: str) -> list[tuple[str, str, Pose]]:
+def static_transforms(model: Model, tree: KinematicTree) -> list[tuple[str, str, Pose]]:
     """(parent, child, child pose in parent) for the URDF's fixed joints and the non-link sensor frames."""
-    root = ET.fromstring(urdf)
-    found = []
-    for joint in root.iter("joint"):
-        if joint.get("type") != "fixed":
-            continue
-        found.append((joint.find("parent").get("link", ""), joint.find("child").get("link", ""), _origin(joint)))  # type: ignore[union-attr]
-    links = {link.get("name") for link in root.iter("link")}
+    found = [(joint.parent, joint.child, joint.origin) for joint in tree.joints if joint.fixed]
     for link, sensor in model.sensors():
         frame = sensor_frame(sensor)
-        if frame not in links:
+        if frame not in tree.links:
             found.append((link.name, frame, link_frame(link).inverse() @ link.pose @ sensor.pose))
         if sensor.type == "camera":
             found.append((frame, optical_frame(frame), Pose(rpy=OPTICAL_RPY)))
@@ -111,23 +86,22 @@ class RobotStatePublisher:
 
     def __init__(self, ctx: SystemContext) -> None:
         model, self._name = ctx.require_model("RobotStatePublisher")
-        body = ctx.physics.body(self._name)
-        urdf = body.urdf
+        tree, held = ctx.physics.kinematics(self._name), ctx.physics.held_joints(self._name)
         ctx.bus.publisher("robot_description", messages.String, latched=True).put(
             messages.string(model_to_urdf(model, mesh_uris=True))
         )
-        joints = movable_joints(urdf)
+        joints = movable_joints(tree)
         transforms = [
             messages.transform_stamped(0, parent, child, *pose_to_transform(pose))
-            for parent, child, pose in static_transforms(model, urdf)
+            for parent, child, pose in static_transforms(model, tree)
         ] + [
             messages.transform_stamped(0, joint.parent, joint.child, *joint.transform(0.0))
             for joint in joints
-            if joint.name in body.held
+            if joint.name in held
         ]
         ctx.bus.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
         self._physics = ctx.physics
-        self._joints = [joint for joint in joints if joint.name not in body.held]
+        self._joints = [joint for joint in joints if joint.name not in held]
         self._tf = ctx.bus.publisher("tf", messages.TFMessage) if self._joints else None
         self._every = Every.hz(DEFAULT_RATE_HZ)
 

@@ -32,15 +32,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from simbot.sim.bullet import pb
+from simbot.sim.physics.bullet import pb
+from simbot.transform import Vec3
 
 SLIP_SPEED = 0.01
 """m/s of slip at which friction saturates. Small enough that the tug tracks commands within
 a few percent; large enough to be stable at a 1 ms explicit step (stiffness μN/v_slip ≈ 2.4e4 N·s/m
 per wheel on the 110 kg robot)."""
-
-
-Vec3 = tuple[float, float, float]
 
 
 TYRE_STIFFNESS = 2.0e5

@@ -1,0 +1,32 @@
+"""The PyBullet world: the one package that loads bodies into PyBullet and steps it.
+
+Systems never see body or link indices: they name a model, a link or a joint (`WorldAccess`), and
+this package maps names to PyBullet's indices. Poses are always those of the SDF frames (PyBullet
+reports a body's centre of mass; the offset is undone here once).
+
+- `loading`: an SDF model's trees of joints into PyBullet bodies (`Body`), with `dynamics` (friction,
+  wheels, castors) and `heightfields`;
+- `world`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
+- `queries` and `commands`: its read and command halves, by name; `protocols`: the same as systems see them;
+- `frames`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`, `bullet`: the parts.
+"""
+
+from simbot.sim.physics.contacts import ContactPoint
+from simbot.sim.physics.frames import compose, invert, pose_to_transform
+from simbot.sim.physics.guard import PhysicsReadOnly
+from simbot.sim.physics.loading import ball_castors
+from simbot.sim.physics.protocols import WorldAccess, WorldCommands, WorldReader
+from simbot.sim.physics.world import Physics
+
+__all__ = [
+    "ContactPoint",
+    "Physics",
+    "PhysicsReadOnly",
+    "WorldAccess",
+    "WorldCommands",
+    "WorldReader",
+    "ball_castors",
+    "compose",
+    "invert",
+    "pose_to_transform",
+]

@@ -1,0 +1,102 @@
+"""What systems change in the world, by name: joint and model commands (the Gazebo systems'
+VelocityControl, ApplyJointForce, joint controllers, drives), teleports, and joints made and
+unmade at run time. The `Physics` class's command half (`WorldCommands`); each is refused while
+the world is read-only."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simbot.sim.physics.bullet import pb
+from simbot.sim.physics.frames import compose, invert, vec3
+from simbot.sim.physics.guard import changes_world
+from simbot.sim.physics.queries import Queries
+from simbot.transform import Transform, Vec3
+
+FIXED_CONSTRAINT_FORCE = 1e6
+"""Newtons a detachable joint may exert: rigid for anything the tug can pull."""
+
+
+class Commands(Queries):
+    """Changing the world; the state it changes is `Physics`'s."""
+
+    read_only: bool
+
+    @changes_world
+    def set_model_pose(self, model: str, pose: Transform) -> None:
+        """Teleports the model frame to `pose` and stops it."""
+        body = self.body(model)
+        com = compose(pose, invert(body.com_to_frame))
+        pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
+        pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
+
+    @changes_world
+    def set_model_velocity(self, model: str, linear: Vec3, angular: Vec3) -> None:
+        """Sets the model frame's velocity, both vectors given in the model frame (Gazebo's
+        LinearVelocityCmd and AngularVelocityCmd): what VelocityControl commands before each step."""
+        body = self.body(model)
+        com = self._base(body)
+        frame = compose(com, body.com_to_frame)
+        rotation = np.reshape(pb.getMatrixFromQuaternion(frame[1]), (3, 3))
+        angular_world = rotation @ np.asarray(angular)
+        linear_world = rotation @ np.asarray(linear) + np.cross(angular_world, np.subtract(com[0], frame[0]))
+        pb.resetBaseVelocity(body.id, vec3(linear_world), vec3(angular_world), physicsClientId=self.client)
+
+    @changes_world
+    def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:
+        """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo."""
+        body = self.body(model)
+        pb.setJointMotorControl2(
+            body.id,
+            body.joint_index(joint),
+            pb.VELOCITY_CONTROL,
+            targetVelocity=velocity,
+            force=max_effort,
+            physicsClientId=self.client,
+        )
+
+    @changes_world
+    def set_joint_force(self, model: str, joint: str, force: float) -> None:
+        """Applies `force` (N·m or N) on a joint for the next step only, as Gazebo's JointForceCmd:
+        a controller commands it every step. The joint's friction motor keeps acting."""
+        body = self.body(model)
+        pb.setJointMotorControl2(
+            body.id, body.joint_index(joint), pb.TORQUE_CONTROL, force=force, physicsClientId=self.client
+        )
+
+    @changes_world
+    def measure_joint_wrench(self, model: str, joint: str) -> None:
+        """Switches on PyBullet's reaction force sensor of a joint, which `joint_wrench` reads: a
+        force/torque sensor asks for it when it is built, before the first step."""
+        body = self.body(model)
+        pb.enableJointForceTorqueSensor(body.id, body.joint_index(joint), True, physicsClientId=self.client)
+
+    @changes_world
+    def attach(self, parent: tuple[str, str], child: tuple[str, str]) -> int:
+        """Fixes child (model, link) to parent (model, link) at their current relative pose; returns
+        the joint's handle for `detach`."""
+        pbody, plink, pcom = self._com_frame(*parent)
+        cbody, clink, ccom = self._com_frame(*child)
+        relative = compose(invert(pcom), ccom)
+        cid = pb.createConstraint(
+            pbody, plink, cbody, clink, pb.JOINT_FIXED, (0, 0, 0), relative[0], (0, 0, 0), relative[1], (0, 0, 0, 1),
+            physicsClientId=self.client,
+        )  # fmt: skip
+        pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
+        self.constraints[cid] = (parent[0], child[0])
+        return cid
+
+    def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
+        """(body id, link index, the link's centre-of-mass frame in the world): PyBullet constrains those."""
+        body = self.body(model)
+        index = body.link_index(link)
+        if index == -1:
+            return body.id, index, self._base(body)
+        state = pb.getLinkState(body.id, index, physicsClientId=self.client)
+        return body.id, index, Transform.of(state[0], state[1])
+
+    @changes_world
+    def detach(self, constraint: int) -> None:
+        """Removes a joint made by `attach`."""
+        if self.constraints.pop(constraint, None) is not None:
+            pb.removeConstraint(constraint, physicsClientId=self.client)

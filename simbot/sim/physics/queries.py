@@ -1,0 +1,188 @@
+"""What systems read of the world, by name: poses, motions, joint states, contacts, wrenches, rays.
+The `Physics` class's read half (`WorldReader`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from simbot.description.kinematics import KinematicTree
+from simbot.description.model import Model, World
+from simbot.description.poses import IDENTITY, Pose
+from simbot.description.urdf_writer import link_frame
+from simbot.sim.physics.body import Body
+from simbot.sim.physics.bullet import pb
+from simbot.sim.physics.contacts import ContactPoint, contact_point
+from simbot.sim.physics.frames import compose, pose_to_transform, vec3
+from simbot.sim.physics.rays import Rays
+from simbot.transform import Transform, Vec3
+
+
+class Queries:
+    """Reading the world; the state it reads is `Physics`'s."""
+
+    world: World
+    client: int
+    bodies: dict[str, Body]
+    constraints: dict[int, tuple[str, str]]
+    """Joints made by `attach`: each one's (parent model, child model)."""
+    _rays: Rays
+    _offsets: dict[tuple[str, str, Pose], Transform]
+    """Frames fixed to links, in their link's URDF frame (`_offset`)."""
+
+    @property
+    def step_size(self) -> float:
+        return self.world.physics.max_step_size
+
+    # the bodies
+
+    def body(self, model: str) -> Body:
+        try:
+            return self.bodies[model]
+        except KeyError:
+            raise KeyError(f"no model named {model!r} in the world (models: {', '.join(self.bodies)})") from None
+
+    def body_names(self) -> list[str]:
+        """Every body's name, in the order they were added."""
+        return list(self.bodies)
+
+    def model_of(self, model: str) -> Model:
+        """The description a body was loaded from (one tree of joints of its model: see `Physics.add_model`)."""
+        return self.body(model).model
+
+    def urdf_of(self, model: str) -> str:
+        """The body's URDF, as the renderer draws it and `body_state` poses it."""
+        return self.body(model).urdf
+
+    def kinematics(self, model: str) -> KinematicTree:
+        """The links and joints of the body's URDF (`urdf_of`)."""
+        return self.body(model).tree
+
+    def held_joints(self, model: str) -> frozenset[str]:
+        """Joints that move in the body's URDF but that the physics holds fixed (ball castors): they read 0."""
+        return self.body(model).held
+
+    def moving_bodies(self) -> list[str]:
+        """Names of the models that can move (not static)."""
+        return [name for name, body in self.bodies.items() if not body.model.static]
+
+    def holder(self, model: str) -> str | None:
+        """The model that a joint made by `attach` fixes `model` to, if one does (a fleet shares a trolley)."""
+        return next((parent for parent, child in self.constraints.values() if child == model), None)
+
+    # poses and motions
+
+    def model_pose(self, model: str) -> Transform:
+        """The model frame in the world (SDF semantics: not the centre of mass)."""
+        body = self.body(model)
+        return compose(self._base(body), body.com_to_frame)
+
+    def model_motion(self, model: str) -> tuple[Transform, Vec3, Vec3]:
+        """(model frame in the world, linear velocity of its origin, angular velocity), in the world frame."""
+        body = self.body(model)
+        com = self._base(body)
+        linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+        frame = compose(com, body.com_to_frame)
+        offset = np.subtract(frame[0], com[0])
+        velocity = np.add(linear, np.cross(angular, offset))
+        return frame, vec3(velocity), vec3(angular)
+
+    def frame_pose(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> Transform:
+        """World pose of a frame fixed to `link`, given in the SDF link frame (where a sensor is)."""
+        return self.frame_motion(model, link, pose_in_link)[0]
+
+    def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]:
+        """(world pose, linear velocity of the frame's origin, angular velocity), velocities in the
+        world frame; current even right after a teleport (forward kinematics are recomputed)."""
+        body = self.body(model)
+        index = body.link_index(link)
+        if index == -1:
+            com, orn = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
+            linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+            frame = compose(Transform.of(com, orn), body.com_to_root)
+        else:
+            state = pb.getLinkState(
+                body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
+            )
+            com, linear, angular = state[0], state[6], state[7]
+            frame = Transform.of(state[4], state[5])
+        pose = compose(frame, self._offset(body, link, pose_in_link))
+        (wx, wy, wz), (rx, ry, rz) = angular, (pose[0][0] - com[0], pose[0][1] - com[1], pose[0][2] - com[2])
+        velocity = (
+            linear[0] + wy * rz - wz * ry,
+            linear[1] + wz * rx - wx * rz,
+            linear[2] + wx * ry - wy * rx,
+        )  # v + ω × r
+        return pose, velocity, (float(wx), float(wy), float(wz))
+
+    def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
+        """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""
+        key = (body.name, link, pose_in_link)
+        offset = self._offsets.get(key)
+        if offset is None:
+            host = body.hosts.get(link, link)
+            host_frame = IDENTITY if host == "world" else link_frame(body.model.link(host))
+            offset = self._offsets[key] = pose_to_transform(
+                host_frame.inverse() @ body.model.link(link).pose @ pose_in_link
+            )
+        return offset
+
+    def _base(self, body: Body) -> Transform:
+        """PyBullet's base frame (the root link's centre of mass) in the world."""
+        return Transform.of(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+
+    # joints
+
+    def joint_states(self, model: str, joints: list[str]) -> list[tuple[float, float, float]]:
+        """(position, velocity, motor effort) of each named joint; zeros for a joint held fixed (`held_joints`)."""
+        body = self.body(model)
+        moving = [j for j in joints if j not in body.held]
+        indices = [body.joint_index(j) for j in moving]
+        states = pb.getJointStates(body.id, indices, physicsClientId=self.client) if indices else []
+        found = {name: (float(s[0]), float(s[1]), float(s[3])) for name, s in zip(moving, states)}
+        return [found.get(j, (0.0, 0.0, 0.0)) for j in joints]
+
+    def body_state(self, model: str) -> tuple[Transform, dict[str, float]]:
+        """The root link's URDF frame in the world and the position of every joint of the model's
+        URDF (`urdf_of`) that can move there, by name: enough to redraw the body from that URDF."""
+        body = self.body(model)
+        states = self.joint_states(model, list(body.drawn))
+        return compose(self._base(body), body.com_to_root), {name: state[0] for name, state in zip(body.drawn, states)}
+
+    # sensors' queries: contacts, joint wrenches, rays
+
+    def link_contacts(self, model: str, link: str) -> list[ContactPoint]:
+        """The points where `link` touches other bodies after the last step, with the forces on it."""
+        body = self.body(model)
+        points = pb.getContactPoints(bodyA=body.id, linkIndexA=body.link_index(link), physicsClientId=self.client)
+        return [contact_point(point, self._names_of(point[2], point[4])) for point in points]
+
+    def _names_of(self, body_id: int, index: int) -> tuple[str, str]:
+        """(model, link) of a PyBullet body and link; "" for a body built outside a model (a heightfield)."""
+        for body in self.bodies.values():
+            if body.id == body_id:
+                return body.name, next((name for name, i in body.links.items() if i == index), "")
+        return "", ""
+
+    def joint_wrench(self, model: str, joint: str) -> tuple[Vec3, Vec3, Vec3]:
+        """(force, torque, point): what the parent applied to the child through `joint` in the last
+        step, in the world frame, the torque about `point`, the child's centre of mass (where PyBullet
+        reports it). Needs `measure_joint_wrench` first."""
+        body = self.body(model)
+        index = body.joint_index(joint)
+        reaction = pb.getJointState(body.id, index, physicsClientId=self.client)[2]
+        com, orn = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)[:2]
+        rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
+        return vec3(rotation @ reaction[:3]), vec3(rotation @ reaction[3:]), vec3(com)
+
+    def blind_rays_to(self, model: str) -> int:
+        """Gives `model` a ray group of its own (once; call it before stepping, as a sensor's setup
+        does): rays cast `blind_to` it pass through it and hit every other body. Returns the group."""
+        return self._rays.blind_to(self.body(model))
+
+    def cast_rays(
+        self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], blind_to: str | None = None
+    ) -> npt.NDArray[np.float64]:
+        """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
+        the rays pass through the model `blind_to` (the sensor's own robot) and no other."""
+        return self._rays.cast(starts, ends, ~self.blind_rays_to(blind_to) if blind_to is not None else -1)

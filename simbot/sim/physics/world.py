@@ -1,0 +1,142 @@
+"""The PyBullet world: its bodies added and removed, its steps, its reset, and the read-only
+phase. `Physics` reads (`Queries`) and commands (`Commands`) it by name."""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from simbot.description.model import Model, World
+from simbot.description.poses import Pose
+from simbot.description.urdf_writer import joint_trees
+from simbot.sim.physics.body import Body
+from simbot.sim.physics.bullet import pb
+from simbot.sim.physics.commands import Commands
+from simbot.sim.physics.guard import changes_world
+from simbot.sim.physics.loading import Loader
+from simbot.sim.physics.rays import Rays
+from simbot.sim.physics.wheel_friction import WheelFriction
+from simbot.transform import Transform
+
+
+@dataclass
+class Physics(Commands):
+    """A PyBullet world built from an SDF world description; stepped at the world's step size."""
+
+    world: World
+    fixed_castors: bool = True
+    """Load ball castors fixed (`ball_castors`): 12 of the tug's 22 degrees of freedom gone, the same
+    physics (a frictionless sphere turning about its centre moves nothing a collision sees)."""
+    merge_fixed_links: bool = True
+    """Load each chain of fixed joints as one link (PyBullet's URDF_MERGE_FIXED_LINKS): the tug's 21
+    links become 5 (its base and four wheels), each costing the articulated-body solver and the
+    broadphase as much as a moving one. A model with a contact or force/torque sensor keeps its links:
+    those sensors read one link's contacts or one fixed joint's wrench."""
+    client: int = field(init=False)
+    bodies: dict[str, Body] = field(default_factory=dict)
+    constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
+    _rays: Rays = field(init=False)
+    _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
+    read_only: bool = False
+    """True while post-update systems run: they read the step's result and change nothing."""
+    _loader: Loader = field(init=False)
+    _wheels: dict[str, WheelFriction] = field(default_factory=dict)
+    """The wheels' friction model of each body that has wheels."""
+    _heightfields: dict[str, list[int]] = field(default_factory=dict)
+    """The heightfield bodies of each model's heightmaps (PyBullet bodies apart from the model's)."""
+    _saved_state: int | None = None
+    _saved_bodies: tuple[str, ...] = ()
+    _tmp: tempfile.TemporaryDirectory[str] = field(default_factory=tempfile.TemporaryDirectory)
+
+    def __post_init__(self) -> None:
+        self.client = pb.connect(pb.DIRECT)
+        pb.setGravity(*self.world.gravity, physicsClientId=self.client)
+        pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
+        pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
+        self._rays = Rays(self.client)
+        self._loader = Loader(self.client, Path(self._tmp.name), self.fixed_castors, self.merge_fixed_links)
+
+    def close(self) -> None:
+        """Disconnects PyBullet and removes the generated URDF files."""
+        if pb.isConnected(self.client):
+            pb.disconnect(self.client)
+        self._tmp.cleanup()
+
+    # building
+
+    @changes_world
+    def add_model(self, model: Model, name: str | None = None, pose: Pose | None = None) -> Body:
+        """Loads `model` (through its URDF) as `name` at `pose` (default: the model's own pose).
+
+        A model whose links form several joint trees is loaded as one body per tree (see
+        `joint_trees`): the main one is `name` and is returned; each other is `name::<its root>`."""
+        name = name or model.name
+        main, *others = joint_trees(model)
+        body = self._add_tree(main, name, pose)
+        for part in others:
+            self._add_tree(part, name + part.name.removeprefix(model.name), pose)
+        return body
+
+    def _add_tree(self, model: Model, name: str, pose: Pose | None) -> Body:
+        """One tree of joints as one PyBullet body."""
+        if name in self.bodies:
+            raise ValueError(f"a model named {name!r} is already in the world")
+        loaded = self._loader.load(model, name, pose)
+        self.bodies[name] = loaded.body
+        if loaded.wheels is not None:
+            self._wheels[name] = loaded.wheels
+        self._heightfields[name] = loaded.heightfields
+        return loaded.body
+
+    @changes_world
+    def remove_model(self, name: str) -> list[str]:
+        """Takes `name` out of the world with its further joint trees (`name::<root>`), its wheels'
+        friction, its cached frames and its ray group (free for the next robot); returns the bodies'
+        names. Joints made by `attach` are their system's to undo first."""
+        self.body(name)
+        names = [n for n in self.bodies if n == name or n.startswith(name + "::")]
+        for part in names:
+            body = self.bodies.pop(part)
+            self._wheels.pop(part, None)
+            self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
+            self._rays.release(part)
+            for heightfield in self._heightfields.pop(part, []):
+                pb.removeBody(heightfield, physicsClientId=self.client)
+            pb.removeBody(body.id, physicsClientId=self.client)
+        return names
+
+    @contextmanager
+    def reading(self) -> Iterator[None]:
+        """The world read-only for the duration (the post-update phase)."""
+        self.read_only = True
+        try:
+            yield
+        finally:
+            self.read_only = False
+
+    def save_initial_state(self) -> None:
+        """Remembers the world as built, for `reset`."""
+        self._saved_state = pb.saveState(physicsClientId=self.client)
+        self._saved_bodies = tuple(self.bodies)
+
+    # stepping
+
+    @changes_world
+    def step(self) -> None:
+        """One physics step: wheel friction from the last contacts, then PyBullet."""
+        for wheels in self._wheels.values():
+            wheels.apply()
+        pb.stepSimulation(physicsClientId=self.client)
+
+    @changes_world
+    def reset(self) -> None:
+        """Every body back to where it was built, at rest; detachable joints are the systems' to undo.
+        PyBullet restores bodies by their order: the world must hold the bodies it was saved with."""
+        if tuple(self.bodies) != self._saved_bodies:
+            gone = sorted(set(self._saved_bodies) - set(self.bodies))
+            raise ValueError(f"reset: the world as started held {', '.join(gone)}, removed since; restart the server")
+        if self._saved_state is not None:
+            pb.restoreState(self._saved_state, physicsClientId=self.client)
