@@ -30,7 +30,8 @@ import numpy.typing as npt
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
 from simbot.sim.render.shapes import triangles
-from simbot.sim.render.specs import CameraSpec, Light, SceneBody, Transform
+from simbot.sim.render.specs import CameraSpec, Light, SceneBody
+from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 

@@ -11,7 +11,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from simbot.sim.render.specs import BodyState, CameraSpec, SceneBody, Transform
+from simbot.sim.render.specs import BodyState, CameraSpec, SceneBody
+from simbot.transform import Transform
 
 
 @dataclass(frozen=True)

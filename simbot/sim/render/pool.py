@@ -58,8 +58,9 @@ from simbot.sim.render.pipe import (
     StartError,
     Stop,
 )
-from simbot.sim.render.specs import BodyState, CameraSpec, Frame, Light, SceneBody, Transform
+from simbot.sim.render.specs import BodyState, CameraSpec, Frame, Light, SceneBody
 from simbot.sim.render.worker import RENDERERS, CameraBuffers, WorkerPlan, worker_main
+from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 
@@ -204,9 +205,7 @@ class RenderPool:
         unknown = set(states) - self._body_names
         if unknown:
             raise ValueError(f"camera {spec.name!r}: no such bodies in the scene: {sorted(unknown)}")
-        (x, y, z), (qx, qy, qz, qw) = (tuple(float(v) for v in part) for part in camera_pose)
-        pose = ((x, y, z), (qx, qy, qz, qw))
-        self._send(worker, RenderRequest(camera, int(stamp_ns), pose, dict(states)))
+        self._send(worker, RenderRequest(camera, int(stamp_ns), Transform.of(*camera_pose), dict(states)))
         self._outstanding[camera] = int(stamp_ns)
 
     def busy(self, camera: int) -> bool:

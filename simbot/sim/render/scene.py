@@ -11,12 +11,9 @@ from types import ModuleType
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 
-from simbot.sim.render.specs import BodyState, SceneBody, Transform
-from simbot.transform import quaternion_to_matrix
-
-Matrix = npt.NDArray[np.float64]
+from simbot.sim.render.specs import BodyState, SceneBody
+from simbot.transform import Matrix, Transform
 
 
 class VisualShape(NamedTuple):
@@ -72,7 +69,7 @@ class BulletScene:
         self.bodies[body.name] = body
         self.ids[body.name] = body_id
         info = pb.getDynamicsInfo(body_id, -1, physicsClientId=self.client)
-        self.inertial[body.name] = (tuple(info[3]), tuple(info[4]))
+        self.inertial[body.name] = Transform.of(info[3], info[4])
         self._place(body.name, body.base)
         self.movable[body.name] = self._one_dof_joints(body_id)
         self._changed()
@@ -129,7 +126,7 @@ class BulletScene:
                 s[2],
                 tuple(s[3]),
                 s[4].decode(errors="replace") if isinstance(s[4], bytes) else str(s[4]),
-                (s[5], s[6]),
+                Transform.of(s[5], s[6]),
                 s[7],
             )
             for s in shapes
@@ -138,32 +135,24 @@ class BulletScene:
     def link_matrices(self, name: str) -> dict[int, Matrix]:
         """World transform (4×4) of each URDF link frame of the body, -1 the base, as posed now."""
         pb, client, body_id = self.pb, self.client, self.ids[name]
-        base = matrix(*pb.getBasePositionAndOrientation(body_id, physicsClientId=client))
-        inertial = matrix(*pb.getDynamicsInfo(body_id, -1, physicsClientId=client)[3:5])
+        base = Transform.of(*pb.getBasePositionAndOrientation(body_id, physicsClientId=client)).matrix()
+        inertial = Transform.of(*pb.getDynamicsInfo(body_id, -1, physicsClientId=client)[3:5]).matrix()
         frames = {-1: base @ np.linalg.inv(inertial)}  # the base pose is its centre of mass's
         count = pb.getNumJoints(body_id, physicsClientId=client)
         if count:
             states = pb.getLinkStates(
                 body_id, list(range(count)), computeForwardKinematics=True, physicsClientId=client
             )
-            frames.update((j, matrix(state[4], state[5])) for j, state in enumerate(states))
+            frames.update((j, Transform.of(state[4], state[5]).matrix()) for j, state in enumerate(states))
         return frames
 
     def close(self) -> None:
         self.pb.disconnect(physicsClientId=self.client)
 
 
-def matrix(position: Sequence[float], quat: Sequence[float]) -> Matrix:
-    """4×4 homogeneous transform from PyBullet's (xyz, quaternion xyzw)."""
-    out = np.eye(4)
-    out[:3, :3] = quaternion_to_matrix(quat)
-    out[:3, 3] = position
-    return out
-
-
 def view_matrix(pose: Transform) -> Matrix:
     """World → OpenGL eye coordinates for a camera that looks along its +x with z up (SDF)."""
-    camera = matrix(*pose)
+    camera = Transform.of(*pose).matrix()
     # eye axes in the camera frame: x_eye = -y_cam (right), y_eye = z_cam (up), z_eye = -x_cam (back)
     eye_in_camera = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
     world_to_camera = np.linalg.inv(camera)

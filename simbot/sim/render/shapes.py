@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from simbot.sim.render.scene import VisualShape, matrix
+from simbot.sim.render.scene import VisualShape
+from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 
@@ -27,7 +28,7 @@ GEOM_SPHERE, GEOM_BOX, GEOM_CYLINDER, GEOM_MESH, GEOM_PLANE, GEOM_CAPSULE = 2, 3
 def triangles(shape: VisualShape) -> tuple[Array, Array]:
     """(positions, normals) of the shape in its link frame; empty arrays for a shape with no surface."""
     positions, normals = _local(shape)
-    local = matrix(*shape.local)
+    local = Transform.of(*shape.local).matrix()
     rotation = local[:3, :3]
     placed = positions @ rotation.T + local[:3, 3]
     return placed.astype(np.float32), (normals @ rotation.T).astype(np.float32)

@@ -11,11 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
-
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
-Transform = tuple[Vec3, Quat]
-"""(xyz, quaternion xyzw): PyBullet's form."""
+from simbot.transform import Transform, Vec3
 
 Pixels = npt.NDArray[np.uint8]
 Depths = npt.NDArray[np.float32]

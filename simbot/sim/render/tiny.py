@@ -10,7 +10,8 @@ import numpy as np
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import luminance
 from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
-from simbot.sim.render.specs import CameraSpec, Light, Transform
+from simbot.sim.render.specs import CameraSpec, Light
+from simbot.transform import Transform
 
 CLEARED_DEPTH = 1.0 - 1e-6
 """TinyRenderer clears its depth buffer to just under 1; at or above this, nothing was drawn (a

@@ -39,7 +39,8 @@ from simbot.sim.render.pipe import (
     Stop,
 )
 from simbot.sim.render.scene import BulletScene
-from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody, Transform
+from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody
+from simbot.transform import Transform
 
 RENDERERS = ("auto", "gl", "tiny")
 
