@@ -28,7 +28,7 @@ from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
 from simbot.sim.naming import scoped_rng
-from simbot.sim.registry import GROUP, SENSOR_GROUP
+from simbot.sim.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
 from simbot.sim.server import Server, ServerConfig
 from simbot.sim.simulation import Mode
 
@@ -298,10 +298,18 @@ CASES: dict[tuple[str, str], Case] = {
     },
     (SENSOR_GROUP, "force_torque"): Case(plugins=FORCE_TORQUE, key="wrench"),
     (SENSOR_GROUP, "contact"): Case(sensors=CONTACT, key="bump"),
+    (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
+    (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
+    (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),
+    (ROBOT_GROUP, "RobotStatePublisher"): Case(key="tf"),
 }
 """One SDF per entry point. A new entry point fails `test_entry_point_is_deterministic` until it has one here."""
 
-ENTRY_POINTS = sorted((group, point.name) for group in (GROUP, SENSOR_GROUP) for point in entry_points(group=group))
+ENTRY_POINTS = sorted(
+    (group, point.name)
+    for group in (GROUP, SENSOR_GROUP, WORLD_GROUP, ROBOT_GROUP)
+    for point in entry_points(group=group)
+)
 
 
 def _config(tmp: Path, case: Case, seed: int) -> ServerConfig:
