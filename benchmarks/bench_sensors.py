@@ -57,8 +57,8 @@ from timing import per_call_ms
 from simbot.bus import BusOptions, Node, messages
 from simbot.description import load_model
 from simbot.description.resources import asset
+from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
-from simbot.sim.physics.bullet import pb
 from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw

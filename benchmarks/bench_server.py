@@ -27,8 +27,8 @@ from simbot.bus import BusOptions, Node, messages
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
+from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
-from simbot.sim.physics.bullet import pb
 
 STEP_S = 0.001
 

@@ -8,7 +8,9 @@ reports a body's centre of mass; the offset is undone here once).
   wheels, castors) and `heightfields`;
 - `world`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
 - `queries` and `commands`: its read and command halves, by name; `protocols`: the same as systems see them;
-- `frames`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`, `bullet`: the parts.
+- `frames`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`: the parts.
+
+PyBullet itself comes from `simbot.sim.bullet`, which the render workers share.
 """
 
 from simbot.sim.physics.contacts import ContactPoint

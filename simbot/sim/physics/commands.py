@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simbot.sim.physics.bullet import pb
+from simbot.sim.bullet import pb
 from simbot.sim.physics.frames import compose, invert, vec3
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.queries import Queries

@@ -11,8 +11,8 @@ import numpy as np
 from simbot.description.model import Joint, Model
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import sdf_joint
+from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.bullet import pb
 from simbot.sim.physics.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 from simbot.transform import Vec3
 

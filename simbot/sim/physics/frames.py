@@ -9,7 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.poses import Pose
-from simbot.sim.physics.bullet import pb
+from simbot.sim.bullet import pb
 from simbot.transform import Transform, Vec3
 
 

@@ -9,7 +9,7 @@ import numpy as np
 from simbot.description.generated_meshes import heightmap_heights
 from simbot.description.model import Collision, Heightmap, Link, Model
 from simbot.description.poses import Pose
-from simbot.sim.physics.bullet import pb
+from simbot.sim.bullet import pb
 from simbot.sim.physics.dynamics import SDF_DEFAULT_MU
 from simbot.sim.physics.frames import compose, pose_to_transform
 from simbot.transform import Transform

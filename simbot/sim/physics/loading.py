@@ -13,8 +13,8 @@ from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Link, Model, Sphere
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, urdf_root
+from simbot.sim.bullet import pb, quiet
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.bullet import pb, quiet
 from simbot.sim.physics.dynamics import configure
 from simbot.sim.physics.frames import compose, invert, pose_to_transform
 from simbot.sim.physics.heightfields import add_heightfields

@@ -10,8 +10,8 @@ from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Model, World
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import link_frame
+from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.bullet import pb
 from simbot.sim.physics.contacts import ContactPoint, contact_point
 from simbot.sim.physics.frames import compose, pose_to_transform, vec3
 from simbot.sim.physics.rays import Rays

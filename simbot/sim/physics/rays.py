@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.bullet import pb
 
 RAY_GROUP_BITS = range(10, 31)
 """Collision-group bits that tell robots apart for rays. PyBullet's own groups are 1 (dynamic) and

@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from simbot.sim.physics.bullet import pb
+from simbot.sim.bullet import pb
 from simbot.transform import Vec3
 
 SLIP_SPEED = 0.01

@@ -12,8 +12,8 @@ from pathlib import Path
 from simbot.description.model import Model, World
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import joint_trees
+from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.bullet import pb
 from simbot.sim.physics.commands import Commands
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.loading import Loader

@@ -113,7 +113,7 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
     os.nice(10)
     _silence_stdio()
     try:
-        from simbot.sim.physics.bullet import pb
+        from simbot.sim.bullet import pb
 
         scene = BulletScene(pb, plan.bodies)
         specs = {i: spec for i, (spec, _) in plan.jobs.items()}
