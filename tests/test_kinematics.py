@@ -8,6 +8,7 @@ from conftest import ROBOT_SDF
 from simbot.description import load_model, model_to_urdf
 from simbot.description.kinematics import URDF_DEFAULT_AXIS, KinematicTree
 from simbot.description.poses import Pose
+from simbot.description.urdf_writer import model_to_urdf_held
 from simbot.sim.physics import ball_castors
 
 WHEELS = {"front_left_wheel_joint", "back_left_wheel_joint", "front_right_wheel_joint", "back_right_wheel_joint"}
@@ -28,8 +29,9 @@ def test_held_joints_are_written_fixed_and_merge_into_their_host() -> None:
     so each castor's links merge into the chassis, as PyBullet merges them."""
     model = load_model(ROBOT_SDF)
     castors = ball_castors(model)
-    tree = KinematicTree.of_urdf(model_to_urdf(model))
-    held = KinematicTree.of_urdf(model_to_urdf(model, held=castors))
+    written, lean = model_to_urdf_held(model, castors)
+    assert written == model_to_urdf(model)
+    tree, held = KinematicTree.of_urdf(written), KinematicTree.of_urdf(lean)
     assert [j.name for j in held.joints] == [j.name for j in tree.joints] and held.links == tree.links
     assert [j.origin for j in held.joints] == [j.origin for j in tree.joints]
     assert {joint.name for joint in held.moving()} == WHEELS

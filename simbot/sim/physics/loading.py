@@ -8,11 +8,10 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from simbot.description import model_to_urdf
 from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Link, Model, Sphere
 from simbot.description.poses import Pose
-from simbot.description.urdf_writer import link_frame, urdf_root
+from simbot.description.urdf_writer import link_frame, model_to_urdf_held, urdf_root
 from simbot.sim.bullet import pb, quiet
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.dynamics import configure
@@ -50,11 +49,10 @@ class Loader:
 
     def _load_urdf(self, model: Model, name: str, frame: Transform) -> Body:
         """The tree's URDF loaded (leaner where it may be), and its names indexed."""
-        urdf = model_to_urdf(model, generated_dir=self.folder)
         castors = ball_castors(model)
         held = castors if self.fixed_castors else frozenset()
         merge = self.merge_fixed_links and not _reads_own_links(model)
-        lean = model_to_urdf(model, generated_dir=self.folder, held=held) if held else urdf
+        urdf, lean = model_to_urdf_held(model, held, self.folder)
         root = urdf_root(model)
         body_id = self._load_file(model, name, lean, root, frame, merge)
         tree = KinematicTree.of_urdf(urdf)
