@@ -27,8 +27,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,7 +35,7 @@ import pytest
 import zenoh
 from conftest import REPO
 from gl_helpers import NO_EGL
-from server_helpers import CLOCK, STRING, SimServer, keyed_payload, raw_samples, running_server
+from server_helpers import CLOCK, STRING, keyed_payload, raw_samples, running_server
 
 from simbot.bus import DecodeError, decode, encode, messages
 
@@ -70,23 +68,10 @@ RUNS = {
 }
 
 
-@contextmanager
-def _session(sim: SimServer) -> Iterator[zenoh.Session]:
-    config = zenoh.Config()
-    config.insert_json5("mode", json.dumps("client"))
-    config.insert_json5("connect/endpoints", json.dumps([sim.endpoint]))
-    config.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(config)
-    try:
-        yield session
-    finally:
-        session.close()
-
-
 def _record(run: Run) -> tuple[dict[str, str], set[str]]:
     """Each key's digest (its key relative to the namespace), and the keys GL draws, from one run."""
-    with running_server(run.world, "lockstep", SEED, run.extra) as sim, _session(sim) as session:
-        prefix = f"{sim.namespace}/"
+    with running_server(run.world, "lockstep", SEED, run.extra) as sim:
+        session, prefix = sim.node.session, f"{sim.namespace}/"
         with raw_samples(session, f"{prefix}**", keyed_payload) as samples:
             sim.step(STEPS_BEFORE)
             sim.send(run.cmd_vel, messages.twist((0.6, 0.0, 0.0), (0.0, 0.0, 0.4)))
