@@ -30,7 +30,7 @@ from simbot.description.resources import asset
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import WorldControl
 from simbot.sim.render import RENDERERS
-from simbot.sim.simulation import Mode, Simulation
+from simbot.sim.simulation import Mode
 from simbot.sim.system import RunOptions, System, SystemConfigError
 from simbot.sim.world import Placement, SimWorld, load_robot
 from simbot.transform import yaw_of
@@ -101,11 +101,9 @@ class Server:
             SimBus(node),
             config.seed,
             config.run_options(),
+            config.mode,
         )
-        self.physics = self.world.physics
-        self.bus = self.world.bus
-        self.sim = Simulation(self.physics, config.mode)
-        self.world.start(self.sim)
+        self.physics, self.bus, self.sim = self.world.physics, self.world.bus, self.world.sim
         self.control = WorldControl(node, self.world.description.name, self.sim, self.world.bus, self.world)
 
     @property

@@ -28,7 +28,7 @@ from simbot.sim.naming import scoped_key, scoped_rng
 from simbot.sim.physics import Physics
 from simbot.sim.plugin_params import plugin_priority
 from simbot.sim.registry import ROBOT_GROUP, WORLD_GROUP, builtin, lookup, sensor_lookup
-from simbot.sim.simulation import Scheduled, Simulation
+from simbot.sim.simulation import Mode, Scheduled, Simulation
 from simbot.sim.system import (
     ModelEvent,
     ModelObserver,
@@ -106,14 +106,15 @@ class SimWorld:
         sim_bus: SimBus,
         seed: int = 0,
         options: RunOptions | None = None,
+        mode: Mode = Mode.REALTIME,
     ) -> None:
         self.description = world
         self.physics = Physics(world)
+        self.sim = Simulation(self.physics, mode)
         self.bus = sim_bus
         self._seed = seed
         self._options = options or RunOptions()
         self.models: dict[str, Placed] = {}
-        self.sim: Simulation | None = None
         self._world_systems: list[Scheduled] = []
         try:
             self._load(robot, placements)
@@ -122,7 +123,8 @@ class SimWorld:
             raise
 
     def _load(self, robot: Model | None, placements: list[Placement]) -> None:
-        """The world's models and the robots into the physics, then every system."""
+        """The world's models and the robots into the physics, then every system into the loop;
+        the world systems hear of every model."""
         for model in self.description.models:
             self._place(model, model.name)
         if robot is not None:
@@ -132,11 +134,7 @@ class SimWorld:
         self._world_systems = self._scheduled(self._plugins(None) + self._builtin(WORLD_GROUP, self._context()))
         for placed in self.models.values():
             self._build(placed)
-
-    def start(self, sim: Simulation) -> None:
-        """The systems join `sim`'s loop, and the world systems hear of every model."""
-        self.sim = sim
-        sim.add_systems([*self._world_systems, *(s for p in self.models.values() for s in p.systems)])
+        self.sim.add_systems([*self._world_systems, *(s for p in self.models.values() for s in p.systems)])
         for placed in self.models.values():
             self._tell_added(placed)
 
@@ -197,7 +195,6 @@ class SimWorld:
         """World control's create (Gazebo's EntityFactory), between steps: loads the requested model
         with its systems; returns its name in the world. A bad request raises ValueError naming the
         field, with the world as it was."""
-        assert self.sim is not None, "create before start"
         model = _load_requested(request)
         name = self._free_name(request.name or model.name, request.allow_renaming)
         try:
@@ -226,7 +223,6 @@ class SimWorld:
 
     def remove(self, name: str) -> None:
         """Takes a model, its systems and its keys out of the world; ValueError naming the field if unknown."""
-        assert self.sim is not None, "remove before start"
         placed = self.models.get(name)
         if placed is None:
             raise ValueError(f"name: no model named {name!r} in the world (models: {', '.join(self.models)})")
@@ -243,7 +239,6 @@ class SimWorld:
 
     def reset(self) -> None:
         """Gazebo's reset: the world as it started, so models created since leave it."""
-        assert self.sim is not None, "reset before start"
         for placed in [p for p in self.models.values() if p.created]:
             self.remove(placed.name)
         self.sim.reset()
