@@ -17,9 +17,9 @@ from __future__ import annotations
 import logging
 import re
 from functools import cache
-from importlib.metadata import entry_points
 
 from simbot.description.model import Plugin, Sensor
+from simbot.plugins import load_group
 from simbot.sim.system import SystemFactory
 
 log = logging.getLogger(__name__)
@@ -48,13 +48,7 @@ def canonical_name(plugin: Plugin) -> str:
 @cache
 def registered(group: str = GROUP) -> dict[str, SystemFactory]:
     """Name → system class, for every installed entry point of `group`."""
-    systems = {}
-    for point in entry_points(group=group):
-        try:
-            systems[point.name] = point.load()
-        except Exception as exc:  # noqa: BLE001 - a broken third-party package must not stop the server
-            log.warning("system %s from %s cannot be loaded: %s", point.name, point.value, exc)
-    return systems
+    return load_group(group)
 
 
 def builtin(group: str) -> list[SystemFactory]:

@@ -19,11 +19,12 @@ import logging
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import cache
-from importlib.metadata import entry_points
 from typing import Any, Literal, Protocol
 
 import numpy as np
 import numpy.typing as npt
+
+from simbot.plugins import load_group
 
 log = logging.getLogger(__name__)
 
@@ -81,18 +82,11 @@ class OutputKind:
 def output_kinds() -> dict[str, OutputKind]:
     """Name → kind, for every installed entry point of `simbot.camera_outputs` that loads as one."""
     kinds = {}
-    for point in entry_points(group=GROUP):
-        try:
-            kind = point.load()
-        except Exception as exc:  # noqa: BLE001 - a broken third-party package must not stop the server
-            log.warning("camera output %s from %s cannot be loaded: %s", point.name, point.value, exc)
-            continue
-        if isinstance(kind, OutputKind) and kind.name == point.name:
-            kinds[point.name] = kind
+    for name, kind in load_group(GROUP).items():
+        if isinstance(kind, OutputKind) and kind.name == name:
+            kinds[name] = kind
         else:
-            log.warning(
-                "camera output %s from %s is no OutputKind named %r; ignored", point.name, point.value, point.name
-            )
+            log.warning("camera output %s is no OutputKind named %r; ignored", name, name)
     return kinds
 
 
