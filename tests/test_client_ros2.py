@@ -60,6 +60,9 @@ WRAPPER_TIMEOUT_S = 600
 """The run inside the namespace took 60 s at a load average of 8 on two cores and 150–180 s at 20, the restart
 test 25–60 s of it."""
 WAIT_S = 30.0  # generous: two cores shared with other test runs
+EXIT_S = 30.0
+"""How long a server may take to exit on SIGTERM: the module's, with a render worker, took over 5 s (the
+helpers' bound) at a load average of 20 on two cores."""
 CHEAP_CAMERAS = ("--camera-size", "160x120")
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 RESTART_S = 10.0  # the issue's bound: the new server's data on DDS within 10 s of it being ready
@@ -130,6 +133,7 @@ def isolated() -> None:
 def sim(isolated: None) -> Iterator[SimServer]:
     with running_server("empty", "realtime", extra=CHEAP_CAMERAS) as server:
         yield server
+        server.stop(timeout=EXIT_S)
 
 
 @pytest.fixture(scope="module")
@@ -238,7 +242,7 @@ def server_at(port: int, namespace: str, stderr_path: Path) -> Iterator[SimServe
         server = SimServer(process, port, namespace, "empty", "lockstep", node, stderr_path)
         yield server
         if not server.stopped and server.alive():
-            server.stop()
+            server.stop(timeout=EXIT_S)
     finally:
         if node is not None:
             node.close()
