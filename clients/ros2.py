@@ -21,6 +21,13 @@ sees simbot with nothing more than rclpy:
 - A key published and subscribed at once (`cmd_vel` while `simbot teleop` drives) is carried
   both ways without echoes: the Zenoh side neither hears its own puts (Locality.REMOTE) nor, on
   DDS, takes its own publisher's messages (their publisher gid is the bridge's own).
+- Sim time going back on `clock` (the server restarted, or the world was reset: sim time starts
+  again from zero) is one warning line per jump. The bridge keeps nothing keyed on time: it
+  carries the new server's `/clock`, and ROS nodes on `use_sim_time` handle the jump as ROS does
+  (rclpy's time source runs the clock's jump callbacks, tf2 clears its buffers). A killed server's
+  keys leave the graph, so their routes close (DDS publishers, latched history and all) and open
+  again for the new server's; a route a restart did not close carries the new server's data as
+  it comes, latched keys too (the advanced subscriber takes a late publisher's latest).
 - A type whose generated type support is not importable (with the pip wheels: `tf2_msgs`, so
   `/tf` and `/tf_static`) is one warning naming the topic and the type; the rest carries on.
 
@@ -43,9 +50,10 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 import zenoh.ext
 
-from simbot.bus import Node
+from simbot.bus import Node, messages
+from simbot.bus.codec import DecodeError, decode
 
-from .common import ClientError, StatusLine, client_parser, run_client
+from .common import CLOCK, ClientError, StatusLine, client_parser, run_client
 from .record import Selection
 from .state import NoWorld, ask
 from .topics import Topic, latched, live_topics, topic_name, world_names
@@ -68,6 +76,7 @@ WATCH_PERIOD_S = 0.2
 SPIN_S = 0.1
 STATE_TIMEOUT_S = 2.0
 CDR = zenoh.Encoding.APPLICATION_CDR
+WENT_BACK = "sim time went back from %.3f s to %.3f s: the server restarted or the world was reset"
 
 
 class MissingTypeSupport(LookupError):
@@ -94,6 +103,24 @@ def qos(latched_key: bool) -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=durability,
     )
+
+
+class SimTimeRewind:
+    """Sim time going back, tick by tick of the world's clock: one warning line per jump.
+
+    Self-contained here; the clients' shared detector in clients/common.py is meant to replace it.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()  # Zenoh may call back on any of its threads
+        self._last_ns: int | None = None
+
+    def tick(self, ns: int) -> None:
+        """Take in one clock tick (ns of sim time); one line when it is earlier than the tick before."""
+        with self._lock:
+            last, self._last_ns = self._last_ns, ns
+        if last is not None and ns < last:
+            logger.warning(WENT_BACK, last / 1e9, ns / 1e9)
 
 
 class Counter:
@@ -232,6 +259,18 @@ class Bridge:
         self._skipped: set[tuple[str, str]] = set()
         self._inputs: set[str] = set()
         self._graph: frozenset[tuple[str, tuple[str, ...]]] = frozenset()
+        self._rewind = SimTimeRewind()
+        # a plain Zenoh subscriber, not node.subscribe: that one would announce the bridge on the graph
+        self._clock = node.session.declare_subscriber(node.key("/clock"), self._on_clock)
+
+    def _on_clock(self, sample: zenoh.Sample) -> None:
+        """Zenoh thread: the tick's sim time to the rewind detector."""
+        try:
+            ns = messages.stamp_ns(decode(sample.payload.to_bytes(), CLOCK).clock)
+        except DecodeError as exc:
+            logger.debug("/%s: %s", sample.key_expr, exc)
+            return
+        self._rewind.tick(ns)
 
     # --- the graph ------------------------------------------------------------------------
 
@@ -335,6 +374,7 @@ class Bridge:
         )
 
     def close(self) -> None:
+        self._clock.undeclare()
         for route in self.routes.outbound.values():
             self._close_outbound(route)
         for inbound in self.routes.inbound.values():
