@@ -1,31 +1,26 @@
 """Soak benchmark: the warehouse in real time for an hour, every sensor subscribed, the clients running.
 
-What runs, each a real process on a fresh loopback port and a namespace of its own (multicast
-scouting off, the server listening on 127.0.0.1 only):
-
-- `simbot-server --world warehouse` in real time, the SDF's cameras (six, 640×480, 30 Hz) and
-  its render workers;
-- `simbot merger`, `simbot stitcher`, and `simbot record` into a temporary bag of every key but
-  the images (six 640×480 cameras at ~25 Hz are ~140 MB/s: an hour would fill the disk);
-- this process: a counting subscriber on every key the server and the clients publish (found on
-  the bus graph, counted on Zenoh's threads without decoding), and the teleop commands: `cmd_vel`
-  at 10 Hz, steering the tug round a circle of 1 m radius beside its spawn point from its
-  ground-truth pose. Not `simbot teleop` through a pty: its keys latch a constant twist, so an
-  hour of it drifts the tug into a rack; a closed loop keeps it moving, in the open, for hours.
+Real processes on a fresh loopback port and namespace (multicast scouting off, listening on 127.0.0.1):
+`simbot-server --world warehouse` in real time with the SDF's six 640×480 cameras at 30 Hz;
+`simbot merger`, `simbot stitcher`, `simbot record` into a temporary bag of every key but the
+images (six 640×480 cameras at ~25 Hz are ~140 MB/s: an hour would fill the disk); and this
+process: a counting subscriber on every key the server and the clients publish (found on the bus
+graph, counted on Zenoh's threads without decoding), and the teleop commands: `cmd_vel` at 10 Hz,
+steering the tug round a 1 m circle beside its spawn point from its ground-truth pose. Not
+`simbot teleop` through a pty: its keys latch a constant twist, so an hour of it drifts the tug
+into a rack; a closed loop keeps it moving, in the open, for hours.
 
 Per key, over a window that starts once every key has delivered: the messages received against
 the count the rates imply (rate × sim time elapsed, so a real-time factor below 1 on a loaded
 machine is no loss), the rates read from the tug's SDF (sensors, DiffDrive, JointStatePublisher)
 and the server's constants (clock, poses, the robot state publisher's tf). A key short of its
 count must be explained by world state's own counters (a camera's `skipped` ticks, shown beside
-it); anything else beyond a second's worth of messages at the window's edges is a loss. The
-server's published count (world state's `messages`) is shown where it keeps one. Commands:
-`cmd_vel` sent against world state's `received`.
+it); anything else beyond a second's worth of messages at the window's edges is a loss. World
+state's published `messages` are shown where it counts them; `cmd_vel` sent against its `received`.
 
 Per process (the server, each render worker, each client, this one): RSS (VmRSS) and the load
-average at the window's start, after 5 minutes and at the end; CPU seconds (utime + stime) over
-the window and as a share of one core. A line per minute goes to stderr meanwhile. Exit 1 when
-a key lost messages, a process died, or the tug stopped moving.
+average at the start, after 5 minutes and at the end; CPU (utime + stime) over the window. A line
+per minute goes to stderr. Exit 1 when a key lost messages, a process died, or the tug got stuck.
 
     python benchmarks/soak.py [--minutes N] [--out FILE]
 """
@@ -43,7 +38,7 @@ import threading
 import time
 import uuid
 from collections.abc import Iterator, Sequence
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -78,8 +73,7 @@ EDGE_S = 1.0
 COMMAND_HZ = 10.0
 CENTRE, RADIUS, SPEED = (-2.5, 1.0), 1.0, 0.2
 """The circle the tug drives (m, m, m/s): left of its spawn point at (−2.5, 0), clear of pillars and trolley."""
-MIN_DISTANCE_PER_MINUTE = 6.0
-"""Metres the tug must cover per minute of the window (at 0.2 m/s: 12): else it is stuck."""
+MIN_DISTANCE_PER_MINUTE = 6.0  # metres per minute of the window (at 0.2 m/s: 12), else the tug is stuck
 
 
 # --------------------------------------------------------------------------- what each key owes
@@ -130,10 +124,6 @@ def expectations(tug: Model) -> dict[str, Expectation]:
     return {row.key: row for row in rows}
 
 
-def pose_expectation(key: str) -> Expectation:
-    return Expectation(key, POSE_RATE, "server poses")
-
-
 # --------------------------------------------------------------------------- processes
 
 
@@ -142,8 +132,7 @@ class Proc:
     """One process measured: started here (`popen`), or a child of the server (a render worker)."""
 
     name: str
-    short: str
-    """For the progress line."""
+    short: str  # in the progress line
     pid: int
     popen: subprocess.Popen[bytes] | None = None
     log: Path | None = None
@@ -184,13 +173,10 @@ def start(command: Sequence[str], log: Path) -> subprocess.Popen[bytes]:
 def stop(proc: subprocess.Popen[bytes]) -> None:
     """SIGINT (a client closes its bag, the server its workers), then SIGTERM, then SIGKILL."""
     for sig, grace in ((signal.SIGINT, 20.0), (signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
-        if proc.poll() is not None:
-            return
-        proc.send_signal(sig)
-        try:
-            proc.wait(grace)
-        except subprocess.TimeoutExpired:
-            continue
+        if proc.poll() is None:
+            proc.send_signal(sig)
+            with suppress(subprocess.TimeoutExpired):
+                proc.wait(grace)
 
 
 @contextmanager
@@ -351,32 +337,33 @@ def soak(minutes: float, tmp: Path) -> tuple[list[str], bool]:
         _wait_ready(node)
         teleop = Circle(node)
         keys = wait_for_keys(node, owed, procs)
-        owed |= {k: pose_expectation(k) for k in keys if k.startswith("model/") and k.endswith("/pose")}
+        owed |= {
+            k: Expectation(k, POSE_RATE, "server poses") for k in keys if k.startswith("model/") and k.endswith("/pose")
+        }
         counters = count_topics(node, keys)
         wait_for_messages(counters, list(owed))
         teleop.start()
         time.sleep(SETTLE_S)
-        procs_measured = processes(procs, tmp)
-        marks = {"start": mark(node, counters, teleop)}
-        for p in procs_measured:
-            p.sample("start")
-        end = marks["start"].wall + minutes * 60
-        next_sample = marks["start"].wall + SAMPLE_S
+        procs_measured, marks = processes(procs, tmp), {}
+
+        def take(name: str) -> None:
+            marks[name] = mark(node, counters, teleop)
+            for p in procs_measured:
+                p.check()
+                p.sample(name)
+
+        take("start")
+        end, next_sample = marks["start"].wall + minutes * 60, marks["start"].wall + SAMPLE_S
         while (now := time.monotonic()) < end:
-            time.sleep(max(0.0, min(next_sample, end) - now) if next_sample < end else end - now)
+            time.sleep(max(0.0, min(next_sample, end) - now))
             for p in procs_measured:
                 p.check()
             if "5 min" not in marks and time.monotonic() - marks["start"].wall >= MARK_S and minutes * 60 > MARK_S:
-                marks["5 min"] = mark(node, counters, teleop)
-                for p in procs_measured:
-                    p.sample("5 min")
+                take("5 min")
             if time.monotonic() >= next_sample:
                 progress(mark(node, counters, teleop), marks["start"], procs_measured, teleop)
                 next_sample += SAMPLE_S
-        marks["end"] = mark(node, counters, teleop)
-        for p in procs_measured:
-            p.check()
-            p.sample("end")
+        take("end")
         teleop.stop()
     # the clients and the server are stopped: record's bag is closed
     return report(owed, keys, marks, procs_measured, teleop, minutes, tmp)
@@ -386,10 +373,10 @@ def soak(minutes: float, tmp: Path) -> tuple[list[str], bool]:
 
 
 def sensor_delta(first: Mark, last: Mark, scoped: str, figure: str) -> int:
-    def value(m: Mark) -> int:
-        return int(m.state["sensors"].get(scoped, {}).get(figure, 0))
-
-    return value(last) - value(first)
+    """How much one of world state's figures for a sensor grew over the window."""
+    return int(
+        last.state["sensors"].get(scoped, {}).get(figure, 0) - first.state["sensors"].get(scoped, {}).get(figure, 0)
+    )
 
 
 def key_rows(
