@@ -35,6 +35,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_record.py
 	$(BIN)/python benchmarks/bench_ros2.py
 
+## An hour of the warehouse in real time, every sensor and the clients running: losses per key, RSS and CPU per process (`make soak MINUTES=2` to try it).
+MINUTES ?= 60
+.PHONY: soak
+soak: $(STAMP)
+	$(BIN)/python benchmarks/soak.py --minutes $(MINUTES)
+
 ## Regenerate the committed URDF from the SDF (a test checks it is up to date).
 urdf: $(STAMP)
 	$(BIN)/simbot sdf2urdf urdf/flexley_tug.sdf -o urdf/flexley_tug.urdf
