@@ -198,6 +198,15 @@ def render_workers(pid: int) -> list[int]:
     return found
 
 
+def exited(pid: int) -> bool:
+    """Whether process `pid` has exited: gone, or a zombie its parent has not reaped yet."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return True
+    return stat.rpartition(")")[2].split()[0] == "Z"  # the state follows the command name, which may hold spaces
+
+
 def server_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "simbot.sim.server", *args]
 
