@@ -29,6 +29,7 @@ IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sen
 WALL = 3.0
 W, H, HFOV = 160, 120, 1.2
 FX = (W / 2) / math.tan(HFOV / 2)
+FRAME_NS = 100_000_000  # the cameras' 10 Hz
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
@@ -55,7 +56,9 @@ def test_rgbd_camera_publishes_image_depth_points_and_info_under_one_stamp(sim: 
     topics = {"rgbd/image": IMAGE, "rgbd/depth_image": IMAGE, "rgbd/points": CLOUD, "rgbd/camera_info": INFO}
     collectors = {topic: sim.subscribe(topic, typename) for topic, typename in topics.items()}
     sim.prime(*collectors.values(), chunk=100, timeout=60.0)
-    sim.step(300)
+    end_ns = round(sim.step(300)["sim_time"] * 1e9)  # lockstep: every frame of these steps is published by now
+    for topic, collector in collectors.items():  # ...but one frame's products travel apart: wait for the last's
+        collector.wait_for(lambda got: any(stamp_ns(m) > end_ns - FRAME_NS for m in got), 30.0, f"the last {topic}")
     stamps = {topic: {stamp_ns(m) for m in c.messages()} for topic, c in collectors.items()}
     latest = {topic: c.messages()[-1] for topic, c in collectors.items()}
     sim.unsubscribe_all()
