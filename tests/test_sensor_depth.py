@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, running_server, server_command, stamp_ns
+from server_helpers import STARTUP_TIMEOUT_S, SimServer, running_server, server_command, stamp_ns
 
 from simbot.bus import messages
 
@@ -127,7 +127,10 @@ def test_bad_camera_sdf_is_one_line_naming_the_sensor_and_field(
     world = tmp_path / "bad.sdf"
     world.write_text(text.replace(good, bad, 1))
     done = subprocess.run(
-        server_command("--world", str(world), "--mode", "lockstep", *BEHIND), capture_output=True, text=True, timeout=60
+        server_command("--world", str(world), "--mode", "lockstep", *BEHIND),
+        capture_output=True,
+        text=True,
+        timeout=STARTUP_TIMEOUT_S,
     )
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
