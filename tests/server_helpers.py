@@ -200,12 +200,13 @@ def render_workers(pid: int) -> list[int]:
 
 
 def exited(pid: int) -> bool:
-    """Whether process `pid` has exited: gone, or a zombie its parent has not reaped yet."""
+    """Whether child `pid` of this process has exited, as waiting for it would tell (without reaping it, so its
+    owner still gets the exit code). A killed process shows as a zombie in /proc before all its threads are
+    gone, and until they are, waiting for it still says it runs."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
+        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:  # reaped already
         return True
-    return stat.rpartition(")")[2].split()[0] == "Z"  # the state follows the command name, which may hold spaces
 
 
 def server_command(*args: str) -> list[str]:
