@@ -86,8 +86,9 @@ def test_latched_topic_reaches_a_late_joiner_exactly_once() -> None:
         wait_until(lambda: got, what="the latched value")
         publisher.put(m.string("<robot name='v3'/>"))
         wait_until(lambda: len(got) >= 2, what="the update")
-        time.sleep(0.2)  # a duplicate from the history query would arrive within this
-        assert got == ["<robot name='v2'/>", "<robot name='v3'/>"]
+        publisher.put(m.string("<robot name='v4'/>"))  # the marker: a duplicate of v2 or v3 comes before it or never
+        wait_until(lambda: "<robot name='v4'/>" in got, what="the marker")
+        assert got == ["<robot name='v2'/>", "<robot name='v3'/>", "<robot name='v4'/>"]
 
 
 def test_latched_subscriber_before_the_publisher_and_across_a_server_restart() -> None:

@@ -57,12 +57,25 @@ def states(collector: Collector[object]) -> list[str]:
     return [m.data for m in collector.messages()]  # type: ignore[attr-defined]
 
 
-def refused(client: PtyClient, collector: Collector[object]) -> str:
-    """Types t, waits for the warning, and makes sure nothing was attached for a second after it."""
+def attaches(sim: SimServer) -> int:
+    """The attach commands the server has received."""
+    return int(sim.state()["received"][sim.key("attach")])
+
+
+def refused(sim: SimServer, client: PtyClient, collector: Collector[object]) -> str:
+    """Types t, waits for the warning, and makes sure nothing was attached: none reaches the server over five
+    more check periods of sim time, by the end of which a second t is refused as well (the client's loop is
+    past them)."""
+    before = attaches(sim)
     mark = client.mark()
     client.type("t")
     warning = client.wait_for(r"not attaching: [^\n]*", since=mark).group(0)
-    time.sleep(1.0)  # five more check periods: long enough for any attach to show
+    start = sim_time(sim)
+    wait_until(lambda: sim_time(sim) - start >= 1.0, 20.0, "five check periods of sim time", poll=0.05)
+    mark = client.mark()
+    client.type("t")
+    client.wait_for(r"not attaching: ", since=mark)
+    assert attaches(sim) == before, "t while far sent an attach command"
     assert states(collector) == ["detached"], f"t while far changed the joint: {states(collector)}"
     return warning
 
@@ -94,7 +107,7 @@ def test_without_a_pose_the_trolley_is_unknown_and_not_attached(sim: SimServer) 
     with dock(sim, "--trolley", "ghost") as client:
         client.wait_for(r"joint detached")
         client.wait_for(r"trolley far/unknown \(no recent pose of the trolley\)")
-        warning = refused(client, collector)
+        warning = refused(sim, client, collector)
         assert "far/unknown" in warning
 
 
@@ -104,7 +117,7 @@ def test_far_from_the_trolley_t_warns_and_sends_nothing(sim: SimServer) -> None:
     with dock(sim) as client:
         before = client.initial
         client.wait_for(r"trolley far \(3\.5\d m apart\)")
-        refused(client, collector)
+        refused(sim, client, collector)
         client.type("q")
         assert client.wait_exit() == 0
         assert client.attributes() == before, "q did not restore the terminal's attributes"
@@ -125,7 +138,7 @@ def test_yaw_tolerance_refuses_a_skewed_robot(sim: SimServer) -> None:
     collector = joint_states(sim)
     with dock(sim, "--yaw-tolerance", "0.1") as client:
         client.wait_for(r"trolley far \(0\.0\d m apart, headings 0\.1[45] rad apart\)")
-        refused(client, collector)
+        refused(sim, client, collector)
 
 
 def test_under_the_trolley_attach_pull_detach(sim: SimServer) -> None:
@@ -190,16 +203,22 @@ def test_checks_count_sim_time_not_wall_time() -> None:
         collector = joint_states(sim)
         with dock(sim) as client:
             wait_until(
-                lambda: sim.step(20) and "trolley near" in client.screen(),
+                lambda: sim.step(20) and all(text in client.screen() for text in ("trolley near", "joint detached")),
                 20.0,
-                "near once the poses and the clock come",
+                "near once the poses and the clock come, and the joint's state",
                 poll=0.05,
             )
             mark = client.mark()
             client.type("t")
             client.wait_for(r"checking 1/3", since=mark)
-            time.sleep(1.0)  # five check periods of wall time, none of sim time
-            assert "checking 2/3" not in client.screen()[mark:] and states(collector) == ["detached"]
+            time.sleep(1.0)  # the stimulus, not a wait: five check periods of wall time, none of sim time
+            client.type("r")  # the marker: the client's loop went on through that second (r ends the attempt)
+            answer = client.wait_for(r"already detached", since=mark)
+            assert "checking 2/3" not in client.screen()[mark : mark + answer.start()]
+            assert states(collector) == ["detached"]
+            mark = client.mark()
+            client.type("t")
+            client.wait_for(r"checking 1/3", since=mark)
             sim.step(250)  # a check period and a clock tick or two
             client.wait_for(r"checking 2/3", since=mark)
             sim.step(250)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import re
 import signal
 import subprocess
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -75,20 +74,23 @@ def sim() -> Iterator[SimServer]:
 def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, list[bytes], str]]:
     """A 5 s recording of the chosen keys, the lidar_front payloads the test saw meanwhile, and the recorder's stderr.
 
-    A malformed payload is put on lidar_front halfway: the recorder must drop it and keep the rest.
+    A malformed payload is put on lidar_front once the recorder taps it and two scans have gone by: the
+    recorder must drop it (its warning shows it came while recording) and keep the rest.
     """
     bag = tmp_path_factory.mktemp("record") / "bag"
     with (
         raw_samples(sim.node.session, sim.key("lidar_front"), payload) as seen,
         client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder,
     ):
-        wait_until(
-            lambda: "recording 8 topics" in recorder.stderr() or not recorder.alive(),
-            20.0,
-            "the recorder to tap every key",
-        )
-        time.sleep(RECORD_S / 2)
+        wait_until(lambda: "recording /lidar_front" in recorder.stderr(), 20.0, "the recorder to tap lidar_front")
+        tapped = len(seen)
+        seen.wait_count(tapped + 2, 10.0, "lidar_front scans while the recorder taps it")
         sim.send_raw("lidar_front", GARBAGE)
+        wait_until(
+            lambda: f"{sim.key('lidar_front')}: dropped a sample" in recorder.stderr(),
+            RECORD_S,
+            "the recorder to drop the garbage",
+        )
         code = recorder.process.wait(timeout=RUN_TIMEOUT_S)
         assert code == 0, recorder.stderr()[-2000:]
         stderr = recorder.stderr()
@@ -150,14 +152,16 @@ def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: Sim
     """Ctrl-C: exit 0, the bag opens, and it holds as many messages as the recorder said it received."""
     bag = tmp_path / "interrupted"
     with client_process(sim, "record", "-o", str(bag), "imu_scan", "odom") as recorder:
-        wait_until(lambda: "recording 2 topics" in recorder.stderr(), 20.0, "the recorder to tap both keys")
-        time.sleep(1.5)
+        wait_until(lambda: "recording /odom" in recorder.stderr(), 20.0, "the recorder to tap odom")
+        wait_until(lambda: "recording /imu_scan" in recorder.stderr(), 20.0, "the recorder to tap imu_scan")
+        with raw_samples(sim.node.session, sim.key("imu_scan"), payload) as imu:
+            imu.wait_count(400, 30.0, "2 s of sim time on imu_scan while the recorder taps it")
         assert recorder.stop(signal.SIGINT) == 0
         stderr = recorder.stderr()
     found = re.search(r"wrote \S+: 2 topics, (\d+) messages", stderr)
     assert found, stderr[-800:]
     messages = bag_messages(bag)
-    assert len(messages) == int(found[1]) > 200  # 1.5 s of a 200 Hz IMU, at least
+    assert len(messages) == int(found[1]) > 200  # 2 s of a 200 Hz IMU went by while it tapped
     assert {topic for topic, *_ in messages} == {"/imu_scan", "/odom"}
     assert all(decode(data, typename) is not None for _, typename, _, data in messages)
 

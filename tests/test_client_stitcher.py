@@ -40,7 +40,7 @@ import numpy as np
 import pytest
 from client_helpers import client_command, client_process
 from conftest import REPO, ROBOT_SDF
-from server_helpers import TF_MESSAGE, SimServer, running_server
+from server_helpers import TF_MESSAGE, SimServer, running_server, stamp_ns
 
 from simbot.bus import messages
 from simbot.bus.transforms import TransformTree
@@ -127,8 +127,8 @@ def run_stitcher(
     frame_steps: int = FRAME_STEPS,
 ) -> tuple[list[Any], list[Any], str]:
     """Runs the stitcher (following `robot`'s namespace, if given), stepping `frame_steps` (a camera
-    period) at a time until `count` panoramas (and camera_infos) came out; (images, camera_infos, the
-    stitcher's stderr)."""
+    period) at a time until `count` panoramas came out, and the last one's camera_info; (images,
+    camera_infos, the stitcher's stderr once it has exited)."""
     out = f"{robot}/camera_360" if robot else "camera_360"
     images, infos = sim.subscribe(f"{out}/image_raw", IMAGE), sim.subscribe(f"{out}/camera_info", CAMERA_INFO)
     follow = ("--robot-namespace", robot) if robot else ()
@@ -147,9 +147,11 @@ def run_stitcher(
                 before, wait_end = len(images), time.monotonic() + 0.3  # the stitcher runs on wall time
                 while len(images) == before and time.monotonic() < wait_end:
                     time.sleep(0.01)
-            time.sleep(0.2)  # the camera_info of the last image
+            shown = images.messages()  # the first may have come before the camera_info subscription did
+            infos.wait_stamp(stamp_ns(shown[-1]), OUTPUT_TIMEOUT_S, "the last panorama's camera_info")
+            assert stitcher.stop() == 0, stitcher.stderr()[-2000:]
             stderr = stitcher.stderr()
-        return images.messages(), infos.messages(), stderr
+        return shown, infos.messages(), stderr
     finally:
         sim.unsubscribe_all()
 

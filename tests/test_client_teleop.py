@@ -133,7 +133,7 @@ def test_drive_stop_turn_and_quit_restoring_the_terminal(sim: SimServer) -> None
         client.wait_for(r"v \+0\.50 m/s  w \+0\.00 rad/s")
 
         client.type("x")
-        commands.wait_for(lambda ms: ms[-1].linear.x == 0.0, what="a stop on cmd_vel")
+        commands.wait_for(lambda ms: ms and ms[-1].linear.x == 0.0, what="a stop on cmd_vel")
         at_rest(sim)
         assert_still(sim, "after x")
 
@@ -144,11 +144,11 @@ def test_drive_stop_turn_and_quit_restoring_the_terminal(sim: SimServer) -> None
         assert moved(turn_start, turn_end) < 0.05, "a did not turn in place"
 
         client.type("w")
-        commands.wait_for(lambda ms: ms[-1].linear.x == SPEED, what="forward on cmd_vel")
+        commands.wait_for(lambda ms: ms and ms[-1].linear.x == SPEED, what="forward on cmd_vel")
         client.type("q")
         assert client.wait_exit() == 0
         assert client.attributes() == before, "the terminal's attributes were not restored"
-        last = commands.wait_for(lambda ms: ms[-1].linear.x == 0.0, what="the zero command at exit")[-1]
+        last = commands.wait_for(lambda ms: ms and ms[-1].linear.x == 0.0, what="the zero command at exit")[-1]
         assert (last.linear.x, last.linear.y, last.angular.z) == (0.0, 0.0, 0.0)
         at_rest(sim)
     print(f"\nmeasured teleop: w {speed:.4f} m/s, a {rate:.4f} rad/s (sim time)")
@@ -223,11 +223,11 @@ def test_a_signal_ends_it_with_a_stop_and_the_terminal_restored(sim: SimServer, 
         before = client.initial
         client.wait_for(READY, timeout=20.0)
         client.type("w")
-        commands.wait_for(lambda ms: ms[-1].linear.x == SPEED, what="forward on cmd_vel")
+        commands.wait_for(lambda ms: ms and ms[-1].linear.x == SPEED, what="forward on cmd_vel")
         client.process.send_signal(sig)
         assert client.wait_exit() == 0
         assert client.attributes() == before, f"the terminal's attributes were not restored after {sig.name}"
-        commands.wait_for(lambda ms: ms[-1].linear.x == 0.0, what=f"the zero command after {sig.name}")
+        commands.wait_for(lambda ms: ms and ms[-1].linear.x == 0.0, what=f"the zero command after {sig.name}")
 
 
 @pytest.mark.parametrize(

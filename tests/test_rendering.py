@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from gl_helpers import NO_EGL
+from server_helpers import exited, wait_until
 
 from simbot.sim.render import (
     BodyState,
@@ -268,8 +269,10 @@ def test_depth_is_z_along_the_optical_axis_and_points_lie_on_the_surface(pool: R
 
 
 def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: RenderPool) -> None:
-    """Three cameras on two workers: each frame comes back with its own stamp; a camera stays busy until its
-    frame is collected, and a second request meanwhile raises."""
+    """Three cameras of one worker (round-robin over two: cameras 0, 2, 4 and 6 are worker 0's): each frame
+    comes back with its own stamp; a camera stays busy until its frame is collected, rendered or not, and a
+    second request meanwhile raises. A failing request for a fourth camera of that worker, sent last, marks
+    the three as rendered: the worker takes its requests in order, and the failure is collected alone."""
     cameras = (RGB, MONO, NOISY_C)
     for n, camera in enumerate(cameras):
         pool.request(camera, 1000 + n, AHEAD, {})
@@ -277,13 +280,11 @@ def test_every_camera_gets_its_own_frame_and_busy_means_outstanding(pool: Render
     assert not pool.busy(FULL)
     with pytest.raises(RuntimeError, match="busy"):
         pool.request(RGB, 2000, AHEAD, {})
-    time.sleep(0.5)  # rendered by now, but not collected: still busy (its pixels are not the caller's yet)
-    assert pool.busy(RGB)
-    stamps: dict[int, int] = {}
-    deadline = time.monotonic() + WAIT
-    while len(stamps) < len(cameras) and time.monotonic() < deadline:
-        stamps.update((f.camera, f.stamp_ns) for f in pool.collect())
-    assert stamps == {RGB: 1000, MONO: 1001, NOISY_C: 1002}
+    pool.request(NOISY_A, 3000, at(ARM_AT), {"arm": BodyState(at(ARM_AT), {})})  # no joint position: fails
+    with pytest.raises(RuntimeError, match="arm"):
+        pool.collect(wait_for=NOISY_A, timeout=WAIT)
+    assert all(pool.busy(camera) for camera in cameras)  # rendered, but not collected: their pixels are not ours yet
+    assert {f.camera: f.stamp_ns for f in pool.collect()} == {RGB: 1000, MONO: 1001, NOISY_C: 1002}
     assert not any(pool.busy(camera) for camera in cameras)
     assert pool.collect() == []
 
@@ -459,15 +460,23 @@ def test_a_camera_added_to_a_running_pool_renders_its_own_view(renderer: str) ->
         )
 
 
+def kill_worker(render_pool: RenderPool, index: int) -> None:
+    """SIGKILL to a worker, returning once it has exited: the pool sees the death at its next look,
+    whatever the worker had done with its requests by then."""
+    pid = render_pool.pids[index]
+    assert pid is not None
+    os.kill(pid, signal.SIGKILL)
+    wait_until(lambda: exited(pid), WAIT, f"render worker {index} (pid {pid}) to exit")
+
+
 def test_an_added_camera_goes_to_the_worker_with_the_fewest_cameras() -> None:
     """Three cameras on two workers (rgb and mono on worker 0, rgbd on worker 1): a fourth goes to worker 1,
     as the death of worker 1 shows, naming its cameras."""
     with RenderPool(scene()[:1], CAMERAS[:3], workers=2, renderer="tiny") as render_pool:
         added = render_pool.add_camera(CameraSpec("late", W, H, HFOV, 0.05, 50.0))
-        render_pool.request(added, 1, AHEAD, {})
-        os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
+        kill_worker(render_pool, 1)
         with pytest.raises(RuntimeError, match=r"worker 1 .*died.*its cameras: rgbd, late$"):
-            render_pool.collect(wait_for=added, timeout=WAIT)
+            render_pool.request(added, 1, AHEAD, {})
 
 
 def test_a_body_that_does_not_load_fails_the_next_collect_and_the_worker_goes_on() -> None:
@@ -541,7 +550,7 @@ def test_a_killed_worker_raises_instead_of_hanging() -> None:
     big = CameraSpec("big", 2000, 2000, HFOV, 0.05, 50.0)  # slow enough to be killed mid-render
     with RenderPool(scene()[:1], [CAMERAS[RGB], big], workers=2, renderer="tiny") as render_pool:
         render_pool.request(1, 1, AHEAD, {})
-        os.kill(render_pool.pids[1], signal.SIGKILL)  # type: ignore[arg-type]
+        kill_worker(render_pool, 1)
         with pytest.raises(RuntimeError, match=r"worker 1 .*died.*big"):
             render_pool.collect(wait_for=1, timeout=WAIT)
         assert not render_pool.busy(1)

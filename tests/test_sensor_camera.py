@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from conftest import CAMERAS
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, render_workers, running_server, stamp_ns
+from server_helpers import SimServer, render_workers, running_server, stamp_ns, wait_until
 
 from simbot.bus import messages
 
@@ -221,16 +221,19 @@ def test_bad_camera_options_are_one_line_errors() -> None:
 
 
 def test_a_killed_render_worker_stops_the_cameras_not_the_simulation() -> None:
-    """SIGKILL to the render worker: world state reports the cameras' error, and sim time and odom go on."""
+    """SIGKILL to the render workers (one on two cores, more on more): world state reports the front camera's
+    error, and sim time and odom go on."""
     with running_server(WORLD, "realtime", extra=[*AT_ORIGIN, "--camera-size", "160x120"]) as sim:
         images = sim.subscribe("camera_front", IMAGE)
         images.wait_count(3, timeout=60.0, what="camera_front images")
-        (worker,) = render_workers(sim.process.pid)
-        os.kill(worker, signal.SIGKILL)
-        wait_until = sim.state()["sim_time"]
-        while "error" not in sim.state()["sensors"]["flexley_tug/base_link/camera_front"]:
-            assert sim.state()["sim_time"] < wait_until + 10.0, "no camera error reported within 10 s of sim time"
-        assert "died" in sim.state()["sensors"]["flexley_tug/base_link/camera_front"]["error"]
+        workers = render_workers(sim.process.pid)
+        assert workers, "no render worker while camera_front renders"
+        for worker in workers:
+            os.kill(worker, signal.SIGKILL)
+        front = "flexley_tug/base_link/camera_front"
+        wait_until(lambda: "error" in sim.state()["sensors"][front], 30.0, "the camera's error in world state")
+        assert "died" in sim.state()["sensors"][front]["error"]
+        killed_at = sim.state()["sim_time"]
         odom = sim.subscribe("odom", "nav_msgs/msg/Odometry")
-        odom.wait_count(25, timeout=10.0, what="odom after the worker died")  # 50 Hz: half a second
-        assert sim.alive() and sim.state()["real_time_factor"] > 0.5
+        odom.wait_count(25, timeout=30.0, what="odom after the worker died")  # 50 Hz: half a second
+        assert sim.alive() and sim.state()["sim_time"] >= killed_at + 0.4

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, running_server, server_command, stamp_ns
+from server_helpers import STARTUP_TIMEOUT_S, SimServer, running_server, server_command, stamp_ns
 
 from simbot.bus import messages
 
@@ -29,6 +29,7 @@ IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sen
 WALL = 3.0
 W, H, HFOV = 160, 120, 1.2
 FX = (W / 2) / math.tan(HFOV / 2)
+FRAME_NS = 100_000_000  # the cameras' 10 Hz
 
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
@@ -55,7 +56,9 @@ def test_rgbd_camera_publishes_image_depth_points_and_info_under_one_stamp(sim: 
     topics = {"rgbd/image": IMAGE, "rgbd/depth_image": IMAGE, "rgbd/points": CLOUD, "rgbd/camera_info": INFO}
     collectors = {topic: sim.subscribe(topic, typename) for topic, typename in topics.items()}
     sim.prime(*collectors.values(), chunk=100, timeout=60.0)
-    sim.step(300)
+    end_ns = round(sim.step(300)["sim_time"] * 1e9)  # lockstep: every frame of these steps is published by now
+    for topic, collector in collectors.items():  # ...but one frame's products travel apart: wait for the last's
+        collector.wait_for(lambda got: any(stamp_ns(m) > end_ns - FRAME_NS for m in got), 30.0, f"the last {topic}")
     stamps = {topic: {stamp_ns(m) for m in c.messages()} for topic, c in collectors.items()}
     latest = {topic: c.messages()[-1] for topic, c in collectors.items()}
     sim.unsubscribe_all()
@@ -124,7 +127,10 @@ def test_bad_camera_sdf_is_one_line_naming_the_sensor_and_field(
     world = tmp_path / "bad.sdf"
     world.write_text(text.replace(good, bad, 1))
     done = subprocess.run(
-        server_command("--world", str(world), "--mode", "lockstep", *BEHIND), capture_output=True, text=True, timeout=60
+        server_command("--world", str(world), "--mode", "lockstep", *BEHIND),
+        capture_output=True,
+        text=True,
+        timeout=STARTUP_TIMEOUT_S,
     )
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
