@@ -33,8 +33,9 @@ from .common import ClientError, client_parser, number, run_client
 
 logger = logging.getLogger(__name__)
 
-LATE_JOIN_S = 0.5
-"""A pause after declaring the publishers, so subscribers' routes to the new keys exist before the first message."""
+ROUTES_S = 2.0
+"""The longest play waits, after declaring its publishers, for subscribers' routes to them: it starts as soon as
+every key has a subscriber, and after this when some key has none (a fixed pause lost the first messages under load)."""
 
 
 def transient_local(connection: Connection) -> bool:
@@ -68,6 +69,14 @@ def publishers(node: Node, reader: Reader) -> dict[int, Publisher]:
     return found
 
 
+def await_routes(outputs: dict[int, Publisher], stop: threading.Event) -> None:
+    """Until every publisher has a subscriber, at most ROUTES_S: a message put before its route exists goes nowhere."""
+    deadline = time.monotonic() + ROUTES_S
+    while not all(p.has_subscribers for p in outputs.values()) and time.monotonic() < deadline:
+        if stop.wait(0.01):
+            return
+
+
 def timed(reader: Reader, rate: float, stop: threading.Event) -> Iterator[tuple[Connection, bytes]]:
     """The bag's messages in time order, each given out when its time (scaled by 1/rate) comes; ends early on `stop`."""
     start_wall = time.monotonic()
@@ -85,7 +94,7 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     total = reader.message_count
     try:
         outputs = publishers(node, reader)
-        stop.wait(LATE_JOIN_S)
+        await_routes(outputs, stop)
         played = 0
         for connection, data in timed(reader, args.rate, stop):
             outputs[connection.id].put_raw(data)
