@@ -8,6 +8,9 @@ when its recorded arrival time comes round again (divided by `--rate`). Topics r
 transient-local durability are latched again. Publishers block rather than drop, so nothing of
 the recording is lost on a busy link.
 
+It starts once every topic has a subscriber (at most `ROUTES_S` later), so none of the first
+messages goes out before its route exists.
+
 Play on a bus without a server (or in another namespace): two publishers of `/odom` confuse every
 subscriber, as in ROS.
 """
