@@ -8,16 +8,19 @@ key (`tf_static`, `robot_description`) is recorded with transient-local durabili
 latches it again.
 
 Each message is stamped with its arrival time (wall clock), as rosbag2 does; the messages keep
-their sim-time header stamps. When sim time goes back (the server restarted, or the world was
-reset) the recording goes on: the bag's timestamps, on the wall clock, still only go forward,
-while the header stamps start again from zero. The jump is logged, and listed in the bag's
-metadata.yaml under `custom_data` (`simbot.sim_time_went_back`: a JSON list of
-`{"time_ns": …, "from_ns": …, "to_ns": …}`, the bag time at which the new run's first clock
-arrived and the sim times before and after), so a reader can tell the runs apart. The payloads go into the bag unchanged; malformed ones are dropped
+their sim-time header stamps. The payloads go into the bag unchanged; malformed ones are dropped
 and counted by the tap (`clients/tap.py`). Zenoh threads only queue samples (the queue is not
 bounded: nothing already received is let go); the loop writes them. Ctrl-C, SIGTERM or
 `--duration` end the recording: the queue is written out, then the bag is closed, so the file
 opens and holds everything received.
+
+When sim time goes back (the server restarted, or the world was reset) the recording goes on:
+the bag's timestamps, on the wall clock, still only go forward (rosbags' writer would take them
+in any order, but a player replays them in order), while the header stamps start again from zero.
+The jump is logged, and listed in the bag's metadata.yaml under `custom_data`
+(`simbot.sim_time_went_back`: a JSON list of `{"time_ns": …, "from_ns": …, "to_ns": …}`, the bag
+time at which the new run's first clock arrived and the sim times before and after), so that a
+reader can tell the runs apart.
 """
 
 from __future__ import annotations

@@ -266,54 +266,61 @@ def _gather(sim: SimServer, watches: dict[str, Watch], ready: float) -> dict[str
 
 @pytest.fixture(scope="module")
 def restart(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Restart]:
+    """The clients on a first server, then across its kill and restart; they stop (exit 0 asserted) before the new server does."""
     bag = tmp_path_factory.mktemp("restart") / "bag"
     port = free_port()
-    with ExitStack() as stack:
-        old = stack.enter_context(running_server("warehouse", "realtime", extra=SERVER_EXTRA))
-        processes = {
-            "merger": stack.enter_context(client_process(old, "merger")),
-            "stitcher": stack.enter_context(client_process(old, "stitcher")),
-            "monitor": stack.enter_context(client_process(old, "monitor")),
-            "record": stack.enter_context(client_process(old, "record", "-o", str(bag), *RECORDED)),
-            "foxglove": stack.enter_context(client_process(old, "foxglove", "--port", str(port))),
-        }
-        terminals = {
-            name: stack.enter_context(pty_client(client_command(name, *bus_args(old)))) for name in ("teleop", "dock")
-        }
-        app = stack.enter_context(viewer(port))
-        scans = old.subscribe("scan", LASER_SCAN)
-        panoramas = old.subscribe("camera_360/image_raw", IMAGE)
-        odom_view = FoxgloveOdom(app)
-        up = _wait_up(
-            {
-                "merger": lambda: len(scans) > 0,
-                "stitcher": lambda: len(panoramas) > 0,
-                "monitor": lambda: MONITOR_HEADING.search(processes["monitor"].stdout()) is not None,
-                "record": lambda: f"recording {len(RECORDED)} topics" in processes["record"].stderr(),
-                "foxglove": odom_view.follow,
-                "teleop": lambda: re.search(TELEOP_READY, terminals["teleop"].screen()) is not None,
-                "dock": lambda: "trolley near" in terminals["dock"].screen(),
+    with ExitStack() as servers:
+        old = servers.enter_context(running_server("warehouse", "realtime", extra=SERVER_EXTRA))
+        with ExitStack() as clients:
+            processes = {
+                "merger": clients.enter_context(client_process(old, "merger")),
+                "stitcher": clients.enter_context(client_process(old, "stitcher")),
+                "monitor": clients.enter_context(client_process(old, "monitor")),
+                "record": clients.enter_context(client_process(old, "record", "-o", str(bag), *RECORDED)),
+                "foxglove": clients.enter_context(client_process(old, "foxglove", "--port", str(port))),
             }
-        )
-        # dock's screen is marked before the kill: it may log the jump before the test's node is on the new server
-        docking = DockAttach(terminals["dock"])
-        old_sim_time = float(old.state()["sim_time"])
-        old.unsubscribe_all()
-        new = stack.enter_context(restarted(old))
-        ready, ready_wall_ns = time.monotonic(), time.time_ns()
-        odom_view.restart_begins()
-        docking.restart_done(new)
-        watches: dict[str, Watch] = {
-            "merger": Stamped(new, "scan", LASER_SCAN),
-            "stitcher": Stamped(new, "camera_360/image_raw", IMAGE, source="camera_front"),
-            "monitor": MonitorHeading(processes["monitor"]),
-            "foxglove": odom_view,
-            "teleop": TeleopTurn(new, terminals["teleop"]),
-            "dock": docking,
-        }
-        found = _gather(new, watches, ready)
-        yield Restart(new, old_sim_time, ready_wall_ns, processes, terminals, bag, up, found)
+            terminals = {
+                name: clients.enter_context(pty_client(client_command(name, *bus_args(old))))
+                for name in ("teleop", "dock")
+            }
+            app = FoxgloveOdom(clients.enter_context(viewer(port)))
+            up = _wait_up(_showing_the_first(old, processes, terminals, app))
+            # dock's screen is marked before the kill: it may log the jump before the test's node is on the new server
+            docking = DockAttach(terminals["dock"])
+            old_sim_time = float(old.state()["sim_time"])
+            old.unsubscribe_all()
+            new = servers.enter_context(restarted(old))
+            ready, ready_wall_ns = time.monotonic(), time.time_ns()
+            app.restart_begins()
+            docking.restart_done(new)
+            watches: dict[str, Watch] = {
+                "merger": Stamped(new, "scan", LASER_SCAN),
+                "stitcher": Stamped(new, "camera_360/image_raw", IMAGE, source="camera_front"),
+                "monitor": MonitorHeading(processes["monitor"]),
+                "foxglove": app,
+                "teleop": TeleopTurn(new, terminals["teleop"]),
+                "dock": docking,
+            }
+            found = _gather(new, watches, ready)
+            yield Restart(new, old_sim_time, ready_wall_ns, processes, terminals, bag, up, found)
         new.unsubscribe_all()
+
+
+def _showing_the_first(
+    sim: SimServer, processes: dict[str, ClientProcess], terminals: dict[str, PtyClient], app: FoxgloveOdom
+) -> dict[str, Callable[[], bool]]:
+    """Whether each client shows the first server's data (the test subscribes to the outputs here)."""
+    scans = sim.subscribe("scan", LASER_SCAN)
+    panoramas = sim.subscribe("camera_360/image_raw", IMAGE)
+    return {
+        "merger": lambda: len(scans) > 0,
+        "stitcher": lambda: len(panoramas) > 0,
+        "monitor": lambda: MONITOR_HEADING.search(processes["monitor"].stdout()) is not None,
+        "record": lambda: f"recording {len(RECORDED)} topics" in processes["record"].stderr(),
+        "foxglove": app.follow,
+        "teleop": lambda: re.search(TELEOP_READY, terminals["teleop"].screen()) is not None,
+        "dock": lambda: "trolley near" in terminals["dock"].screen(),
+    }
 
 
 def assert_carried_on(restart: Restart, name: str) -> Found:
