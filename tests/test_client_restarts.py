@@ -102,6 +102,21 @@ class Restart:
         return self.processes[name].alive()
 
 
+def test_the_watch_logs_each_jump_back_once(caplog: pytest.LogCaptureFixture) -> None:
+    """Forward and standing still are no jump; each step back is one, logged in one line and handed on."""
+    jumps: list[TimeJump] = []
+    watch = SimTimeWatch(jumps.append)
+    with caplog.at_level(logging.INFO):
+        seen = [watch.see(ms * 1_000_000) for ms in (0, 100, 100, 12_345, 20, 30, 30, 10, 40_000)]
+    assert [jump is not None for jump in seen] == [False, False, False, False, True, False, False, True, False]
+    assert [(j.from_ns, j.to_ns) for j in jumps] == [(12_345_000_000, 20_000_000), (30_000_000, 10_000_000)]
+    assert watch.jumps == 2
+    assert [r.getMessage() for r in caplog.records] == [
+        "sim time went back from 12.345 s to 0.020 s: the server restarted or the world was reset",
+        "sim time went back from 0.030 s to 0.010 s: the server restarted or the world was reset",
+    ]
+
+
 # --- what each client shows of the new server ----------------------------------------------
 
 
@@ -374,18 +389,3 @@ def test_record_marks_the_restart_and_goes_on(restart: Restart) -> None:
         f"\nmeasured: record: clock {before[1] / 1e9:.3f} → {after[1] / 1e9:.3f} s, {late_s:.2f} s after the new"
         f" server answered; {len(clocks) - backs[0]} clocks after it; custom_data {custom[JUMPS_KEY]}"
     )
-
-
-def test_the_watch_logs_each_jump_back_once(caplog: pytest.LogCaptureFixture) -> None:
-    """Forward and standing still are no jump; each step back is one, logged in one line and handed on."""
-    jumps: list[TimeJump] = []
-    watch = SimTimeWatch(jumps.append)
-    with caplog.at_level(logging.INFO):
-        seen = [watch.see(ms * 1_000_000) for ms in (0, 100, 100, 12_345, 20, 30, 30, 10, 40_000)]
-    assert [jump is not None for jump in seen] == [False, False, False, False, True, False, False, True, False]
-    assert [(j.from_ns, j.to_ns) for j in jumps] == [(12_345_000_000, 20_000_000), (30_000_000, 10_000_000)]
-    assert watch.jumps == 2
-    assert [r.getMessage() for r in caplog.records] == [
-        "sim time went back from 12.345 s to 0.020 s: the server restarted or the world was reset",
-        "sim time went back from 0.030 s to 0.010 s: the server restarted or the world was reset",
-    ]
