@@ -60,6 +60,9 @@ UP_TIMEOUT_S = 60.0
 """How long the clients have to show the first server's data (they import numpy, OpenCV, Zenoh on a loaded machine)."""
 WENT_BACK = "sim time went back from"
 RECORDED = ("clock", "odom")
+MARKER_SLACK_NS = 1_000_000_000
+"""How far the bag's own clocks either side of the jump may lie from the marker's (sim and bag time): a
+server killed takes the clocks in flight with it, and two subscriptions join a new server at their own pace."""
 LASER_SCAN, IMAGE = "sensor_msgs/msg/LaserScan", "sensor_msgs/msg/Image"
 TURNED_RAD = 0.03
 """Odom yaw that shows the turn key moved the robot: 0.07 s at the 0.46 rad/s a turn settles at."""
@@ -380,8 +383,12 @@ def test_record_marks_the_restart_and_goes_on(restart: Restart) -> None:
     backs = [i for i in range(1, len(clocks)) if clocks[i][1] < clocks[i - 1][1]]
     assert len(backs) == 1, f"the bag's clock went back {len(backs)} times"
     before, after = clocks[backs[0] - 1], clocks[backs[0]]
-    assert before[1] >= restart.old_sim_time * 1e9 and before[1] == jump["from_ns"], (before, jump)
-    assert after[1] == jump["to_ns"] and abs(after[0] - jump["time_ns"]) < 1e9, (after, jump)
+    # the marker comes from the recorder's own clock subscription, declared to the new server apart from
+    # the tap's: each may see the first (and the old server's last) clocks a little earlier than the other
+    assert abs(before[1] - restart.old_sim_time * 1e9) < MARKER_SLACK_NS, (before, restart.old_sim_time)
+    assert abs(before[1] - jump["from_ns"]) < MARKER_SLACK_NS, (before, jump)
+    assert abs(after[1] - jump["to_ns"]) < MARKER_SLACK_NS, (after, jump)
+    assert abs(after[0] - jump["time_ns"]) < MARKER_SLACK_NS, (after, jump)
     late_s = (after[0] - restart.ready_wall_ns) / 1e9
     assert late_s <= WITHIN_S, f"the new server's first clock is in the bag {late_s:.1f} s after it answered"
     assert len(clocks) - backs[0] >= 10, "the recording did not go on after the restart"
