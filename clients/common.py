@@ -9,6 +9,12 @@ Zenoh calls subscription callbacks on its own threads; clients hand messages to 
 through a `Mailbox` and do their work there. Two things several clients need are built on it:
 `StaticTransforms` (sensor poses from the latched `tf_static`, as a ROS node reads tf) and
 `StampedSets` (messages of several topics grouped by stamp, e.g. the lidars or the cameras).
+
+A client stays up when the server goes: its Zenoh client session reconnects by itself to its
+`--connect` endpoint, however long the server is away, and its subscriptions and publishers carry
+on. Sim time then starts again from zero, as after a world reset; every client watches the clock
+through `SimTimeWatch` (in `ClockSubscriber`, or fed by the client's own clock samples), which
+logs one line per jump back so the user knows the data before and after belong to different runs.
 """
 
 from __future__ import annotations
@@ -23,12 +29,15 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, Subscription, add_bus_arguments, messages
 from simbot.bus.frames import frame_prefix, prefixed_frame
 from simbot.bus.sync import StampSync
 from simbot.bus.transforms import Matrix, TransformTree
+
+logger = logging.getLogger(__name__)
 
 EXIT_USAGE = 2
 CLOCK = "rosgraph_msgs/msg/Clock"
@@ -149,22 +158,67 @@ class StatusLine:
         print(f"\r\x1b[2K{line}" if self.live else line, end="" if self.live else "\n", file=sys.stderr, flush=True)
 
 
+@dataclass(frozen=True)
+class TimeJump:
+    """Sim time going back: from the latest time seen to an earlier one, noticed at `wall_ns` (time.time_ns())."""
+
+    from_ns: int
+    to_ns: int
+    wall_ns: int
+
+
+class SimTimeWatch:
+    """The sim times of one source (the clock) watched for going back: the server restarted or the
+    world was reset, and what came before belongs to another run.
+
+    Within one run sim time only goes forward (paused, it stands), so any earlier time than the
+    latest seen is a jump. Each is logged once, as one warning line, and handed to `on_jump` (on the
+    caller's thread, a Zenoh one: it should only queue). Thread-safe.
+    """
+
+    def __init__(self, on_jump: Callable[[TimeJump], None] | None = None) -> None:
+        self._on_jump = on_jump
+        self._lock = threading.Lock()
+        self._latest: int | None = None
+        self.jumps = 0
+
+    def see(self, ns: int) -> TimeJump | None:
+        """Take the source's next sim time (ns); the jump when it went back, else None."""
+        with self._lock:
+            latest, self._latest = self._latest, ns
+            if latest is None or ns >= latest:
+                return None
+            self.jumps += 1
+        jump = TimeJump(latest, ns, time.time_ns())
+        logger.warning(
+            "sim time went back from %.3f s to %.3f s: the server restarted or the world was reset",
+            latest / 1e9,
+            ns / 1e9,
+        )
+        if self._on_jump is not None:
+            self._on_jump(jump)
+        return jump
+
+
 class ClockSubscriber:
     """Sim time from `clock`, in seconds: what the clients' freshness windows, docking checks and
     teleop ticks count, so that a world running at 0.5× or 4× (or paused, or stepped) behaves the same.
 
     A client that waits does so in short slices of wall time (`POLL_S`) and compares sim times.
+    The clock going back (a restart, a reset) is logged once by its `watch`, and given to `on_jump`.
     """
 
-    def __init__(self, node: Node) -> None:
+    def __init__(self, node: Node, on_jump: Callable[[TimeJump], None] | None = None) -> None:
         self._lock = threading.Lock()
         self._ns: int | None = None
+        self.watch = SimTimeWatch(on_jump)
         node.subscribe("/clock", CLOCK, self._tick)  # the world's, whatever robot the client follows
 
     def _tick(self, msg: Any) -> None:
         ns = messages.stamp_ns(msg.clock)
         with self._lock:
             self._ns = ns
+        self.watch.see(ns)
 
     def now(self) -> float | None:
         """The latest sim time (s), or None before the first clock."""
@@ -199,7 +253,8 @@ class Recent:
 
     A keyboard client acting on stale data (a lidar that fell silent, a pose from a second ago)
     would act on a world that has moved on, so a message whose header stamp is more than
-    `max_age_s` of sim time before now counts as none.
+    `max_age_s` of sim time before now counts as none; so does one stamped more than that after
+    now, which came before the clock went back (a server restarted, a world reset), from another run.
     """
 
     def __init__(self, node: Node, topic: str, typename: str, max_age_s: float) -> None:
@@ -209,11 +264,13 @@ class Recent:
         node.subscribe(topic, typename, self._inbox.put)
 
     def get(self, now: float | None) -> Any | None:
-        """The latest message, or None when none is stamped within `max_age_s` before `now` (sim time, s; None: no clock yet)."""
+        """The latest message, or None when none is stamped within `max_age_s` of `now` (sim time, s; None: no clock yet)."""
         arrived = self._inbox.get(timeout=0.0)
         if arrived is not None:
             self._latest = arrived
-        if self._latest is None or now is None or now - messages.stamp_ns(self._latest.header) / 1e9 > self.max_age_s:
+        if self._latest is None or now is None:
+            return None
+        if abs(now - messages.stamp_ns(self._latest.header) / 1e9) > self.max_age_s:
             return None
         return self._latest
 

@@ -11,7 +11,8 @@ A pose counts as unknown, hence far, until one has arrived and when none is stam
 last second (they come at 50 Hz). The client checks every 0.2 s and prints near / far when it
 changes; the status line shows the distance and the joint's state from the latched
 `detachable_joint/state`. Every period here is sim time (`clock`): a world at 0.5× or 4× docks the
-same, and a paused one makes no checks.
+same, and a paused one makes no checks. When the server restarts (or the world is reset) sim
+time goes back: the client logs it once and the old run's poses count as unknown.
 
 One robot of a fleet (`--robot-namespace tug_2`): attach, detach and the joint's state are that
 robot's (`tug_2/attach`, `tug_2/detachable_joint/state`), the poses the world's ground truth

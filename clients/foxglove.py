@@ -26,8 +26,12 @@ What foxglove_bridge does for a ROS 2 graph, for the simbot bus, on Foxglove's o
   clock ticks of its own step (by 20-30 ms on a loaded machine); it is never logged before the sim
   time at which it was taken. Before the first clock that leaves its header stamp, and 0 for a
   message without one (ROS's "no time yet"); never wall time, which lies decades beyond sim time
-  and would put the message off the app's timeline. When the clock goes back (a world reset),
-  the session is cleared so that the app drops what it holds of the old timeline.
+  and would put the message off the app's timeline. When the clock goes back (a world reset, a
+  server restart), the jump is logged once and the session is cleared, so that the app drops
+  what it holds of the old timeline.
+- A server that goes away takes its keys off the graph, so their channels close; when it (or
+  another) comes back on the same endpoint, the bridge's bus session reconnects by itself and the
+  channels open again, which the app subscribes to again by topic.
 
 Foxglove's callbacks and Zenoh's only queue; the loop does the rest. The SDK is imported only
 when the server starts, so `--help` works without it. Run it as `simbot foxglove` or
@@ -49,7 +53,7 @@ from typing import TYPE_CHECKING, NamedTuple, cast
 from simbot.bus import Node, UnknownMessageType, message_type
 from simbot.bus.codec import TYPESTORE
 
-from .common import ClientError, Mailbox, client_parser, run_client
+from .common import ClientError, Mailbox, SimTimeWatch, client_parser, run_client
 from .subprotocols import LOOPBACK, SubprotocolFront
 from .tap import RawSample, Tap, published
 from .topics import Topic
@@ -117,6 +121,7 @@ class Bridge:
         self._watchers: dict[str, set[int]] = {}
         self._unknown_types: set[str] = set()
         self._sim_ns: int | None = None
+        self._clock = SimTimeWatch()
         self.forwarded = 0
 
     # --- the graph ------------------------------------------------------------------------
@@ -222,9 +227,8 @@ class Bridge:
         now = sample.stamp_ns
         if now is None:
             return  # not met: the tap reads every Clock's time
-        if self._sim_ns is not None and now < self._sim_ns:
-            logger.info("sim time went back from %.3f s to %.3f s: new session", self._sim_ns / 1e9, now / 1e9)
-            self._server.clear_session()
+        if self._clock.see(now) is not None:
+            self._server.clear_session()  # the app drops the old run's timeline
         self._sim_ns = now
         self._server.broadcast_time(now)
 

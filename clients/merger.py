@@ -48,7 +48,7 @@ from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
 
-from .common import StampedSets, StaticTransforms, client_parser, number, run_client
+from .common import ClockSubscriber, StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.merger")
 
@@ -210,6 +210,7 @@ class MergerNode:
         self.alone = 0
         self.rejected = 0
         self._warnings = RateLimitedWarnings()
+        self._clock = ClockSubscriber(node)  # says when sim time goes back; the pairing starts afresh by itself
         self._tf = StaticTransforms(node, TARGET_FRAME)
         period_ns = round(period_s * 1e9)
         self._scans = StampedSets(
@@ -271,7 +272,8 @@ class MergerNode:
     def summary(self) -> str:
         return (
             f"published {self.published} merged scans ({self.alone} from one lidar alone); "
-            f"dropped {self.undecodable} undecodable payloads, skipped {self.rejected} scans"
+            f"dropped {self.undecodable} undecodable payloads, skipped {self.rejected} scans; "
+            f"sim time went back {self._clock.watch.jumps} times"
         )
 
 

@@ -12,6 +12,10 @@ What it shows, and where from:
 - the server's cameras, from the world state's sensor figures (size, rate per sim second,
   skipped frames): images are never subscribed to, since a subscriber makes the server render.
 
+Rates count wall seconds, and the heading asks the world each time, so a server that restarts
+shows again within a refresh or two of coming back (its sim time from zero, which the monitor
+logs once on stderr, as every client does); until then the heading says the world does not answer.
+
 With `--robot-namespace tug_2` it shows one robot of a fleet: that robot's keys, named relative to
 its namespace as its nodes see them (`lidar_front` for `tug_2/lidar_front`), the world's clock
 and the robot's ground truth (`/clock`, `/model/tug_2/pose`: absolute names, at the bus's
@@ -36,7 +40,7 @@ import numpy as np
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
 
-from .common import Mailbox, client_parser, followed_model, number, run_client
+from .common import ClockSubscriber, Mailbox, client_parser, followed_model, number, run_client
 from .topics import Topic, Traffic, format_rate, latched, live_topics, world_names
 
 REFRESH_S = 1.0
@@ -171,6 +175,7 @@ class Monitor:
         self.types: dict[str, str] = {}
         self.inboxes: dict[str, Mailbox[Any]] = {}
         self.latest: dict[str, str] = {}
+        self.clock = ClockSubscriber(node)  # says when sim time goes back
 
     def follow_graph(self) -> None:
         """Subscribes to the keys that appeared since the last call (and finds the world).

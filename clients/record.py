@@ -13,12 +13,21 @@ and counted by the tap (`clients/tap.py`). Zenoh threads only queue samples (the
 bounded: nothing already received is let go); the loop writes them. Ctrl-C, SIGTERM or
 `--duration` end the recording: the queue is written out, then the bag is closed, so the file
 opens and holds everything received.
+
+When sim time goes back (the server restarted, or the world was reset) the recording goes on:
+the bag's timestamps, on the wall clock, still only go forward (rosbags' writer would take them
+in any order, but a player replays them in order), while the header stamps start again from zero.
+The jump is logged, and listed in the bag's metadata.yaml under `custom_data`
+(`simbot.sim_time_went_back`: a JSON list of `{"time_ns": …, "from_ns": …, "to_ns": …}`, the bag
+time at which the new run's first clock arrived and the sim times before and after), so that a
+reader can tell the runs apart.
 """
 
 from __future__ import annotations
 
 import argparse
 import fnmatch
+import json
 import logging
 import queue
 import sys
@@ -36,7 +45,7 @@ from rosbags.rosbag2.errors import WriterError
 from simbot.bus import Node
 from simbot.bus.codec import TYPESTORE
 
-from .common import ClientError, client_parser, number, run_client
+from .common import ClientError, ClockSubscriber, TimeJump, client_parser, number, run_client
 from .tap import RawSample, Tap, published
 from .topics import Topic, latched
 
@@ -51,6 +60,8 @@ PLAIN_PROGRESS_PERIOD_S = 5.0
 """Without a terminal (a log file, a container), a progress line every few seconds instead of a redrawn one."""
 WAIT_WARNING_S = 5.0
 NO_TIME = QosTime(0, 0)
+JUMPS_KEY = "simbot.sim_time_went_back"
+"""The custom_data key in metadata.yaml that lists the times sim time went back."""
 
 
 def offered_qos(transient_local: bool) -> Qos:
@@ -110,6 +121,7 @@ class Bag:
         except OSError as exc:
             raise ClientError(f"-o {path}: cannot create the bag: {exc.strerror or exc}") from None
         self.connections: dict[str, Connection] = {}
+        self.jumps: list[dict[str, int]] = []
         self.messages = 0
         self.bytes = 0
         self.started = time.monotonic()
@@ -129,6 +141,11 @@ class Bag:
         self.messages += 1
         self.bytes += len(sample.data)
 
+    def mark(self, jump: TimeJump) -> None:
+        """Note in the metadata that sim time went back, at the bag time the new run's first clock arrived."""
+        self.jumps.append({"time_ns": jump.wall_ns, "from_ns": jump.from_ns, "to_ns": jump.to_ns})
+        self.writer.set_custom_data(JUMPS_KEY, json.dumps(self.jumps))
+
     def progress(self) -> str:
         """Messages, megabytes and seconds so far."""
         return f"{self.messages} messages, {self.bytes / 1e6:.1f} MB, {time.monotonic() - self.started:.1f} s"
@@ -145,8 +162,9 @@ class Recorder:
         self.node = node
         self.bag = bag
         self.selection = selection
-        self.queue: queue.SimpleQueue[RawSample] = queue.SimpleQueue()
+        self.queue: queue.SimpleQueue[RawSample | TimeJump] = queue.SimpleQueue()
         self.tap = Tap(node, self.queue.put)
+        self.clock = ClockSubscriber(node, on_jump=self.queue.put)  # recorded or not, the clock says when a run began
         self.live = sys.stderr.isatty()
         self._next_graph = 0.0
         self._next_progress = time.monotonic() + PROGRESS_PERIOD_S
@@ -182,19 +200,25 @@ class Recorder:
     def write_queued(self, timeout: float) -> None:
         """Write what the tap queued, waiting up to `timeout` for the first sample."""
         try:
-            sample = self.queue.get(timeout=timeout)
+            item = self.queue.get(timeout=timeout)
         except queue.Empty:
             return
-        self.bag.write(sample)
+        self._take(item)
         self.drain()
 
     def drain(self) -> None:
         """Write everything queued, without waiting."""
         while True:
             try:
-                self.bag.write(self.queue.get_nowait())
+                self._take(self.queue.get_nowait())
             except queue.Empty:
                 return
+
+    def _take(self, item: RawSample | TimeJump) -> None:
+        if isinstance(item, TimeJump):
+            self.bag.mark(item)
+        else:
+            self.bag.write(item)
 
     def show_progress(self, now: float) -> None:
         """The progress line: redrawn on a terminal, a line every few seconds otherwise."""
@@ -224,6 +248,8 @@ class Recorder:
             print(file=sys.stderr)
         dropped = sum(self.tap.dropped.values())
         note = f"; dropped {dropped} malformed samples" if dropped else ""
+        if self.bag.jumps:
+            note += f"; sim time went back {len(self.bag.jumps)} times (custom_data {JUMPS_KEY} in metadata.yaml)"
         print(
             f"wrote {self.bag.path}: {len(self.bag.connections)} topics, {self.bag.progress()}{note}", file=sys.stderr
         )

@@ -79,7 +79,7 @@ from simbot.bus.frames import optical_frame
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
 
-from .common import Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
+from .common import ClockSubscriber, Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.stitcher")
 
@@ -335,6 +335,7 @@ class StitcherNode:
         self.partial = 0
         self.skipped = 0
         self._warnings = RateLimitedWarnings()
+        self._clock = ClockSubscriber(node)  # says when sim time goes back; the grouping starts afresh by itself
         self._tf = StaticTransforms(node, BASE_FRAME)
         self._intrinsics: dict[str, Intrinsics] = {}
         self._stitcher: Stitcher | None = None
@@ -447,7 +448,8 @@ class StitcherNode:
         return (
             f"published {self.published} panoramas ({self.partial} with a camera missing); "
             f"skipped {self.skipped} images, dropped {self.undecodable} undecodable payloads; "
-            f"{self._images.overwritten} sets came faster than they could be stitched and were dropped"
+            f"{self._images.overwritten} sets came faster than they could be stitched and were dropped; "
+            f"sim time went back {self._clock.watch.jumps} times"
         )
 
 

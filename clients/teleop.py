@@ -20,6 +20,10 @@ scans missed), or before
 `tf_static` gives the lidar's pose, driving that way is refused, because a silent lidar says
 nothing about what is ahead. Turning in place is never refused. The client logs once each time
 a drive becomes blocked; the status line shows it for as long as it lasts.
+
+When the server restarts (or the world is reset) sim time goes back: the client logs it once,
+the scans of the old run count as none, and the latched command goes on to the new robot at its
+clock's first tick, refused as ever until the new lidars see the path clear.
 """
 
 from __future__ import annotations

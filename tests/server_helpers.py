@@ -224,6 +224,8 @@ class SimServer:
     mode: str
     node: Node
     stderr_path: Path
+    args: tuple[str, ...] = ()
+    """The server's command-line arguments (what `restarted` starts again)."""
     stopped: bool = False
     _publishers: dict[str, Publisher] = field(default_factory=dict)
     _subscriptions: list[Subscription[Any]] = field(default_factory=list)
@@ -413,8 +415,6 @@ def running_server(
     port = free_port()
     namespace = unique_namespace()
     name = world_name or Path(world).stem
-    tmp = tempfile.TemporaryDirectory(prefix="simbot-server-")
-    stderr_path = Path(tmp.name) / "stderr.txt"
     args = [
         "--world",
         world,
@@ -429,12 +429,24 @@ def running_server(
         "--quiet",
         *extra,
     ]
+    with (
+        tempfile.TemporaryDirectory(prefix="simbot-server-") as tmp,
+        _serving(args, port, namespace, name, mode, Path(tmp) / "stderr.txt") as server,
+    ):
+        yield server
+
+
+@contextmanager
+def _serving(
+    args: Sequence[str], port: int, namespace: str, name: str, mode: str, stderr_path: Path
+) -> Iterator[SimServer]:
+    """The server process of `args`, once its world control answers; stopped (or killed) on the way out."""
     process = _spawn(args, stderr_path)
     node: Node | None = None
     try:
         node = _connect(process, port, namespace, stderr_path)
         _wait_ready(process, node, name, stderr_path)
-        server = SimServer(process, port, namespace, name, mode, node, stderr_path)
+        server = SimServer(process, port, namespace, name, mode, node, stderr_path, tuple(args))
         yield server
         if not server.stopped:
             server.stop()
@@ -444,7 +456,20 @@ def running_server(
         if process.poll() is None:
             process.kill()
             process.wait()
-        tmp.cleanup()
+
+
+@contextmanager
+def restarted(server: SimServer) -> Iterator[SimServer]:
+    """`server` killed with SIGKILL (a crash) and another started with the same arguments on the same
+    port and namespace, as a supervisor restarts it; yielded once its world control answers, stopped
+    as `running_server` stops its own. Sim time on the new one starts again from zero."""
+    server.node.close()
+    server.stopped = True
+    server.process.kill()
+    server.process.wait()
+    stderr_path = server.stderr_path.with_name(f"restarted-{server.stderr_path.name}")
+    with _serving(server.args, server.port, server.namespace, server.world, server.mode, stderr_path) as again:
+        yield again
 
 
 def module_server(world: str, mode: str = "lockstep") -> Any:

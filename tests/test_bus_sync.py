@@ -48,6 +48,18 @@ def test_time_going_back_forgets_what_waits() -> None:
     assert sync.add("b", 0, "b0") == [{"a": "a0", "b": "b0"}]
 
 
+def test_a_restart_seen_first_on_an_emptied_stream_forgets_what_waits() -> None:
+    """The first stamp of a new run is older than the newest its stream saw, even when the stream's
+    queue was emptied by the last set: what waits on the other stream is forgotten, no partial set."""
+    sync: StampSync[str] = StampSync(["a", "b"], slop_ns=10 * MS, max_wait_ns=300 * MS)
+    sync.add("a", 8400 * MS, "a_old")
+    assert sync.add("b", 8400 * MS, "b_old") == [{"a": "a_old", "b": "b_old"}]
+    sync.add("a", 8600 * MS, "a_waiting")
+    assert sync.add("b", 200 * MS, "b_new") == []
+    assert sync.add("a", 200 * MS, "a_new") == [{"a": "a_new", "b": "b_new"}]
+    assert (sync.resets, sync.partial_sets) == (1, 0)
+
+
 def test_bad_configuration_is_refused() -> None:
     with pytest.raises(ValueError):
         StampSync(["a", "a"], 0, 0)

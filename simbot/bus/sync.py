@@ -7,7 +7,9 @@ newest stamp seen on any stream is more than `max_wait` past a waiting message, 
 comes out in a partial set, with None for the streams that had nothing close enough.
 
 Stamps are sim time. A stamp older than the newest already seen on its stream means the world
-was reset (sim time restarted): everything waiting is forgotten and grouping starts afresh.
+was reset or the server restarted (sim time began again): everything waiting is forgotten, and
+with it the newest stamp of every stream, so that grouping starts afresh with the first message of
+each stream in the new run (which is older than that stream's last in the old one too).
 `add` is thread-safe (Zenoh calls it from its threads) and does no work beyond the grouping, so
 the sets it returns should be handed to the client's own loop.
 """
@@ -36,8 +38,10 @@ class StampSync(Generic[M]):
         self.partial_sets = 0
         """Sets that came out incomplete."""
         self.resets = 0
-        """Times the stamps went back (world resets)."""
+        """Times the stamps went back (world resets, server restarts)."""
         self._queues: dict[str, list[tuple[int, M]]] = {s: [] for s in self.streams}
+        self._newest: dict[str, int] = {}
+        """The newest stamp seen on each stream in this run (the queues lose theirs as sets are taken)."""
         self._lock = threading.Lock()
 
     def add(self, stream: str, stamp_ns: int, msg: M) -> list[dict[str, M | None]]:
@@ -45,11 +49,13 @@ class StampSync(Generic[M]):
         if stream not in self._queues:
             raise KeyError(f"unknown stream {stream!r} (streams: {', '.join(self.streams)})")
         with self._lock:
-            queue = self._queues[stream]
-            if queue and stamp_ns < queue[-1][0]:
+            if stamp_ns < self._newest.get(stream, stamp_ns):
                 self.resets += 1
+                self._newest.clear()
                 for waiting in self._queues.values():
                     waiting.clear()
+            self._newest[stream] = stamp_ns
+            queue = self._queues[stream]
             if queue and queue[-1][0] == stamp_ns:
                 queue[-1] = (stamp_ns, msg)  # the same stamp again: the newer message wins
             else:
