@@ -53,7 +53,7 @@ import zenoh.ext
 from simbot.bus import Node, messages
 from simbot.bus.codec import DecodeError, decode
 
-from .common import CLOCK, ClientError, StatusLine, client_parser, run_client
+from .common import CLOCK, ClientError, SimTimeWatch, StatusLine, client_parser, run_client
 from .record import Selection
 from .state import NoWorld, ask
 from .topics import Topic, latched, live_topics, topic_name, world_names
@@ -76,7 +76,6 @@ WATCH_PERIOD_S = 0.2
 SPIN_S = 0.1
 STATE_TIMEOUT_S = 2.0
 CDR = zenoh.Encoding.APPLICATION_CDR
-WENT_BACK = "sim time went back from %.3f s to %.3f s: the server restarted or the world was reset"
 
 
 class MissingTypeSupport(LookupError):
@@ -103,24 +102,6 @@ def qos(latched_key: bool) -> QoSProfile:
         reliability=ReliabilityPolicy.RELIABLE,
         durability=durability,
     )
-
-
-class SimTimeRewind:
-    """Sim time going back, tick by tick of the world's clock: one warning line per jump.
-
-    Self-contained here; the clients' shared detector in clients/common.py is meant to replace it.
-    """
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()  # Zenoh may call back on any of its threads
-        self._last_ns: int | None = None
-
-    def tick(self, ns: int) -> None:
-        """Take in one clock tick (ns of sim time); one line when it is earlier than the tick before."""
-        with self._lock:
-            last, self._last_ns = self._last_ns, ns
-        if last is not None and ns < last:
-            logger.warning(WENT_BACK, last / 1e9, ns / 1e9)
 
 
 class Counter:
@@ -259,7 +240,7 @@ class Bridge:
         self._skipped: set[tuple[str, str]] = set()
         self._inputs: set[str] = set()
         self._graph: frozenset[tuple[str, tuple[str, ...]]] = frozenset()
-        self._rewind = SimTimeRewind()
+        self._rewind = SimTimeWatch()
         # a plain Zenoh subscriber, not node.subscribe: that one would announce the bridge on the graph
         self._clock = node.session.declare_subscriber(node.key("/clock"), self._on_clock)
 
@@ -270,7 +251,7 @@ class Bridge:
         except DecodeError as exc:
             logger.debug("/%s: %s", sample.key_expr, exc)
             return
-        self._rewind.tick(ns)
+        self._rewind.see(ns)
 
     # --- the graph ------------------------------------------------------------------------
 
