@@ -12,7 +12,8 @@
 # 4194304) are above this machine's hard limits, and the container then fails to start ("error
 # setting rlimits ... operation not permitted"). nofile is the hard limit of this shell; nproc is
 # that, but at most 32768, the hard limit podman 4.3 runs itself and conmon with (measured in
-# /proc/PID/limits), which a container cannot exceed.
+# /proc/PID/limits), which a container cannot exceed. Podman builds in Docker's image format: the
+# OCI format has no HEALTHCHECK, and podman drops it with only a warning.
 set -euo pipefail
 
 die() {
@@ -57,8 +58,11 @@ command=$1
 shift
 case $engine:$command in
     *:--which) echo "$engine" ;;
-    podman:build | podman:run | podman:create)
+    podman:build)
         # shellcheck disable=SC2046  # the options are words without spaces
+        exec podman build --format docker $(podman_options) "$@" ;;
+    podman:run | podman:create)
+        # shellcheck disable=SC2046
         exec podman "$command" $(podman_options) "$@" ;;
     docker:compose) exec docker compose "$@" ;;
     podman:compose)
