@@ -213,9 +213,10 @@ def test_every_stage_is_debian_with_debians_python(dockerfile: list[Stage], fina
 
 
 def test_the_image_and_the_test_stage_have_mesa_egl_for_the_gl_renderer(dockerfile: list[Stage], final: Stage) -> None:
-    """libEGL (glvnd), Mesa's EGL vendor library and its llvmpipe driver: without them the cameras
-    fall back to TinyRenderer (a fifteenth of the frames) and the gl tests skip."""
-    mesa = {"libegl1", "libegl-mesa0", "libgl1-mesa-dri"}
+    """libEGL and libGL (glvnd; moderngl's EGL backend loads both), Mesa's EGL vendor library and its
+    llvmpipe driver: without them the cameras fall back to TinyRenderer (a fifteenth of the frames)
+    and the gl tests skip."""
+    mesa = {"libegl1", "libgl1", "libegl-mesa0", "libgl1-mesa-dri"}
     test = next(stage for stage in dockerfile if stage.name == "test")
     assert mesa <= installed_packages(final)
     assert mesa <= installed_packages(test)
