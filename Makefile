@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench urdf meshes layout clean
+.PHONY: run test lint bench urdf meshes layout image clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -52,6 +52,10 @@ meshes: $(STAMP)
 ## Regenerate the Foxglove layout for `simbot foxglove` (a test checks it is up to date).
 layout: $(STAMP)
 	$(BIN)/python layouts/make_layout.py
+
+## The container images simbot:test (`make test` inside) and simbot, with docker or podman; where the base image cannot be pulled, the same Debian release debootstrapped from Debian's mirror (docker/README.md).
+image:
+	docker/build-image.sh
 
 clean:
 	rm -rf $(VENV) build dist .pytest_cache .ruff_cache .mypy_cache

@@ -11,6 +11,10 @@
   take those values, and the endpoints are Zenoh's; the clients connect where the server listens;
   every published port is on 127.0.0.1; the keyboard and recording tools start only when asked.
 - The GitHub workflow runs `make test` in the test stage and brings the stack up.
+- Where `make image` has built the image (docker/engine.sh finds an engine that has it), the image
+  itself runs: Debian's python3 as uid 1000 with no compiler, and its server, its port published
+  on 127.0.0.1, serves `simbot state` and `clock` to this host and exits 0 when the engine stops
+  it. Elsewhere (CI's test stage has no engine) they skip, saying so; no test builds an image.
 """
 
 from __future__ import annotations
@@ -32,8 +36,10 @@ from typing import Any
 
 import pytest
 import yaml  # type: ignore[import-untyped]  # PyYAML, which xacro requires
-from bus_helpers import endpoint, free_port
-from server_helpers import REPO
+from bus_helpers import endpoint, free_port, unique_namespace
+from server_helpers import REPO, Collector, stamp_ns
+
+from simbot.bus import BusOptions, Node
 
 DOCKERFILE = REPO / "docker" / "Dockerfile"
 COMPOSE = REPO / "docker" / "compose.yaml"
@@ -43,6 +49,11 @@ IMAGE_ENDPOINT = "tcp/127.0.0.1:7447"
 """Where the image's server listens and its health check asks (inside the container)."""
 COMPILERS = frozenset({"gcc", "g++", "clang", "cpp", "make", "cmake", "build-essential"})
 STOP_TIMEOUT_S = 5.0
+ENGINE = REPO / "docker" / "engine.sh"
+IMAGE = "simbot"
+CLIENT_TIMEOUT_S = 60.0
+ENGINE_STOP_S = 10
+"""`docker stop`'s default: SIGTERM, then SIGKILL (exit 137) if the container has not exited by then."""
 
 
 # --- the Dockerfile, parsed -----------------------------------------------------------------
@@ -86,13 +97,17 @@ def instructions(text: str) -> list[Instruction]:
 
 
 def stages(text: str) -> list[Stage]:
-    """The build stages in order: base image, `AS` name, their instructions."""
+    """The build stages in order: base image (global ARGs' defaults substituted), `AS` name, their instructions."""
     result: list[Stage] = []
+    defaults: dict[str, str] = {}
     for instruction in instructions(text):
-        if instruction.keyword == "FROM":
+        if instruction.keyword == "ARG" and not result:
+            arg, _, default = instruction.args.partition("=")
+            defaults[arg] = default
+        elif instruction.keyword == "FROM":
             words = [w for w in instruction.args.split() if not w.startswith("--")]
             name = words[2] if len(words) == 3 and words[1].lower() == "as" else None
-            result.append(Stage(words[0], name, ()))
+            result.append(Stage(re.sub(r"\$\{(\w+)\}", lambda m: defaults[m[1]], words[0]), name, ()))
         else:
             assert result, f"{instruction.keyword} before the first FROM"
             last = result[-1]
@@ -188,10 +203,20 @@ def test_compilers_are_in_the_build_stage_and_not_in_the_image(dockerfile: list[
     assert [copy.split() for copy in final.all("COPY")] == [["--from=build", "/opt/simbot", "/opt/simbot"]]
 
 
+def test_every_stage_is_debian_with_debians_python(dockerfile: list[Stage], final: Stage) -> None:
+    """The official slim image of the release docker/build-base.sh debootstraps where it cannot be
+    pulled; the interpreter is Debian's python3 on either, never one the base brings."""
+    build = next(stage for stage in dockerfile if stage.name == "build")
+    assert re.fullmatch(r"docker\.io/library/debian:[a-z]+-slim", build.base), build.base
+    assert {"python3-dev", "python3-venv"} <= installed_packages(build)
+    assert "python3" in installed_packages(final)
+
+
 def test_the_image_and_the_test_stage_have_mesa_egl_for_the_gl_renderer(dockerfile: list[Stage], final: Stage) -> None:
-    """libEGL (glvnd), Mesa's EGL vendor library and its llvmpipe driver: without them the cameras
-    fall back to TinyRenderer (a fifteenth of the frames) and the gl tests skip."""
-    mesa = {"libegl1", "libegl-mesa0", "libgl1-mesa-dri"}
+    """libEGL and libGL (glvnd; moderngl's EGL backend loads both), Mesa's EGL vendor library and its
+    llvmpipe driver: without them the cameras fall back to TinyRenderer (a fifteenth of the frames)
+    and the gl tests skip."""
+    mesa = {"libegl1", "libgl1", "libegl-mesa0", "libgl1-mesa-dri"}
     test = next(stage for stage in dockerfile if stage.name == "test")
     assert mesa <= installed_packages(final)
     assert mesa <= installed_packages(test)
@@ -264,7 +289,7 @@ def test_health_check_passes_once_the_images_server_has_loaded_its_world(final: 
             assert server.poll() is None, "the server exited"
             assert done.returncode in (1, 2) and len(done.stderr.splitlines()) == 1, done.stderr
             assert time.monotonic() < deadline, f"not healthy within the start period: {done.stderr}"
-            time.sleep(check.options["start-interval"])
+            time.sleep(check.options["interval"])
         assert done.stdout.splitlines()[0].split() == ["world", "warehouse"], done.stdout
         by_name = run_check(moved(check.command, where.replace("127.0.0.1", "localhost")), check.options["timeout"])
         assert by_name.returncode == 0, f"a host name in the endpoint, as compose's tcp/server:7447: {by_name.stderr}"
@@ -275,6 +300,84 @@ def test_health_check_fails_within_its_timeout_where_nothing_listens(final: Stag
     done = run_check(moved(check.command, endpoint(free_port())), check.options["timeout"])
     assert done.returncode != 0
     assert len(done.stderr.splitlines()) == 1 and "Traceback" not in done.stderr, done.stderr
+
+
+# --- the built image, run here --------------------------------------------------------------
+
+
+def engine(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """docker/engine.sh: docker or podman, with the options this machine needs."""
+    return subprocess.run([str(ENGINE), *args], check=False, capture_output=True, text=True, cwd=REPO, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def built_image() -> str:
+    """The image `make image` built; a skip saying so where there is no engine or no image."""
+    which = engine("--which")
+    if which.returncode != 0:
+        pytest.skip(f"no container engine ({which.stderr.strip()})")
+    if engine("image", "inspect", IMAGE).returncode != 0:
+        pytest.skip(f"no {IMAGE} image in {which.stdout.strip()}: run `make image`")
+    return IMAGE
+
+
+def test_the_built_image_runs_debians_python_as_a_user_and_has_no_compiler(built_image: str) -> None:
+    script = 'id -u; readlink -f /opt/simbot/bin/python; dpkg-query -S "$(readlink -f /usr/bin/python3)"; ' + " ".join(
+        f"command -v {tool};" for tool in sorted(COMPILERS)
+    )
+    done = engine("run", "--rm", built_image, "sh", "-c", script)
+    uid, python, owner, *compilers = done.stdout.splitlines()
+    assert uid == "1000", done.stdout
+    assert python.startswith("/usr/bin/python3"), f"the venv's interpreter is {python}"
+    assert owner.startswith("python3"), f"{python} is not a Debian package's: {owner}"
+    assert compilers == [], f"compilers in the image: {compilers}"
+
+
+def test_the_built_image_keeps_the_dockerfiles_health_check(built_image: str, final: Stage) -> None:
+    """An image in the OCI format has no health check: podman builds one and drops it with a warning."""
+    done = engine("image", "inspect", "--format", "{{json .Config.Healthcheck}}", built_image)
+    assert done.returncode == 0, done.stderr
+    kept = json.loads(done.stdout)
+    assert kept and kept["Test"] == ["CMD", *health_check(final).command], done.stdout
+
+
+@contextmanager
+def image_container(image: str, args: Sequence[str], port: int) -> Iterator[str]:
+    """A detached container of `image` running `args`, its 7447 published on 127.0.0.1:`port`;
+    stopped (SIGTERM) on the way out, its exit code 0 asserted, then removed."""
+    name = f"simbot-test-{unique_namespace()}"
+    started = engine("run", "--detach", "--name", name, "--publish", f"127.0.0.1:{port}:7447", image, *args)
+    assert started.returncode == 0, started.stderr
+    try:
+        yield name
+        assert engine("stop", "--time", str(ENGINE_STOP_S), name).returncode == 0
+        code = engine("inspect", "--format", "{{.State.ExitCode}}", name).stdout.strip()
+        assert code == "0", f"exit {code} on SIGTERM: {engine('logs', name).stderr[-2000:]}"
+    finally:
+        engine("rm", "--force", name)
+
+
+def test_the_built_images_server_serves_a_client_on_this_host(built_image: str, final: Stage) -> None:
+    """The image's CMD told to listen on the container's interfaces, as compose does; the image's
+    health check run here against the published port, then a subscriber on this host gets `clock`."""
+    check, port = health_check(final), free_port()
+    server = [*exec_form(final.last("CMD")), "--listen", "tcp/0.0.0.0:7447"]
+    with image_container(built_image, server, port) as name:
+        deadline = time.monotonic() + 2 * check.options["start-period"]  # the start period, twice: a loaded machine
+        # A client on this host, not the engine's check: no kill at the check's timeout (a loaded
+        # machine takes seconds to import simbot); its --connect-timeout still bounds each try.
+        while (done := run_check(moved(check.command, endpoint(port)), CLIENT_TIMEOUT_S)).returncode != 0:
+            assert done.returncode in (1, 2), done.stderr
+            assert time.monotonic() < deadline, f"no world within {2 * check.options['start-period']} s: {done.stderr}"
+            time.sleep(1.0)
+        assert done.stdout.splitlines()[0].split() == ["world", "warehouse"], done.stdout
+        clock: Collector[Any] = Collector()
+        with Node(BusOptions(connect=(endpoint(port),), connect_timeout=10.0), "client") as node:
+            node.subscribe("clock", "rosgraph_msgs/msg/Clock", clock)
+            ticks = clock.wait_count(2, 30.0, "clock from the container")
+        assert stamp_ns(ticks[-1]) > stamp_ns(ticks[0]) > 0, "the container's sim time runs"
+        inside = engine("exec", name, *check.command)
+        assert inside.returncode == 0, f"the health check in the container: {inside.stderr}"
 
 
 # --- compose --------------------------------------------------------------------------------
