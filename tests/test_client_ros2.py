@@ -30,22 +30,18 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
-from bus_helpers import endpoint, free_port, unique_namespace
 from client_helpers import ClientProcess, client_process
 from conftest import REPO
 from server_helpers import (
     Collector,
     SimServer,
-    _connect,
-    _spawn,
-    _wait_ready,
     payload,
     raw_samples,
+    restarted,
     running_server,
     wait_until,
 )
@@ -227,28 +223,6 @@ def stamp_ns(msg: Any) -> int:
     """Sim time of an rclpy message: its header stamp, or a Clock's time."""
     stamp = msg.header.stamp if hasattr(msg, "header") else msg.clock
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
-@contextmanager
-def server_at(port: int, namespace: str, stderr_path: Path) -> Iterator[SimServer]:
-    """A lockstep `empty` server on a given port and namespace, as a restart needs (running_server picks fresh
-    ones); stopped with SIGTERM on the way out unless it was, and killed if it still runs."""
-    args = ["--world", "empty", "--mode", "lockstep", "--listen", endpoint(port), "--namespace", namespace]
-    process = _spawn([*args, "--quiet", *CHEAP_CAMERAS], stderr_path)
-    node = None
-    try:
-        node = _connect(process, port, namespace, stderr_path)
-        _wait_ready(process, node, "empty", stderr_path)
-        server = SimServer(process, port, namespace, "empty", "lockstep", node, stderr_path)
-        yield server
-        if not server.stopped and server.alive():
-            server.stop(timeout=EXIT_S)
-    finally:
-        if node is not None:
-            node.close()
-        if process.poll() is None:
-            process.kill()
-            process.wait()
 
 
 def step_until(server: SimServer, condition: Callable[[], object], timeout: float, what: str) -> None:
@@ -465,9 +439,7 @@ def test_allow_and_deny_choose_the_topics_and_a_status_line_counts_both_ways(
 
 
 @dds
-def test_after_a_server_restart_ros_sees_sim_time_go_back_and_gets_the_new_servers_data(
-    isolated: None, tmp_path: Path
-) -> None:
+def test_after_a_server_restart_ros_sees_sim_time_go_back_and_gets_the_new_servers_data(isolated: None) -> None:
     """SIGKILL to the server, a new one on its endpoint and namespace: sim time starts again from zero.
 
     The bridge keeps running and says so in one line; a ROS node on use_sim_time sees its clock jump
@@ -476,8 +448,7 @@ def test_after_a_server_restart_ros_sees_sim_time_go_back_and_gets_the_new_serve
     sim time: below the last stamp before the restart, then rising."""
     from nav_msgs.msg import Odometry
 
-    port, namespace = free_port(), unique_namespace()
-    with server_at(port, namespace, tmp_path / "first.txt") as first, client_process(first, "ros2") as bridge:
+    with running_server("empty", "lockstep", extra=CHEAP_CAMERAS) as first, client_process(first, "ros2") as bridge:
         user = RosUser("sim_time_user", clock=topic(first, "clock"))
         try:
             jumps = user.jumps_back()
@@ -491,9 +462,7 @@ def test_after_a_server_restart_ros_sees_sim_time_go_back_and_gets_the_new_serve
                 f"odometry stamped {BEFORE_RESTART_NS / 1e9:.0f} s on DDS",
             )
             wait_until(lambda: user.now_ns() >= BEFORE_RESTART_NS, WAIT_S, "the ROS node's clock to follow")
-            first.process.kill()
-            first.process.wait()
-            with server_at(port, namespace, tmp_path / "second.txt") as second:
+            with restarted(first) as second:
                 ready, before = time.monotonic(), len(odom)
                 last = max(stamp_ns(m) for m in odom.messages())
                 step_until(second, lambda: len(odom) >= before + 3, RESTART_S, "the new server's odometry on DDS")
@@ -502,6 +471,7 @@ def test_after_a_server_restart_ros_sees_sim_time_go_back_and_gets_the_new_serve
                 assert stamps[0] < last and stamps == sorted(set(stamps)), (last, stamps)
                 deltas = jumps.wait_count(1, WAIT_S, "the ROS clock's jump back")
                 assert len(deltas) == 1 and deltas[0] < 0 and user.now_ns() < last, (deltas, user.now_ns(), last)
+                second.stop(timeout=EXIT_S)
         finally:
             user.close()
         assert bridge.alive(), f"the bridge died: {bridge.stderr()[-3000:]}"
