@@ -1,8 +1,9 @@
 """Beyond one machine: two servers, each its own world under its own namespace, joined by one Zenoh
 router into one key space (issue 17, item 5), all on 127.0.0.1.
 
-The router is a Python Zenoh session in router mode in a subprocess (the eclipse-zenoh package
-ships no `zenohd`), configured by `docker/zenoh-router.json5` with only its endpoints replaced:
+The router is `docker/zenoh_router.py`, the program the fleet's compose file runs (a Zenoh session
+in router mode: the eclipse-zenoh package ships no `zenohd`), in a subprocess, configured by
+`docker/zenoh-router.json5` with only its endpoints replaced:
 it listens on a fresh port and connects to both servers' ports. A client that connects to the
 router alone receives both servers' `clock` and `odom` and calls both worlds' control.
 
@@ -16,6 +17,7 @@ test holds.
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -31,29 +33,20 @@ from server_helpers import Collector, SimServer, keyed_payload, raw_samples, run
 from simbot.bus import BusOptions, Node
 
 ROUTER_CONFIG = REPO / "docker" / "zenoh-router.json5"
-ROUTER = """
-import sys, zenoh
-config = zenoh.Config.from_file(sys.argv[1])
-config.insert_json5("listen/endpoints", sys.argv[2])
-config.insert_json5("connect/endpoints", sys.argv[3])
-with zenoh.open(config):
-    print("ready", flush=True)
-    sys.stdin.read()  # until the test closes our stdin
-"""
+ROUTER = REPO / "docker" / "zenoh_router.py"
 
 
 @contextmanager
 def router(port: int, servers: list[SimServer]) -> Iterator[str]:
     """The router on `port`, connected to `servers`; yields its endpoint."""
-    listen, connect = [endpoint(port)], [s.endpoint for s in servers]
-    args = [sys.executable, "-c", ROUTER, str(ROUTER_CONFIG), json.dumps(listen), json.dumps(connect)]
-    process = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    listen, connect = endpoint(port), [s.endpoint for s in servers]
+    args = [sys.executable, str(ROUTER), str(ROUTER_CONFIG), "--listen", listen, "--connect", *connect]
+    process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        assert process.stdout is not None and process.stdout.readline() == b"ready\n", process.stderr
-        yield listen[0]
+        assert process.stdout is not None and process.stdout.readline().startswith(b"zenoh router: "), process.stderr
+        yield listen
     finally:
-        assert process.stdin is not None
-        process.stdin.close()
+        process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0, process.stderr.read() if process.stderr else ""
 
 
