@@ -195,7 +195,7 @@ class GlRenderer:
         read_depth = "depth" in drawn
         color = self.ctx.renderbuffer(size, components=1 if mono else 3)
         depth = self.ctx.depth_texture(size) if read_depth else self.ctx.depth_renderbuffer(size)
-        projection = FLIP_Y @ projection_matrix(spec.vfov_deg, spec.width / spec.height, spec.near, spec.far)
+        projection = FLIP_Y @ projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
         fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
         return _Target(spec, fbo, projection, mono, read_depth)
 

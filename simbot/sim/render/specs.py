@@ -109,6 +109,12 @@ class CameraSpec:
         return math.degrees(2.0 * math.atan(math.tan(self.hfov / 2.0) * self.height / self.width))
 
     @property
+    def render_vfov_deg(self) -> float:
+        """The vertical field of view the renderer draws with, degrees: the camera's own (a lens
+        that bends the image draws a wider one to remap from)."""
+        return self.vfov_deg
+
+    @property
     def fx(self) -> float:
         """Focal length in pixels (fx = fy)."""
         return (self.width / 2.0) / math.tan(self.hfov / 2.0)
