@@ -9,6 +9,7 @@ folder an `<include>` means.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from pathlib import Path
 
@@ -33,6 +34,8 @@ from simbot.description.model import (
 )
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
+
+logger = logging.getLogger(__name__)
 
 
 def read_geometry(reader: Reader, owner: Element) -> Geometry:
@@ -116,7 +119,48 @@ def rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, floa
 
 
 def read_material(reader: Reader, element: Element) -> Material:
-    return Material(*(rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")))
+    """Colours, `<lighting>`, `<shininess>` and PBR (`<pbr><metal>` or `<pbr><specular>`; the first
+    one written). A map that does not resolve is a warning, and the visual keeps its colour."""
+    colours = {tag: rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")}
+    shininess = element.find("shininess")
+    workflow = next(iter(element.findall("pbr/metal") + element.findall("pbr/specular")), None)
+    pbr: dict[str, object] = {}
+    if workflow is not None:
+        glossiness = workflow.find("glossiness")
+        roughness = (
+            reader.number(workflow, "roughness", 0.5) if glossiness is None else 1.0 - reader.floats(glossiness, 1)[0]
+        )
+        pbr = {
+            "albedo_map": _texture(reader, workflow, "albedo_map"),
+            "normal_map": _texture(reader, workflow, "normal_map"),
+            "metalness": reader.number(workflow, "metalness", 0.0 if workflow.tag == "specular" else 0.5),
+            "roughness": roughness,
+        }
+    return Material(
+        **colours,  # type: ignore[arg-type]
+        lighting=reader.flag(element, "lighting", True),
+        shininess=None if shininess is None else reader.floats(shininess, 1)[0],
+        **pbr,  # type: ignore[arg-type]
+    )
+
+
+def _texture(reader: Reader, workflow: Element, tag: str) -> Path | None:
+    """The image a PBR map names, resolved as a mesh is (relative to the file, `model://`, the resource path)."""
+    uri = reader.text(workflow, tag)
+    if not uri:
+        return None
+    resolution = resolve(uri, reader.file.parent)
+    if resolution.path is None or not resolution.path.is_file():
+        logger.warning(
+            "%s:%s: <%s> %r not found (tried %s); the visual keeps its colour",
+            reader.file,
+            workflow.find(tag).sourceline,
+            tag,
+            uri,
+            resolution.describe_tried(),
+        )
+        return None
+    return resolution.path
 
 
 def read_spherical_coordinates(reader: Reader, element: Element | None) -> SphericalCoordinates:
