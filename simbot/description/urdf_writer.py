@@ -25,7 +25,8 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
 - A visual's material: URDF's `<material>` holds its colour and its texture (the PBR albedo map);
   the rest of SDF's material and the visual's `<transparency>` and `<cast_shadows>` are attributes
   of an `<sdf_material>` element beside it, which PyBullet and ROS's URDF readers skip and the
-  render workers read (sim/render/visuals.py).
+  render workers read (sim/render/visuals.py). A mesh PyBullet cannot read (glTF, GLB, ...) is
+  named by an OBJ stand-in of its triangles, and the file itself by `<sdf_material mesh=...>`.
 Sensors, plugins and friction, which URDF has no place for, stay in the parsed model.
 """
 
@@ -35,7 +36,7 @@ import logging
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -66,6 +67,7 @@ from simbot.description.model import (
     Visual,
 )
 from simbot.description.poses import IDENTITY, Pose, matrix_to_rpy
+from simbot.description.stand_in_meshes import needs_stand_in, stand_in
 
 MASSLESS = Inertial(0.0, IDENTITY, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))
@@ -161,6 +163,7 @@ class _Urdf:
             **({"lighting": "false"} if not material.lighting else {}),
             **({"cast_shadows": "false"} if not visual.cast_shadows else {}),
             **({"normal_map": self.filename(material.normal_map)} if material.normal_map else {}),
+            **_original_mesh(visual, self.filename),
         }
         if extra:
             ET.SubElement(element, SDF_MATERIAL, extra)
@@ -184,7 +187,7 @@ class _Urdf:
     def mesh_filename(self, mesh: Mesh) -> str:
         if mesh.path is None:
             raise DescriptionError(self.model.source, f"mesh {mesh.uri!r} was not resolved", "mesh")
-        return self.filename(mesh.path)
+        return self.filename(stand_in(mesh.path, self.generated_dir) if needs_stand_in(mesh.path) else mesh.path)
 
     def generated_filename(self, shape: Generated) -> str:
         return self.filename(mesh_file(shape, self.generated_dir, self.model.source))
@@ -220,6 +223,14 @@ class _Urdf:
         _add_limit(element, kind, axis)
         if axis.damping or axis.friction:
             ET.SubElement(element, "dynamics", damping=_fmt(axis.damping), friction=_fmt(axis.friction))
+
+
+def _original_mesh(visual: Visual, filename: Callable[[Path], str]) -> dict[str, str]:
+    """The mesh file itself where the URDF's `<mesh>` names its stand-in (stand_in_meshes.py)."""
+    mesh = visual.geometry
+    if isinstance(mesh, Mesh) and mesh.path is not None and needs_stand_in(mesh.path):
+        return {"mesh": filename(mesh.path)}
+    return {}
 
 
 def _colours(material: Material) -> dict[str, RGBA | None]:

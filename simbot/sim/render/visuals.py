@@ -61,7 +61,10 @@ def _visual_pieces(link: int, visual: ET.Element, materials: dict[str, ET.Elemen
     if shape is None:
         return []
     if shape.tag == "mesh":
-        return [_piece(link, origin, part, surface or own or UNCOLOURED) for part, own in _mesh_parts(shape)]
+        original = visual.find("sdf_material[@mesh]")
+        filename = shape.get("filename", "") if original is None else original.get("mesh", "")
+        parts = _mesh_parts(filename, _numbers(shape.get("scale"), (1.0, 1.0, 1.0)))
+        return [_piece(link, origin, part, surface or own or UNCOLOURED) for part, own in parts]
     tessellated = primitive(_GEOMETRY.get(shape.tag, -1), _dimensions(shape))
     return [] if tessellated is None else [_piece(link, origin, tessellated, surface or UNCOLOURED)]
 
@@ -104,12 +107,11 @@ def _dimensions(shape: ET.Element) -> tuple[float, ...]:
     return (radius,) if shape.tag == "sphere" else (float(shape.get("length", "1")), radius)
 
 
-def _mesh_parts(shape: ET.Element) -> list[tuple[Tessellated, Surface | None]]:
+def _mesh_parts(filename: str, scale: tuple[float, ...]) -> list[tuple[Tessellated, Surface | None]]:
     """The mesh file's submeshes, scaled as the visual says, each with its own material."""
-    path = resolve(shape.get("filename", "")).path
+    path = resolve(filename).path
     if path is None:
         return []
-    scale = _numbers(shape.get("scale"), (1.0, 1.0, 1.0))
     return [((*scaled(p.positions, p.normals, scale), p.uvs), p.surface) for p in submeshes(str(path))]
 
 
@@ -119,9 +121,9 @@ def _surface(visual: ET.Element, materials: dict[str, ET.Element]) -> Surface | 
     if material is not None and material.find("color") is None and material.find("texture") is None:
         material = materials.get(material.get("name", ""), material)  # a robot-level material named here
     sdf = visual.find("sdf_material")
-    if material is None and sdf is None:
+    attrs = {} if sdf is None else {key: value for key, value in sdf.attrib.items() if key != "mesh"}
+    if material is None and not attrs:
         return None
-    attrs = {} if sdf is None else sdf.attrib
     color = _numbers(None if material is None else _attr(material, "color", "rgba"), (1.0, 1.0, 1.0, 1.0))
     diffuse = _numbers(attrs.get("diffuse") or attrs.get("ambient"), color)
     ambient = _numbers(attrs.get("ambient") or attrs.get("diffuse"), color)
