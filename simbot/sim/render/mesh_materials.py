@@ -72,17 +72,17 @@ def submeshes(path: str) -> tuple[Submesh, ...]:
     except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds for a bad file
         log.warning("mesh %s cannot be read (%s); it is not drawn", path, exc)
         return ()
-    _warn_unreadable_textures(path)
+    own_materials = _material_files_readable(Path(path))
     parts = []
     for index, node in enumerate(scene.graph.nodes_geometry):
         transform, name = scene.graph[node]
         geometry = scene.geometry[name]
         if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
-            parts.append(_submesh(path, index, geometry, np.asarray(transform, dtype=np.float64)))
+            parts.append(_submesh(path, index, geometry, np.asarray(transform, dtype=np.float64), own_materials))
     return tuple(parts)
 
 
-def _submesh(path: str, index: int, geometry: Any, transform: F64) -> Submesh:
+def _submesh(path: str, index: int, geometry: Any, transform: F64, own_materials: bool) -> Submesh:
     faces = np.asarray(geometry.faces)
     positions = np.asarray(geometry.vertices, dtype=np.float64)[faces].reshape(-1, 3)
     normals = np.repeat(np.asarray(geometry.face_normals, dtype=np.float64), 3, axis=0)
@@ -93,7 +93,7 @@ def _submesh(path: str, index: int, geometry: Any, transform: F64) -> Submesh:
     has_uv = uv is not None and len(uv) == len(geometry.vertices)
     uvs = np.asarray(uv, dtype=np.float64)[faces].reshape(-1, 2) if has_uv else np.zeros((len(positions), 2))
     try:
-        surface = _surface(path, index, geometry.visual)
+        surface = _surface(path, index, geometry.visual) if own_materials else None
     except Exception as exc:  # noqa: BLE001 - a material trimesh half-read can fail anywhere
         log.warning("mesh %s: the materials cannot be read (%s); it is drawn in the visual's colour", path, exc)
         surface = None
@@ -199,26 +199,23 @@ _MTLLIB = re.compile(r"^\s*mtllib\s+(.+?)\s*$", re.MULTILINE)
 _DAE_IMAGE = re.compile(r"<image\b[^>]*>\s*<init_from>\s*(?:<ref>)?\s*([^<]+?)\s*<", re.IGNORECASE)
 
 
-def _warn_unreadable_textures(path: str) -> None:
-    """trimesh drops a texture it cannot load without a word: say which one, once each."""
-    for image in _texture_names(Path(path)):
-        readable_image(str(image))
-
-
-def _texture_names(mesh: Path) -> list[Path]:
-    """The texture files a mesh names: its MTL's `map_Kd`s, COLLADA's `<image><init_from>`s."""
+def _material_files_readable(mesh: Path) -> bool:
+    """Whether the materials the mesh names are there (an OBJ's MTL libraries: without them trimesh
+    makes up a grey material). trimesh drops a texture it cannot load without a word: this says
+    which, once each."""
     suffix = mesh.suffix.lower()
-    if suffix not in (".obj", ".dae"):
-        return []
-    text = mesh.read_text(errors="replace")
     if suffix == ".dae":
-        return [mesh.parent / unquote(name.removeprefix("file://")) for name in _DAE_IMAGE.findall(text)]
-    names = []
-    for library in (mesh.parent / name for name in _MTLLIB.findall(text)):
-        if not library.is_file():
-            log.warning(
-                "mesh %s: its material library %s is missing; it is drawn in the visual's colour", mesh, library
-            )
-            continue
-        names += [library.parent / name for name in _MAP_KD.findall(library.read_text(errors="replace"))]
-    return names
+        text = mesh.read_text(errors="replace")
+        images = [mesh.parent / unquote(name.removeprefix("file://")) for name in _DAE_IMAGE.findall(text)]
+    elif suffix == ".obj":
+        libraries = [mesh.parent / name for name in _MTLLIB.findall(mesh.read_text(errors="replace"))]
+        missing = [library for library in libraries if not library.is_file()]
+        if missing:
+            log.warning("mesh %s: material library %s is missing; it is drawn in the visual's colour", mesh, missing[0])
+            return False
+        images = [lib.parent / name for lib in libraries for name in _MAP_KD.findall(lib.read_text(errors="replace"))]
+    else:
+        return True
+    for image in images:
+        readable_image(str(image))  # the warning, for one that cannot be read
+    return True

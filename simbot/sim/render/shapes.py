@@ -72,7 +72,7 @@ def primitive(geometry: int, dims: tuple[float, ...]) -> Tessellated | None:
 
 _FACES = [(axis, sign) for axis in range(3) for sign in (1.0, -1.0)]
 _IMAGE_AXES = {
-    (0, 1.0): ((0, 1.0), (2, 1.0)),
+    (0, 1.0): ((1, 1.0), (2, 1.0)),
     (0, -1.0): ((1, -1.0), (2, 1.0)),
     (1, 1.0): ((0, -1.0), (2, 1.0)),
     (1, -1.0): ((0, 1.0), (2, 1.0)),
