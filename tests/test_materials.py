@@ -458,3 +458,96 @@ def test_a_missing_material_library_warns_and_the_mesh_is_drawn_without_it(
     assert all(p.surface.albedo_map is None for p in pieces)
     [message] = warnings_naming(caplog, str(tmp_path / "m.mtl"))
     assert str(tmp_path / "m.obj") in message
+
+
+# ---------------------------------------------------------------- the same visuals PyBullet loaded
+
+EVERY_SHAPE_URDF = """<robot name="every">
+  <material name="named"><color rgba="0.1 0.2 0.3 1"/></material>
+  <link name="base">
+    <visual><origin xyz="1 2 3" rpy="0.1 0.2 0.3"/><geometry><box size="0.4 0.6 0.8"/></geometry>
+      <material name="named"/></visual>
+    <visual><geometry><plane normal="0 0 1"/></geometry><material name="p"><color rgba="0 0 0 1"/></material></visual>
+  </link>
+  <joint name="j" type="revolute"><origin xyz="0 0 1" rpy="0 0.5 0"/><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="arm">
+    <visual><origin xyz="0.5 0 0"/><geometry><cylinder radius="0.25" length="0.8"/></geometry>
+      <material name="g"><color rgba="0 1 0 1"/></material></visual>
+    <visual><geometry><sphere radius="0.3"/></geometry></visual>
+    <visual><origin rpy="0 0.4 0"/><geometry><capsule radius="0.2" length="0.5"/></geometry></visual>
+    <visual><origin xyz="0 0 -1"/><geometry><mesh filename="{mesh}" scale="0.001 -0.002 0.001"/></geometry>
+      <material name="c"><color rgba="0 1 1 1"/></material></visual>
+  </link>
+</robot>"""
+
+
+def rows(positions: npt.NDArray[np.float32]) -> npt.NDArray[np.float64]:
+    """The vertices as a sorted set of rows (to 0.1 mm): the same triangles whatever their order."""
+    return np.unique(np.round(positions.astype(np.float64), 4), axis=0)
+
+
+def pybullet_view(scene: BulletScene, name: str) -> dict[int, tuple[npt.NDArray[np.float64], set[tuple[float, ...]]]]:
+    """Per link: the vertices of PyBullet's visual shapes and their colours."""
+    from simbot.sim.render.shapes import triangles
+
+    links: dict[int, tuple[list[npt.NDArray[np.float32]], set[tuple[float, ...]]]] = {}
+    for shape in scene.visual_shapes(name):
+        positions, colours = links.setdefault(shape.link, ([], set()))
+        positions.append(triangles(shape)[0])
+        colours.add(tuple(round(c, 4) for c in shape.rgba[:3]))
+    return {link: (rows(np.concatenate(p)), c) for link, (p, c) in links.items()}
+
+
+def our_view(scene: BulletScene, name: str) -> dict[int, tuple[npt.NDArray[np.float64], set[tuple[float, ...]]]]:
+    links: dict[int, tuple[list[npt.NDArray[np.float32]], set[tuple[float, ...]]]] = {}
+    for piece in body_pieces(scene, name):
+        positions, colours = links.setdefault(piece.link, ([], set()))
+        positions.append(piece.positions)
+        colours.add(tuple(round(c, 4) for c in piece.surface.diffuse))
+    return {link: (rows(np.concatenate(p)), c) for link, (p, c) in links.items()}
+
+
+def test_every_shape_pybullet_loads_is_a_piece_in_its_link_with_its_colour() -> None:
+    """Box, plane, cylinder, sphere, capsule and a mirrored mesh over two links, and a material
+    named at robot level: the same vertices per link as PyBullet's visual shapes, the same colours."""
+    from simbot.description.resources import asset
+
+    urdf = EVERY_SHAPE_URDF.format(mesh=asset("meshes/wheel.stl"))
+    scene = BulletScene(pb, [SceneBody("every", urdf, False, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))])
+    try:
+        ours, theirs = our_view(scene, "every"), pybullet_view(scene, "every")
+    finally:
+        scene.close()
+    assert ours.keys() == theirs.keys() == {-1, 0}
+    for link in ours:
+        assert np.array_equal(ours[link][0], theirs[link][0]), f"link {link}: other vertices"
+        assert ours[link][1] == theirs[link][1], f"link {link}: other colours"
+
+
+@pytest.mark.parametrize("world_file", ["tests/fixtures/gazebo/shapes.sdf", "worlds/warehouse.sdf"])
+def test_sdf_worlds_give_the_pieces_pybullet_loaded(world_file: str) -> None:
+    """Generated meshes (ellipsoid, cone, polyline), planes as boxes, the tug's meshes: nothing is
+    lost or moved against what PyBullet loaded from the same URDF. A body with no visual at all
+    shows nothing, as in Gazebo (PyBullet makes visuals of its collisions)."""
+    from simbot.description.resources import asset
+
+    description = load_world(asset(world_file) if world_file.startswith("worlds") else Path(world_file))
+    physics = Physics(description)
+    scene = BulletScene(pb)
+    try:
+        for model in description.models:
+            physics.add_model(model)
+        for name in physics.moving_bodies() + [m.name for m in description.models if m.static]:
+            scene.add(SceneBody(name, physics.urdf_of(name), False, physics.body_state(name)[0]))
+            if "<visual" not in physics.urdf_of(name):
+                assert body_pieces(scene, name) == [], "Gazebo draws no collisions (PyBullet shows them)"
+                continue
+            ours, theirs = our_view(scene, name), pybullet_view(scene, name)
+            assert ours.keys() == theirs.keys(), name
+            for link in ours:
+                assert np.array_equal(ours[link][0], theirs[link][0]), f"{name} link {link}: other vertices"
+                assert ours[link][1] == theirs[link][1], f"{name} link {link}: other colours"
+    finally:
+        scene.close()
+        physics.close()
