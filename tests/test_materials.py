@@ -411,21 +411,28 @@ def test_a_missing_pbr_map_warns_once_and_the_colour_stays(
 
 
 @pytest.mark.parametrize(
-    "content", [b"not an image at all", b"DDS |\x7c\x00\x00\x00" + bytes(120)], ids=["corrupt", "dds"]
+    ("name", "content"),
+    [
+        ("bad.png", b"not an image at all"),
+        ("bad.dds", b"DDS |" + bytes(124)),
+        ("cut.png", b"\x89PNG\r\n\x1a\n" + bytes(64)),
+    ],
+    ids=["corrupt", "dds", "truncated-png"],
 )
 def test_an_unreadable_albedo_map_warns_once_and_the_colour_stays(
-    tmp_path: Path, pieces_of, caplog, content: bytes
+    tmp_path: Path, pieces_of: PiecesOf, caplog: pytest.LogCaptureFixture, name: str, content: bytes
 ) -> None:
-    """A corrupt PNG, and a format OpenCV does not decode (DDS)."""
-    (tmp_path / "bad.dds").write_bytes(content)
+    """Garbage, a format OpenCV does not decode (DDS): the SDF reader leaves the map out; a PNG
+    whose header is right and the rest not: the render worker finds out. Two visuals, one warning."""
+    (tmp_path / name).write_bytes(content)
     material = (
-        "<material><diffuse>0 0 1 1</diffuse><pbr><metal><albedo_map>bad.dds</albedo_map></metal></pbr></material>"
+        f"<material><diffuse>0 0 1 1</diffuse><pbr><metal><albedo_map>{name}</albedo_map></metal></pbr></material>"
     )
     path = world(tmp_path, box_visual("a", material) + box_visual("b", material))
     pieces = pieces_of(path)
     assert [p.surface.albedo_map for p in pieces] == [None, None]
     assert {p.surface.diffuse for p in pieces} == {(0.0, 0.0, 1.0)}
-    [message] = warnings_naming(caplog, str(tmp_path / "bad.dds"))
+    [message] = warnings_naming(caplog, str(tmp_path / name))
     assert "\n" not in message
 
 

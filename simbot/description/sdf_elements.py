@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from functools import cache
 from pathlib import Path
 
 from simbot.description.model import (
@@ -150,17 +151,26 @@ def _texture(reader: Reader, workflow: Element, tag: str) -> Path | None:
     if not uri:
         return None
     resolution = resolve(uri, reader.file.parent)
-    if resolution.path is None or not resolution.path.is_file():
-        logger.warning(
-            "%s:%s: <%s> %r not found (tried %s); the visual keeps its colour",
-            reader.file,
-            workflow.find(tag).sourceline,
-            tag,
-            uri,
-            resolution.describe_tried(),
-        )
-        return None
-    return resolution.path
+    if resolution.path is not None and resolution.path.is_file():
+        return resolution.path if _decodable(resolution.path) else None
+    line = workflow.find(tag).sourceline
+    tried = resolution.describe_tried()
+    logger.warning(
+        "%s:%s: <%s> %r not found (tried %s); the visual keeps its colour", reader.file, line, tag, uri, tried
+    )
+    return None
+
+
+@cache
+def _decodable(path: Path) -> bool:
+    """Whether OpenCV (what the renderers read textures with) knows the image's format; a warning
+    naming it, once, where not."""
+    import cv2
+
+    if cv2.haveImageReader(str(path)):
+        return True
+    logger.warning("texture %s is not an image OpenCV can decode; the visual keeps its colour", path)
+    return False
 
 
 def read_spherical_coordinates(reader: Reader, element: Element | None) -> SphericalCoordinates:
