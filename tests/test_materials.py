@@ -276,6 +276,19 @@ def test_obj_keeps_each_mtl_material_with_its_texture_and_uvs(tmp_path: Path, pi
     assert np.allclose(textured.normals, (0.0, 0.0, 1.0))
 
 
+def test_the_same_mesh_with_another_texture_shows_that_texture(tmp_path: Path, pieces_of: PiecesOf) -> None:
+    """The texture cache is keyed by the image, not the mesh file (its MTL and image may change alone)."""
+    images = []
+    for folder, colours in (("a", (RED, BLUE)), ("b", (GREEN, RED))):
+        (tmp_path / folder).mkdir()
+        images.append(write_image(tmp_path / folder / "stripes.png", *colours))
+        write_obj(tmp_path / folder)
+    for folder, image in zip("ab", images, strict=True):
+        textured = by_colour(pieces_of(world(tmp_path / folder, mesh_visual("m.obj"))))[(1.0, 1.0, 1.0)]
+        assert textured.surface.albedo_map is not None
+        assert np.array_equal(cv2.imread(textured.surface.albedo_map), image), folder
+
+
 def test_an_sdf_material_replaces_the_mesh_materials(tmp_path: Path, pieces_of: PiecesOf) -> None:
     write_image(tmp_path / "stripes.png", RED, BLUE)
     write_obj(tmp_path)

@@ -2,9 +2,10 @@
 as a scene, so each geometry keeps its node transform, texture coordinates and material).
 
 Textures: trimesh hands over decoded images, not their files, so each image a mesh's material
-holds is written once as a PNG to a cache folder (`texture_cache`), named by the mesh file's
-content hash and the submesh: a worker (or a second worker) finding it there reads it, and an
-edited mesh gets new names. Bad input is one warning naming the file, never an exception: a mesh
+holds is written once as a PNG to a cache folder (`texture_cache`), named by the hash of its
+pixels: a worker (or a second worker) finding it there reads it, a texture shared by submeshes is
+one file, and an edited texture (a mesh file's MTL or image changes, not the mesh file) gets a
+new name. Bad input is one warning naming the file, never an exception: a mesh
 that cannot be read is not drawn; materials that cannot be read leave the mesh uncoloured; a
 texture that is missing or that OpenCV cannot decode leaves its material's colour.
 """
@@ -74,15 +75,15 @@ def submeshes(path: str) -> tuple[Submesh, ...]:
         return ()
     own_materials = _material_files_readable(Path(path))
     parts = []
-    for index, node in enumerate(scene.graph.nodes_geometry):
+    for node in scene.graph.nodes_geometry:
         transform, name = scene.graph[node]
         geometry = scene.geometry[name]
         if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
-            parts.append(_submesh(path, index, geometry, np.asarray(transform, dtype=np.float64), own_materials))
+            parts.append(_submesh(path, geometry, np.asarray(transform, dtype=np.float64), own_materials))
     return tuple(parts)
 
 
-def _submesh(path: str, index: int, geometry: Any, transform: F64, own_materials: bool) -> Submesh:
+def _submesh(path: str, geometry: Any, transform: F64, own_materials: bool) -> Submesh:
     faces = np.asarray(geometry.faces)
     positions = np.asarray(geometry.vertices, dtype=np.float64)[faces].reshape(-1, 3)
     normals = np.repeat(np.asarray(geometry.face_normals, dtype=np.float64), 3, axis=0)
@@ -93,14 +94,14 @@ def _submesh(path: str, index: int, geometry: Any, transform: F64, own_materials
     has_uv = uv is not None and len(uv) == len(geometry.vertices)
     uvs = np.asarray(uv, dtype=np.float64)[faces].reshape(-1, 2) if has_uv else np.zeros((len(positions), 2))
     try:
-        surface = _surface(path, index, geometry.visual) if own_materials else None
+        surface = _surface(geometry.visual) if own_materials else None
     except Exception as exc:  # noqa: BLE001 - a material trimesh half-read can fail anywhere
         log.warning("mesh %s: the materials cannot be read (%s); it is drawn in the visual's colour", path, exc)
         surface = None
     return Submesh(positions @ transform[:3, :3].T + transform[:3, 3], normals, uvs, surface)
 
 
-def _surface(path: str, index: int, visual: Any) -> Surface | None:
+def _surface(visual: Any) -> Surface | None:
     """The submesh's material as a Surface: MTL's (trimesh's SimpleMaterial) or glTF's and
     COLLADA's (its PBRMaterial); a plain colour for vertex or face colours; None without any."""
     from trimesh.visual.material import PBRMaterial, SimpleMaterial
@@ -108,10 +109,10 @@ def _surface(path: str, index: int, visual: Any) -> Surface | None:
     material = getattr(visual, "material", None)
     if isinstance(material, SimpleMaterial):
         image = material.image
-        return _mtl_surface(material, None if image is None else texture_file(path, index, image))
+        return _mtl_surface(material, None if image is None else texture_file(image))
     if isinstance(material, PBRMaterial):
         image = material.baseColorTexture
-        return _pbr_surface(material, None if image is None else texture_file(path, index, image))
+        return _pbr_surface(material, None if image is None else texture_file(image))
     return Surface(*(_rgb(visual.main_color),) * 2) if getattr(visual, "defined", False) else None
 
 
@@ -164,14 +165,11 @@ def texture_cache() -> Path:
     return Path(tempfile.gettempdir()) / "simbot-textures"
 
 
-@cache
-def _content_hash(path: str) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
-
-
-def texture_file(path: str, index: int, image: Any) -> str:
-    """The image (PIL) of submesh `index` of mesh `path` as a PNG in the cache, written once."""
-    target = texture_cache() / f"{_content_hash(path)}-{index}.png"
+def texture_file(image: Any) -> str:
+    """The image (PIL) as a PNG in the cache, written once."""
+    pixels = image.tobytes()
+    digest = hashlib.sha256(f"{image.mode} {image.size}".encode() + pixels).hexdigest()[:24]
+    target = texture_cache() / f"{digest}.png"
     if not target.is_file():
         target.parent.mkdir(parents=True, exist_ok=True)
         partial = target.with_suffix(f".{os.getpid()}.part")
