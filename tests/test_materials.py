@@ -391,8 +391,10 @@ def write_glb(path: Path) -> npt.NDArray[np.uint8]:
 
 
 def test_glb_keeps_base_colours_textures_emission_and_nodes(tmp_path: Path, pieces_of: PiecesOf) -> None:
+    """PyBullet cannot read a GLB: it gets an OBJ stand-in (for the collision too), the renderer the file."""
     pixels = write_glb(tmp_path / "m.glb")
-    pieces = by_colour(pieces_of(world(tmp_path, mesh_visual("m.glb"))))
+    collision = '<collision name="c"><geometry><mesh><uri>m.glb</uri></mesh></geometry></collision>'
+    pieces = by_colour(pieces_of(world(tmp_path, mesh_visual("m.glb") + collision)))
     red, textured = pieces[(1.0, 0.0, 0.0)], pieces[(1.0, 1.0, 1.0)]
     assert red.surface.opacity == pytest.approx(128 / 255) and red.surface.albedo_map is None
     assert np.allclose(red.positions.mean(axis=0), (0.0, 0.0, 5.0)) and np.allclose(
