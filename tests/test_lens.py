@@ -14,6 +14,9 @@ the far clip, so depth there is +inf.
   undistorted ray of the pixel meets the board and +inf where it misses; the points lie on the board.
 - `pinhole_cam` (no `<distortion>`) and `zero_lens_cam` (a `<distortion>` of zeros, centre moved):
   the same image, bit for bit, and the same K with D all zero.
+- `pinhole_wide`: `lens_cam` without its lens. The stitcher's cylinder, which reprojects by each
+  camera's K and D, makes the same panorama of the board from either; taking `lens_cam` for a
+  pinhole (its D dropped) does not.
 
 And in a render pool, with each renderer: a lens so strong that it folds back on itself leaves the
 pixels no ray reaches black, +inf and NaN.
@@ -21,6 +24,7 @@ pixels no ray reaches black, +inf and NaN.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 from collections.abc import Iterator
@@ -34,6 +38,7 @@ from gl_helpers import NO_EGL
 from server_helpers import STARTUP_TIMEOUT_S, SimServer, running_server, server_command
 
 from simbot.bus import messages
+from simbot.clients.stitcher import CameraModel, CylinderStitcher, Intrinsics
 from simbot.sim.render import CameraSpec, RenderPool, SceneBody
 from simbot.sim.render.lens import Distortion
 
@@ -86,6 +91,7 @@ def lens_world(lens: str = LENS) -> str:
         _sensor("lens_depth", "depth_camera", (320, 240), lens),
         _sensor("lens_rgbd", "rgbd_camera", (320, 240), lens),
         _sensor("pinhole_cam", "camera", (160, 120), ""),
+        _sensor("pinhole_wide", "camera", (640, 480), ""),
         _sensor("zero_lens_cam", "camera", (160, 120), "<distortion><k1>0</k1><center>0.3 0.6</center></distortion>"),
     ]
     return f"""<?xml version="1.0"?>
@@ -211,6 +217,41 @@ def test_a_camera_without_distortion_is_a_pinhole_and_a_lens_of_zeros_changes_no
     plain, zero = (messages.image_pixels(got[name]) for name in topics)
     assert (plain > 200).any() and (plain < 50).any(), "the pinhole camera does not see the chessboard"
     np.testing.assert_array_equal(plain, zero)
+
+
+OPTICAL_IN_RIG = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+"""The cameras' optical frame (z ahead, x right, y down) in the rig's frame (x ahead, z up)."""
+
+
+def _cylinder(intrinsics: Intrinsics) -> CylinderStitcher:
+    """A camera alone as the stitcher's front camera, on a cylinder through the board's centre."""
+    return CylinderStitcher({"camera_front": CameraModel.of(intrinsics, OPTICAL_IN_RIG)}, BOARD_X)
+
+
+def _panorama(image: npt.NDArray[np.uint8], intrinsics: Intrinsics) -> npt.NDArray[np.uint8]:
+    return cv2.cvtColor(_cylinder(intrinsics).stitch({"camera_front": image}), cv2.COLOR_RGB2GRAY)
+
+
+def test_the_stitcher_reprojects_a_bent_image_by_its_k_and_d(sim: SimServer) -> None:
+    """Where the pinhole camera sees (3 px inside the edge of its view), the lens's panorama shows the same
+    squares: few pixels differ by more than half the range (the edges of squares, resampled twice); with
+    D dropped the outer squares move by several pixels and many do."""
+    topics = ("lens_cam", "pinhole_wide")
+    got = sim.latest({t: IMAGE for t in topics} | {f"{t}/camera_info": INFO for t in topics}, chunk=100)
+    lens, pinhole = (Intrinsics.from_info(got[f"{t}/camera_info"]) for t in topics)
+    assert lens.d == (K1, K2, P1, P2, 0.0)
+    truth = _panorama(messages.image_pixels(got["pinhole_wide"]), pinhole)
+    straightened = _panorama(messages.image_pixels(got["lens_cam"]), lens)
+    taken_flat = _panorama(messages.image_pixels(got["lens_cam"]), dataclasses.replace(lens, d=(0.0,) * 5))
+    seen = (_cylinder(pinhole).source_coordinates(frozenset({"camera_front"}))[0] >= 0).astype(np.uint8)
+    board = cv2.erode(seen, np.ones((7, 7), np.uint8)).astype(bool)
+    assert (truth[board] < 50).mean() > 0.2, "the pinhole panorama shows no board"
+
+    def differing(panorama: npt.NDArray[np.uint8]) -> float:
+        return float((np.abs(panorama.astype(int) - truth)[board] > 128).mean())
+
+    assert differing(straightened) < 0.02, f"{differing(straightened):.1%} of the board differs"
+    assert differing(taken_flat) > 0.05, f"only {differing(taken_flat):.1%} differs without D"
 
 
 @pytest.mark.parametrize(
