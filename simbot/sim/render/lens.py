@@ -45,10 +45,11 @@ NO_FRACTIONS = np.empty(0, dtype=np.uint16)
 """The interpolation table nearest-neighbour remap does without."""
 MAX_HALF_FOV = math.radians(85.0)
 """The widest half field a render may draw (a perspective projection cannot reach 90°)."""
-SOLVE = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-"""cv2.undistortPoints iterates 5 times by default: pixels off by ~2 px in the corners at k1 = −0.25."""
+ITERATIONS = (20, 300)
+"""cv2.undistortPoints's fixed-point iterations: a first pass for every pixel (its default 5 leave ~2 px
+in the corners at k1 = −0.25), then a long one for the pixels the first leaves short (a strong lens)."""
 HIT_PX = 0.01
-"""A ray is the pixel's when re-distorting it (cv2.projectPoints) lands within this of the pixel."""
+"""A ray is the pixel's when the lens (`distort`) puts it within this of the pixel."""
 
 
 @dataclass(frozen=True)
@@ -83,19 +84,35 @@ def _camera_matrix(fx: float, cx: float, cy: float) -> npt.NDArray[np.float64]:
     return np.array([[fx, 0.0, cx], [0.0, fx, cy], [0.0, 0.0, 1.0]])
 
 
+def distort(distortion: Distortion, ray: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Where the lens bends normalised pinhole rays (N×2): the module docstring's formula."""
+    x, y = ray[:, 0], ray[:, 1]
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (distortion.k1 + r2 * (distortion.k2 + r2 * distortion.k3))
+    p1, p2 = distortion.p1, distortion.p2
+    bent_x = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    bent_y = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    return np.stack([bent_x, bent_y], axis=-1)
+
+
 @cache
 def rays(distortion: Distortion, width: int, height: int, fx: float) -> tuple[Floats, Floats]:
-    """The undistorted normalised ray (x, y) of every published pixel (H×W each); NaN where none is."""
+    """The undistorted normalised ray (x, y) of every published pixel (H×W each), by
+    cv2.undistortPoints; NaN where none is (the lens puts no ray within HIT_PX of the pixel)."""
     cx, cy = principal_point(distortion, width, height)
     k, d = _camera_matrix(fx, cx, cy), np.array(distortion.d)
     u, v = np.meshgrid(np.arange(width, dtype=np.float64), np.arange(height, dtype=np.float64))
-    pixels = np.stack([u.ravel(), v.ravel()], axis=-1).reshape(-1, 1, 2)
-    ray = cv2.undistortPoints(pixels, k, d, criteria=SOLVE).reshape(-1, 2)
-    points = np.concatenate([ray, np.ones((len(ray), 1))], axis=1)
-    back, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), k, d)
-    hit = np.linalg.norm(back.reshape(-1, 2) - pixels.reshape(-1, 2), axis=1) < HIT_PX
-    hit &= np.all(np.abs(ray) < math.tan(MAX_HALF_FOV), axis=1)
-    ray[~hit] = np.nan
+    pixels = np.stack([u.ravel(), v.ravel()], axis=-1)
+    normalised = (pixels - (cx, cy)) / fx
+    ray = np.empty_like(pixels)
+    short = np.ones(len(pixels), dtype=bool)
+    for count in ITERATIONS:
+        if not short.any():
+            break
+        solve = (cv2.TERM_CRITERIA_COUNT, count, 0.0)
+        ray[short] = cv2.undistortPoints(pixels[short].reshape(-1, 1, 2), k, d, criteria=solve).reshape(-1, 2)
+        short = np.linalg.norm(distort(distortion, ray) - normalised, axis=1) * fx >= HIT_PX
+    ray[short | np.any(np.abs(ray) >= math.tan(MAX_HALF_FOV), axis=1)] = np.nan
     x, y = ray[:, 0].reshape(height, width), ray[:, 1].reshape(height, width)
     return x.astype(np.float32), y.astype(np.float32)
 
