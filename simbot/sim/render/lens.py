@@ -8,7 +8,9 @@ uses: a ray whose pinhole (undistorted) normalised coordinates are (x, y), r² =
 
 and is seen at pixel (fx·x' + cx, fy·y' + cy) of the published K. So `cv2.undistortPoints` with
 the published K and D = [k1, k2, p1, p2, k3] maps image points back onto the pinhole image
-(lines straight). Gazebo's own distortion pass applies the same formula in the same direction.
+(lines straight). Gazebo's own distortion pass applies the same formula in the same direction,
+but then scales the bent image to crop its black corners, which its camera_info does not follow;
+simbot does not crop.
 
 `<center>` is the distortion centre in normalised image coordinates (0..1 across the image's
 width and height, (0.5, 0.5) its middle), as Gazebo reads it. plumb_bob has no centre of its own:
