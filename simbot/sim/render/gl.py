@@ -1,8 +1,8 @@
 """The OpenGL 3.3 renderer: moderngl on a headless EGL context (the GPU where there is one, Mesa's
 llvmpipe on the CPU where there is not).
 
-The scene comes from the worker's PyBullet copy (`BulletScene`): every visual shape of every link,
-tessellated once (`shapes.py`). Bodies that never move are baked into one world-frame vertex
+The scene comes from the worker's PyBullet copy (`BulletScene`) as `body_pieces` (`visuals.py`),
+tessellated once. Bodies that never move are baked into one world-frame vertex
 buffer, drawn in one call; each link of a moving body is one buffer in its link frame, drawn with
 the link's transform of the request. A body added or removed at run time adds or drops its links'
 buffers; a static one re-bakes the world buffer from the static bodies' vertices, which are kept
@@ -28,8 +28,9 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, Raw
-from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
-from simbot.sim.render.shapes import triangles
+from simbot.sim.render.scene import BulletScene, Matrix, projection_matrix, view_matrix
+from simbot.sim.render.surfaces import Piece
+from simbot.sim.render.visuals import body_pieces
 from simbot.sim.render.specs import CameraSpec, Light, SceneBody
 from simbot.transform import Transform
 
@@ -163,13 +164,13 @@ class GlRenderer:
 
     def _tessellate(self, body: SceneBody) -> None:
         """A static body's vertices in the world frame (for `_bake`); a moving body's links as parts."""
-        shapes = self.scene.visual_shapes(body.name)
+        pieces = body_pieces(self.scene, body.name)
         if body.static:
             frames = self.scene.link_matrices(body.name)
-            self._static[body.name] = _stack([_vertices(shape, frames[shape.link]) for shape in shapes])
+            self._static[body.name] = _stack([_vertices(piece, frames[piece.link]) for piece in pieces])
             return
-        for link in sorted({shape.link for shape in shapes}):
-            data = _stack([_vertices(s, np.eye(4)) for s in shapes if s.link == link])
+        for link in sorted({piece.link for piece in pieces}):
+            data = _stack([_vertices(p, np.eye(4)) for p in pieces if p.link == link])
             if len(data):
                 self.parts.append(self._part(data, body.name, link))
 
@@ -267,11 +268,10 @@ def _stack(arrays: list[npt.NDArray[np.float32]]) -> npt.NDArray[np.float32]:
     return np.concatenate(arrays) if arrays else np.empty((0, 9), dtype=np.float32)
 
 
-def _vertices(shape: VisualShape, link_to_world: Matrix) -> npt.NDArray[np.float32]:
-    """Interleaved position, normal, colour rows of the shape, transformed by `link_to_world`."""
-    local_positions, local_normals = triangles(shape)
+def _vertices(piece: Piece, link_to_world: Matrix) -> npt.NDArray[np.float32]:
+    """Interleaved position, normal, colour rows of the piece, transformed by `link_to_world`."""
     rotation = link_to_world[:3, :3]
-    positions = local_positions @ rotation.T + link_to_world[:3, 3]
-    normals = local_normals @ rotation.T
-    colors = np.broadcast_to(np.asarray(shape.rgba[:3], dtype=np.float32), positions.shape)
+    positions = piece.positions @ rotation.T + link_to_world[:3, 3]
+    normals = piece.normals @ rotation.T
+    colors = np.broadcast_to(np.asarray(piece.surface.diffuse, dtype=np.float32), positions.shape)
     return np.hstack([positions, normals, colors]).astype(np.float32)
