@@ -28,6 +28,7 @@ from simbot.sim.render import (
     CameraSpec,
     Frame,
     Light,
+    LightSource,
     OutputKind,
     PoolPlan,
     RenderPool,
@@ -46,7 +47,8 @@ WAIT = 10.0  # seconds a test waits for a frame before failing (a bug fails, nev
 RED = (1.0, 0.0, 0.0, 1.0)
 GREEN = (0.0, 1.0, 0.0, 1.0)
 ORANGE = (0.8, 0.5, 0.2, 1.0)
-FRONT_LIT = Light(direction=(1.0, 0.0, 0.0))  # travels along +x: lights the faces that look back at -x
+FRONT_LIT = Light(sources=(LightSource(diffuse=(0.4, 0.4, 0.4), direction=(1.0, 0.0, 0.0)),))
+"""The default lighting but its sun travels along +x: it lights the faces that look back at -x."""
 
 # The scene: each test's objects sit in their own region, 100 m apart (beyond the far clip).
 RED_FACE = 2.0  # the red box's front face, metres ahead of a camera at the origin
@@ -221,8 +223,9 @@ def test_base_poses_are_centre_of_mass_frames(pool: RenderPool) -> None:
 
 
 def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, renderer: str) -> None:
-    """Lit from behind the camera, an orange face shows its material colour; the default light (travelling
-    towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
+    """Lit from behind the camera, an orange face shows scene ambient (0.6) × its colour + sun diffuse
+    (0.4) × its colour × N·L (1): its colour exactly; the default sun (travelling towards -x) leaves
+    that face in the ambient light only: 60 % of it, same hue. Both renderers shade so."""
     lit = render(pool, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
     np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
     with RenderPool(
