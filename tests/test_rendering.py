@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
-from gl_helpers import NO_EGL
+from gl_helpers import INERTIA, NO_EGL, box_urdf
 from server_helpers import exited, wait_until
 
 from simbot.sim.render import (
@@ -64,18 +64,6 @@ LATE_AT = (600.0, 0.0, 0.0)  # empty until a test adds bodies to the running poo
 LATE_FACE, LATE_SIZE, LATE_SIDE = 2.0, 0.4, 0.5  # their front faces 2 m ahead, 0.4 m wide, 0.5 m either side
 
 AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-INERTIA = '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/>'
-
-
-def box_urdf(
-    size: tuple[float, float, float], rgba: tuple[float, ...], com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-) -> str:
-    """A one-link box; `com` puts its centre of mass beside the visual."""
-    return f"""<robot name="box"><link name="box">
-      <inertial><origin xyz="{com[0]} {com[1]} {com[2]}"/><mass value="1"/>{INERTIA}</inertial>
-      <visual><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry>
-        <material name="c"><color rgba="{" ".join(map(str, rgba))}"/></material></visual>
-    </link></robot>"""
 
 
 ARM_URDF = f"""<robot name="arm">

@@ -13,7 +13,8 @@ image that cannot be read is one warning and the piece shows its colour.
 Shading is in `gl_shaders.py` (Gazebo's material model, the world's lights, `Light`), the sun's
 shadows in `gl_shadow.py`. The sky is `<scene><background>`. Opaque parts are drawn first, then
 those with opacity < 1 blended over them (not sorted, and writing no depth: a depth camera sees
-through them).
+through them). No face is culled (a mesh's winding is not trusted), so a translucent box blends
+its back face and then its front one over what lies behind it.
 
 Clipping is Gazebo's: geometry nearer than the camera's `near` or beyond its `far` is cut away, so
 a camera inside its housing sees out. The projection flips y, so the framebuffer's first row is the
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -87,14 +88,21 @@ class GlRenderer:
     name = "gl"
 
     def __init__(
-        self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec], threads: int | None = None
+        self,
+        scene: BulletScene,
+        light: Light,
+        cameras: Mapping[int, CameraSpec],
+        threads: int | None = None,
+        pieces: Callable[[BulletScene, str], list[Piece]] = body_pieces,
     ) -> None:
+        """`pieces` gives a body's pieces (`visuals.py::body_pieces`; a test may dress them in surfaces of its own)."""
         if threads is not None:
             os.environ["LP_NUM_THREADS"] = str(threads)  # read by Mesa's llvmpipe when the context opens
         import moderngl  # an import error is a reason to fall back, reported by the worker
 
         self.scene = scene
         self.light = light
+        self.pieces = pieces
         self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
@@ -151,7 +159,7 @@ class GlRenderer:
 
     def _load(self, body: SceneBody) -> None:
         """A static body's pieces in the world frame (for `_bake`); a moving body's link surfaces as parts."""
-        pieces = body_pieces(self.scene, body.name)
+        pieces = self.pieces(self.scene, body.name)
         for piece in pieces:
             self._texture(piece.surface.albedo_map)
         if body.static:
