@@ -60,7 +60,8 @@ class _Part:
 
     buffer: Any
     vao: Any
-    shadow_vao: Any | None
+    depth_vao: Any
+    """For the depth-only program: the camera's pre-pass and the sun's shadow maps."""
     body: str | None
     """None for the static world (identity transform)."""
     link: int
@@ -68,9 +69,8 @@ class _Part:
     texture: Any | None
 
     def release(self) -> None:
-        for item in (self.vao, self.shadow_vao, self.buffer):
-            if item is not None:
-                item.release()
+        for item in (self.vao, self.depth_vao, self.buffer):
+            item.release()
 
 
 @dataclass
@@ -106,13 +106,19 @@ class GlRenderer:
         self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
-        self.program: Any = self.ctx.program(vertex_shader=shaders.VERTEX, fragment_shader=shaders.FRAGMENT)
+        self.program: Any = self.ctx.program(
+            vertex_shader=shaders.VERTEX, fragment_shader=shaders.fragment_shader(light)
+        )
         self.uniforms = {name: shaders.uniform(self.program, name) for name in _UNIFORMS}
-        shaders.write_lighting(self.program, light)
+        self.uniforms.update((name, m) for name in _OPTIONAL if (m := self.program.get(name, None)) is not None)
         self._samplers()
         caster = light.shadow_caster
-        self.shadow = None if caster is None else ShadowMap(self.ctx, light.sources[caster].direction)
-        self.uniforms["shadow_light"].value = -1 if caster is None else caster
+        self.depth_program: Any = self.ctx.program(
+            vertex_shader=shaders.DEPTH_VERTEX, fragment_shader=shaders.DEPTH_FRAGMENT
+        )
+        self.shadow = (
+            None if caster is None else ShadowMap(self.ctx, self.depth_program, light.sources[caster].direction)
+        )
         self.parts: list[_Part] = []
         """The static world first, then each moving link's surfaces, in the order the bodies came."""
         self._static: dict[str, list[tuple[Surface, Rows]]] = {}
@@ -197,7 +203,7 @@ class GlRenderer:
         moving = [frame[:3, 3].reshape(1, 3).astype(np.float32) for frame in self._link_origins()]
         self.shadow.fit(static + moving)
         identity = shaders.gl_matrix(np.eye(4))
-        self.shadow.draw(0, ((p.shadow_vao, identity) for p in self.parts if p.body is None and p.shadow_vao))
+        self.shadow.draw(0, ((p.depth_vao, identity) for p in self.parts if p.body is None and p.surface.cast_shadows))
 
     def _link_origins(self) -> Iterator[Matrix]:
         for body in {p.body for p in self.parts if p.body is not None}:
@@ -205,11 +211,11 @@ class GlRenderer:
 
     def _part(self, data: Rows, body: str | None, link: int, surface: Surface) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-        vao = self.ctx.vertex_array(self.program, [(buffer, ROW, "in_position", "in_normal", "in_uv")])
-        casts = self.shadow is not None and surface.cast_shadows
-        shadow_vao = self.shadow.vertex_array(buffer) if casts and self.shadow is not None else None
+        attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
+        vao = self.ctx.vertex_array(self.program, attributes, skip_errors=True)  # a world with no light reads no normal
+        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
-        return _Part(buffer, vao, shadow_vao, body, link, surface, texture)
+        return _Part(buffer, vao, depth_vao, body, link, surface, texture)
 
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
@@ -245,27 +251,41 @@ class GlRenderer:
         transforms = self._transforms()
         view = view_matrix(pose)
         uniforms = self.uniforms
-        uniforms["view_projection"].write(shaders.gl_matrix(target.projection @ view))
-        uniforms["eye"].value = tuple(float(v) for v in pose[0])
+        view_projection = shaders.gl_matrix(target.projection @ view)
+        uniforms["view_projection"].write(view_projection)
+        if (eye := uniforms.get("eye")) is not None:
+            eye.value = tuple(float(v) for v in pose[0])
         uniforms["mono"].value = target.mono
         target.fbo.use()
         sky = self.light.background
         target.fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
-        self._draw(transforms, target.fbo)
+        self._draw(transforms, target.fbo, view_projection)
         if (color := drawn.get("color")) is not None:
             target.fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
         if (depth := drawn.get("depth")) is not None:
             target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
-    def _draw(self, transforms: list[bytes], fbo: Any) -> None:
-        """Opaque parts, then the translucent ones blended over them without writing depth."""
+    def _draw(self, transforms: list[bytes], fbo: Any, view_projection: bytes) -> None:
+        """The opaque parts' depth first (cheap), then each pixel shaded once where its depth is
+        the nearest; then the translucent parts blended over them without writing depth."""
         import moderngl
 
         drawn = list(zip(self.parts, transforms, strict=True))
-        for part, transform in drawn:
-            if part.surface.opacity >= 1.0:
-                self._draw_part(part, transform)
+        opaque = [(part, transform) for part, transform in drawn if part.surface.opacity >= 1.0]
         translucent = [(part, transform) for part, transform in drawn if part.surface.opacity < 1.0]
+        self.depth_program["view_projection"].write(view_projection)
+        depth_model = self.depth_program["model"]
+        fbo.color_mask = (False, False, False, False)
+        for part, transform in opaque:
+            depth_model.write(transform)
+            part.depth_vao.render()
+        fbo.color_mask = (True, True, True, True)
+        self.ctx.depth_func = "<="
+        try:
+            for part, transform in opaque:
+                self._draw_part(part, transform)
+        finally:
+            self.ctx.depth_func = "<"
         if not translucent:
             return
         self.ctx.enable(moderngl.BLEND)
@@ -304,29 +324,24 @@ class GlRenderer:
         if self.shadow is None:
             return
         casters = [
-            (p.shadow_vao, m) for p, m in zip(self.parts, self._model_matrices, strict=True) if p.body and p.shadow_vao
+            (p.depth_vao, m)
+            for p, m in zip(self.parts, self._model_matrices, strict=True)
+            if p.body and p.surface.cast_shadows
         ]
         self.shadow.has_moving = bool(casters)
         if casters:
             self.shadow.draw(1, casters)
         self.shadow.bind(SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT)
-        self.uniforms["shadow_matrix"].write(shaders.gl_matrix(self.shadow.matrix))
-        self.uniforms["shadow_has_moving"].value = self.shadow.has_moving
+        self.program["shadow_matrix"].write(shaders.gl_matrix(self.shadow.matrix))
+        self.program["shadow_has_moving"].value = self.shadow.has_moving
 
     def close(self) -> None:
         self.ctx.release()
 
 
-_UNIFORMS = (
-    "view_projection",
-    "model",
-    "eye",
-    "mono",
-    "shadow_light",
-    "shadow_matrix",
-    "shadow_has_moving",
-    *shaders.SURFACE_UNIFORMS,
-)
+_UNIFORMS = ("view_projection", "model", "mono")
+"""Uniforms every program has; the others (`_OPTIONAL`) depend on the world's lighting."""
+_OPTIONAL = ("eye", *shaders.SURFACE_UNIFORMS)
 
 
 def _stack(arrays: list[Rows]) -> Rows:

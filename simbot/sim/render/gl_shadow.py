@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from simbot.sim.render.gl_shaders import SHADOW_FRAGMENT, SHADOW_VERTEX, gl_matrix
+from simbot.sim.render.gl_shaders import gl_matrix
 from simbot.sim.render.shapes import PLANE_HALF_SIZE
 from simbot.transform import Matrix
 
@@ -30,17 +30,18 @@ TO_TEXTURE = np.array([[0.5, 0, 0, 0.5], [0, 0.5, 0, 0.5], [0, 0, 0.5, 0.5], [0,
 """Clip coordinates (−1..1) to texture coordinates and depth (0..1)."""
 
 Draw = tuple[Any, bytes]
-"""A caster: its vertex array for the shadow program, and its model matrix (GLSL bytes)."""
+"""A caster: its vertex array for the depth program, and its model matrix (GLSL bytes)."""
 
 
 class ShadowMap:
     """The sun's two depth maps and the matrix that looks them up; see the module docstring."""
 
-    def __init__(self, ctx: Any, direction: tuple[float, float, float]) -> None:
+    def __init__(self, ctx: Any, program: Any, direction: tuple[float, float, float]) -> None:
+        """`program` draws depth only (`gl_shaders.DEPTH_VERTEX`), with the renderer's vertex arrays for it."""
         import moderngl
 
         self.ctx = ctx
-        self.program = ctx.program(vertex_shader=SHADOW_VERTEX, fragment_shader=SHADOW_FRAGMENT)
+        self.program = program
         self.maps = [ctx.depth_texture((SIZE, SIZE)) for _ in range(2)]
         for texture in self.maps:
             texture.compare_func = "<="  # a shadow sampler: 1 where the fragment is not behind the map
@@ -56,10 +57,6 @@ class ShadowMap:
         """World → the maps' texture coordinates and depth, for the camera's shader."""
         result: Matrix = TO_TEXTURE @ self.projection @ self.light_view
         return result
-
-    def vertex_array(self, buffer: Any) -> Any:
-        """The caster's vertex array for the shadow program (positions of the renderer's rows)."""
-        return self.ctx.vertex_array(self.program, [(buffer, "3f 20x", "in_position")])
 
     def fit(self, points: Iterable[npt.NDArray[np.float32]]) -> None:
         """Fits the view to the given world-frame points (`MARGIN` wider)."""
@@ -91,7 +88,7 @@ class ShadowMap:
         self.maps[1].use(moving_unit)
 
     def release(self) -> None:
-        for item in (*self.framebuffers, *self.maps, self.program):
+        for item in (*self.framebuffers, *self.maps):
             item.release()
 
 
