@@ -61,12 +61,13 @@ class _Part:
     buffer: Any
     vao: Any
     depth_vao: Any
-    """For the depth-only program: the camera's pre-pass and the sun's shadow maps."""
+    """For the depth-only program: the sun's shadow maps."""
     body: str | None
     """None for the static world (identity transform)."""
     link: int
     surface: Surface
     texture: Any | None
+    program: shaders.Program
 
     def release(self) -> None:
         for item in (self.vao, self.depth_vao, self.buffer):
@@ -106,12 +107,8 @@ class GlRenderer:
         self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
-        self.program: Any = self.ctx.program(
-            vertex_shader=shaders.VERTEX, fragment_shader=shaders.fragment_shader(light)
-        )
-        self.uniforms = {name: shaders.uniform(self.program, name) for name in _UNIFORMS}
-        self.uniforms.update((name, m) for name in _OPTIONAL if (m := self.program.get(name, None)) is not None)
-        self._samplers()
+        self.programs: dict[shaders.Kind, shaders.Program] = {}
+        """The camera programs, one a kind of surface, compiled when a piece of the kind first comes."""
         caster = light.shadow_caster
         self.depth_program: Any = self.ctx.program(
             vertex_shader=shaders.DEPTH_VERTEX, fragment_shader=shaders.DEPTH_FRAGMENT
@@ -133,15 +130,11 @@ class GlRenderer:
         for index, spec in cameras.items():
             self.add_camera(index, spec)
 
-    def _samplers(self) -> None:
-        """Texture units of the samplers, fixed for the program's life."""
-        for name, unit in (
-            ("albedo", ALBEDO_UNIT),
-            ("shadow_static", SHADOW_STATIC_UNIT),
-            ("shadow_moving", SHADOW_MOVING_UNIT),
-        ):
-            if (member := self.program.get(name, None)) is not None:
-                member.value = unit
+    def _program(self, kind: shaders.Kind) -> shaders.Program:
+        if kind not in self.programs:
+            self.programs[kind] = shaders.Program(self.ctx, self.light, kind, _SAMPLERS)
+            self._posed = -1  # its shadow uniforms are set with the next pose
+        return self.programs[kind]
 
     # --- the scene
 
@@ -211,11 +204,14 @@ class GlRenderer:
 
     def _part(self, data: Rows, body: str | None, link: int, surface: Surface) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-        attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
-        vao = self.ctx.vertex_array(self.program, attributes, skip_errors=True)  # a world with no light reads no normal
-        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
-        return _Part(buffer, vao, depth_vao, body, link, surface, texture)
+        program = self._program(shaders.Kind.of(surface, texture is not None))
+        attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
+        vao = self.ctx.vertex_array(
+            program.program, attributes, skip_errors=True
+        )  # what the kind does not read is skipped
+        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
+        return _Part(buffer, vao, depth_vao, body, link, surface, texture, program)
 
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
@@ -250,42 +246,31 @@ class GlRenderer:
         target = self.targets[camera]
         transforms = self._transforms()
         view = view_matrix(pose)
-        uniforms = self.uniforms
         view_projection = shaders.gl_matrix(target.projection @ view)
-        uniforms["view_projection"].write(view_projection)
-        if (eye := uniforms.get("eye")) is not None:
-            eye.value = tuple(float(v) for v in pose[0])
-        uniforms["mono"].value = target.mono
+        for program in self.programs.values():
+            program.write("view_projection", view_projection)
+            program.set("eye", tuple(float(v) for v in pose[0]))
+            program.set("mono", target.mono)
         target.fbo.use()
         sky = self.light.background
         target.fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
-        self._draw(transforms, target.fbo, view_projection)
+        self._draw(transforms, target.fbo)
         if (color := drawn.get("color")) is not None:
             target.fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
         if (depth := drawn.get("depth")) is not None:
             target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
-    def _draw(self, transforms: list[bytes], fbo: Any, view_projection: bytes) -> None:
-        """The opaque parts' depth first (cheap), then each pixel shaded once where its depth is
-        the nearest; then the translucent parts blended over them without writing depth."""
+    def _draw(self, transforms: list[bytes], fbo: Any) -> None:
+        """The opaque parts, then the translucent ones blended over them without writing depth.
+        (A depth pre-pass, to shade each pixel once, cost more on llvmpipe than it saved: the
+        vertices, drawn twice, are the larger part of a frame.)"""
         import moderngl
 
         drawn = list(zip(self.parts, transforms, strict=True))
-        opaque = [(part, transform) for part, transform in drawn if part.surface.opacity >= 1.0]
-        translucent = [(part, transform) for part, transform in drawn if part.surface.opacity < 1.0]
-        self.depth_program["view_projection"].write(view_projection)
-        depth_model = self.depth_program["model"]
-        fbo.color_mask = (False, False, False, False)
-        for part, transform in opaque:
-            depth_model.write(transform)
-            part.depth_vao.render()
-        fbo.color_mask = (True, True, True, True)
-        self.ctx.depth_func = "<="
-        try:
-            for part, transform in opaque:
+        for part, transform in drawn:
+            if part.surface.opacity >= 1.0:
                 self._draw_part(part, transform)
-        finally:
-            self.ctx.depth_func = "<"
+        translucent = [(part, transform) for part, transform in drawn if part.surface.opacity < 1.0]
         if not translucent:
             return
         self.ctx.enable(moderngl.BLEND)
@@ -298,8 +283,8 @@ class GlRenderer:
             self.ctx.disable(moderngl.BLEND)
 
     def _draw_part(self, part: _Part, transform: bytes) -> None:
-        self.uniforms["model"].write(transform)
-        shaders.write_surface(self.uniforms, part.surface, part.texture is not None)
+        part.program.write("model", transform)
+        part.program.surface(part.surface)
         if part.texture is not None:
             part.texture.use(ALBEDO_UNIT)
         part.vao.render()
@@ -332,16 +317,17 @@ class GlRenderer:
         if casters:
             self.shadow.draw(1, casters)
         self.shadow.bind(SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT)
-        self.program["shadow_matrix"].write(shaders.gl_matrix(self.shadow.matrix))
-        self.program["shadow_has_moving"].value = self.shadow.has_moving
+        matrix = shaders.gl_matrix(self.shadow.matrix)
+        for program in self.programs.values():
+            program.write("shadow_matrix", matrix)
+            program.set("shadow_has_moving", self.shadow.has_moving)
 
     def close(self) -> None:
-        self.ctx.release()
+        self.ctx.release()  # with it everything it made
 
 
-_UNIFORMS = ("view_projection", "model", "mono")
-"""Uniforms every program has; the others (`_OPTIONAL`) depend on the world's lighting."""
-_OPTIONAL = ("eye", *shaders.SURFACE_UNIFORMS)
+_SAMPLERS = {"albedo": ALBEDO_UNIT, "shadow_static": SHADOW_STATIC_UNIT, "shadow_moving": SHADOW_MOVING_UNIT}
+"""Texture units of the programs' samplers, fixed for their life."""
 
 
 def _stack(arrays: list[Rows]) -> Rows:

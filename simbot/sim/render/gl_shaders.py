@@ -10,7 +10,7 @@ multiplies the diffuse and ambient colours. An unlit surface (`<lighting>` false
 colour (or texture) as is. Normals face the viewer (a mesh's winding is not trusted), and normal
 maps are not applied (their cost is a tangent frame per vertex; not reached).
 
-The fragment shader is written for the world's lights (`fragment_shader`): their values are
+The shaders are written for the world's lights (`shaders`): their values are
 constants in it, so a fragment runs no loop over lights and reads no arrays (on llvmpipe a loop over
 uniform arrays cost three times the whole frame). At most `MAX_LIGHTS` lights.
 """
@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -29,27 +29,33 @@ from simbot.sim.render.surfaces import Surface
 
 log = logging.getLogger(__name__)
 
-VERTEX = """
+_VERTEX = """
 #version 330
 uniform mat4 view_projection;
 uniform mat4 model;
+uniform vec3 eye;
 in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
 out vec3 world;
 out vec3 normal;
 out vec2 uv;
-invariant gl_Position;  // the depth pre-pass computes it alike: the shaded pass draws where depth is equal
+out vec3 direct;  // diffuse light of the directional lights but the sun that casts shadows
+out vec3 sun;  // diffuse light of that sun, before its shadow
 void main() {
     vec4 placed = model * vec4(in_position, 1.0);
     world = placed.xyz;
-    normal = mat3(model) * in_normal;
+    vec3 n = normalize(mat3(model) * in_normal);
+    normal = dot(n, eye - world) < 0.0 ? -n : n;
     uv = in_uv;
+    direct = vec3(0.0);
+    sun = vec3(0.0);
+DIRECTIONAL
     gl_Position = view_projection * placed;
 }
 """
 
-_FRAGMENT_HEAD = """
+_FRAGMENT = """
 #version 330
 uniform mat4 shadow_matrix;  // world -> the shadow maps' texture coordinates and depth
 uniform sampler2DShadow shadow_static;
@@ -62,14 +68,14 @@ uniform vec3 m_specular;
 uniform vec3 m_emissive;
 uniform float m_shininess;
 uniform float m_opacity;
-uniform bool m_lit;
-uniform bool m_shiny;  // m_specular is not black
-uniform bool m_textured;
+KIND
 uniform sampler2D albedo;
 uniform bool mono;
 in vec3 world;
 in vec3 normal;
 in vec2 uv;
+in vec3 direct;
+in vec3 sun;
 out vec4 out_color;
 
 float lit_by_sun() {
@@ -80,12 +86,16 @@ float lit_by_sun() {
     return lit;
 }
 
+void add_specular(vec3 n, vec3 v, vec3 l, float k, vec3 light_specular, inout vec3 specular) {
+    if (k > 0.0 && dot(n, l) > 0.0) specular += light_specular * (k * pow(max(dot(n, normalize(l + v)), 0.0), m_shininess));
+}
+
 void add_light(vec3 n, vec3 v, vec3 l, float k, vec3 light_diffuse, vec3 light_specular,
                inout vec3 diffuse, inout vec3 specular) {
     float nl = dot(n, l);
     if (k <= 0.0 || nl <= 0.0) return;
     diffuse += light_diffuse * (k * nl);
-    if (m_shiny) specular += light_specular * (k * pow(max(dot(n, normalize(l + v)), 0.0), m_shininess));
+    if (m_shiny) add_specular(n, v, l, k, light_specular, specular);
 }
 
 void main() {
@@ -94,18 +104,22 @@ void main() {
     if (!m_lit) {
         color = base * m_diffuse;
     } else {
-        vec3 n = normalize(normal);
-        vec3 v = normalize(eye - world);
-        if (dot(n, v) < 0.0) n = -n;
-        vec3 diffuse = vec3(0.0);
+        vec3 diffuse = direct;
         vec3 specular = vec3(0.0);
-        vec3 l;
-        vec3 d;
-        float dist;
-        float k;
-"""
-
-_FRAGMENT_TAIL = """
+        float sunlit = 1.0;
+SUN
+        if (PER_FRAGMENT) {
+            vec3 n = normalize(normal);
+            vec3 v = normalize(eye - world);
+            vec3 l;
+            vec3 d;
+            float dist;
+            float k;
+POSITIONAL
+            if (m_shiny) {
+SPECULAR
+            }
+        }
         color = SCENE_AMBIENT * m_ambient * base + diffuse * m_diffuse * base + specular * m_specular + m_emissive;
     }
     color = clamp(color, 0.0, 1.0);
@@ -114,36 +128,72 @@ _FRAGMENT_TAIL = """
 """
 
 
-def fragment_shader(lighting: Light) -> str:
-    """The fragment shader for the world's lighting: each light's code written out with its values
-    as constants (lighting never changes in a worker's life), so a fragment runs no loop and reads
-    no light arrays; at most `MAX_LIGHTS` lights, with a warning for the rest."""
+class Kind(NamedTuple):
+    """What a surface needs of the fragment shader: each kind is a program of its own, as llvmpipe
+    runs both sides of every branch (a branch on a uniform saves nothing there)."""
+
+    lit: bool
+    textured: bool
+    shiny: bool
+    """Its specular colour is not black: highlights are worked out."""
+
+    @staticmethod
+    def of(surface: Surface, textured: bool) -> Kind:
+        return Kind(surface.lit, textured, any(surface.specular))
+
+
+def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
+    """(vertex, fragment) shaders for a kind of surface in the world's lighting, its lights' values
+    written in as constants (lighting never changes in a worker's life), so a fragment runs no loop
+    and reads no light arrays. Directional lights' diffuse light is worked out per vertex (exact on flat faces:
+    one normal, one direction), the sun's shadow, point and spot lights and highlights per
+    fragment. At most `MAX_LIGHTS` lights, with a warning for the rest."""
     sources = lighting.sources
     if len(sources) > MAX_LIGHTS:
         log.warning("the world has %d lights; the renderer shades the first %d", len(sources), MAX_LIGHTS)
         sources = sources[:MAX_LIGHTS]
-    body = "".join(_light_code(source, index == lighting.shadow_caster) for index, source in enumerate(sources))
-    return _FRAGMENT_HEAD + body + _FRAGMENT_TAIL.replace("SCENE_AMBIENT", _vec3(lighting.ambient))
+    caster = lighting.shadow_caster
+    directional = [(i, s) for i, s in enumerate(sources) if s.type == "directional"]
+    per_vertex = "".join(
+        f"    {'sun' if i == caster else 'direct'} += {_vec3(s.diffuse)} * max(dot(normal, {_vec3(_towards(s))}), 0.0);\n"
+        for i, s in directional
+    )
+    sun = (
+        "        if (sun != vec3(0.0)) { sunlit = lit_by_sun(); diffuse += sun * sunlit; }\n"
+        if caster is not None
+        else ""
+    )
+    positional = "".join(_positional_code(s) for s in sources if s.type != "directional")
+    specular = "".join(
+        f"                add_specular(n, v, {_vec3(_towards(s))}, {'sunlit' if i == caster else '1.0'}, {_vec3(s.specular)}, specular);\n"
+        for i, s in directional
+        if any(s.specular)
+    )
+    vertex = _VERTEX.replace("DIRECTIONAL\n", per_vertex)
+    fragment = _FRAGMENT.replace("SUN\n", sun).replace("POSITIONAL\n", positional).replace("SPECULAR\n", specular)
+    per_fragment = "true" if positional else "m_shiny"  # else only a highlight needs the fragment's normal
+    flags = "".join(f"#define m_{name} {str(value).lower()}\n" for name, value in kind._asdict().items())
+    fragment = fragment.replace("SCENE_AMBIENT", _vec3(lighting.ambient)).replace("PER_FRAGMENT", per_fragment)
+    return vertex, fragment.replace("KIND\n", flags)
 
 
-def _light_code(source: LightSource, shadowed: bool) -> str:
-    """GLSL adding one light to `diffuse` and `specular` (see the module docstring for the formulas)."""
+def _towards(source: LightSource) -> npt.NDArray[np.float64]:
+    """Unit vector towards a directional light (against the way it travels)."""
     direction = np.asarray(source.direction, dtype=np.float64)
-    direction = direction / (np.linalg.norm(direction) or 1.0)
-    if source.type == "directional":
-        code = f"l = {_vec3(-direction)}; k = 1.0;"
-    else:
-        reach, (c, lin, q) = source.range, source.attenuation
-        code = (
-            f"d = {_vec3(source.position)} - world; dist = length(d); l = d / max(dist, 1e-6);"
-            f" k = dist > {_float(reach)} ? 0.0 : 1.0 / max({_float(c)} + {_float(lin)} * dist + {_float(q)} * dist * dist, 1e-6);"
-        )
-        if source.type == "spot":
-            code += _cone_code(direction, *source.spot)
-    if shadowed:
-        code += " if (k > 0.0 && dot(n, l) > 0.0) k *= lit_by_sun();"
+    return -direction / (np.linalg.norm(direction) or 1.0)
+
+
+def _positional_code(source: LightSource) -> str:
+    """GLSL adding a point or spot light to `diffuse` and `specular` (the module docstring has the formulas)."""
+    reach, (c, lin, q) = source.range, source.attenuation
+    code = (
+        f"d = {_vec3(source.position)} - world; dist = length(d); l = d / max(dist, 1e-6);"
+        f" k = dist > {_float(reach)} ? 0.0 : 1.0 / max({_float(c)} + {_float(lin)} * dist + {_float(q)} * dist * dist, 1e-6);"
+    )
+    if source.type == "spot":
+        code += _cone_code(-_towards(source), *source.spot)
     diffuse, specular = _vec3(source.diffuse), _vec3(source.specular)
-    return f"        {code}\n        add_light(n, v, l, k, {diffuse}, {specular}, diffuse, specular);\n"
+    return f"            {code}\n            add_light(n, v, l, k, {diffuse}, {specular}, diffuse, specular);\n"
 
 
 def _cone_code(axis: npt.NDArray[np.float64], inner: float, outer: float, falloff: float) -> str:
@@ -170,13 +220,12 @@ DEPTH_VERTEX = """
 uniform mat4 view_projection;
 uniform mat4 model;
 in vec3 in_position;
-invariant gl_Position;
 void main() {
     vec4 placed = model * vec4(in_position, 1.0);
     gl_Position = view_projection * placed;
 }
 """
-"""Depth only: the sun's shadow maps, and each camera's pre-pass (so that each pixel is shaded once)."""
+"""Depth only: the sun's shadow maps."""
 
 DEPTH_FRAGMENT = """
 #version 330
@@ -189,42 +238,33 @@ def gl_matrix(m: npt.NDArray[np.float64]) -> bytes:
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
 
 
-def uniform(program: Any, name: str) -> Any:
-    """A uniform of the program; a shader that lost one (the compiler drops what is unused) fails here, not mid-frame."""
-    member = program.get(name, None)
-    if member is None:
-        raise RuntimeError(f"the GL program has no uniform {name!r}")
-    return member
+class Program:
+    """The camera program for one kind of surface; uniforms the compiler dropped (what this
+    lighting or kind does not read) are skipped when set."""
 
+    def __init__(self, ctx: Any, lighting: Light, kind: Kind, samplers: dict[str, int]) -> None:
+        vertex, fragment = shaders(lighting, kind)
+        self.program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+        self.kind = kind
+        for name, unit in samplers.items():
+            self.set(name, unit)
 
-def write_surface(uniforms: dict[str, Any], surface: Surface, textured: bool) -> None:
-    """A piece's material into the program's uniforms, before its draw; those the compiler dropped
-    for this world's lighting (no ambient, no specular light) are not in `uniforms`."""
-    values = {
-        "m_ambient": surface.ambient,
-        "m_diffuse": surface.diffuse,
-        "m_specular": surface.specular,
-        "m_emissive": surface.emissive,
-        "m_shininess": max(surface.shininess, 1e-3),
-        "m_opacity": surface.opacity,
-        "m_lit": surface.lit,
-        "m_shiny": any(surface.specular),
-        "m_textured": textured,
-    }
-    for name, value in values.items():
-        if (member := uniforms.get(name)) is not None:
+    def set(self, name: str, value: Any) -> None:
+        if (member := self.program.get(name, None)) is not None:
             member.value = value
 
+    def write(self, name: str, data: bytes) -> None:
+        if (member := self.program.get(name, None)) is not None:
+            member.write(data)
 
-SURFACE_UNIFORMS = (
-    "m_ambient",
-    "m_diffuse",
-    "m_specular",
-    "m_emissive",
-    "m_shininess",
-    "m_opacity",
-    "m_lit",
-    "m_shiny",
-    "m_textured",
-)
-"""Uniforms of a surface; the lighting decides which of them the compiler keeps."""
+    def surface(self, surface: Surface) -> None:
+        """A piece's material, before its draw."""
+        self.set("m_ambient", surface.ambient)
+        self.set("m_diffuse", surface.diffuse)
+        self.set("m_specular", surface.specular)
+        self.set("m_emissive", surface.emissive)
+        self.set("m_shininess", max(surface.shininess, 1e-3))
+        self.set("m_opacity", surface.opacity)
+
+    def release(self) -> None:
+        self.program.release()
