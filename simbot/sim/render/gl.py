@@ -7,7 +7,7 @@ Bodies that never move are baked into world-frame vertex buffers, one per surfac
 material); each (link, surface) of a moving body is one buffer in its link frame, drawn with the
 link's transform of the request. A body added or removed at run time adds or drops its parts; a
 static one re-bakes the world's buffers from the static bodies' vertices, which are kept for that.
-Textures are read and uploaded (mipmapped) once per worker, the first time a piece names them; an
+Textures are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per worker, the first time a piece names them; an
 image that cannot be read is one warning and the piece shows its colour.
 
 Shading is in `gl_shaders.py` (Gazebo's material model, the world's lights, `Light`), the sun's
@@ -218,6 +218,7 @@ class GlRenderer:
         if path is None or path in self._textures:
             return
         import cv2
+        import moderngl
 
         image = cv2.imread(path, cv2.IMREAD_COLOR)
         if image is None:
@@ -227,6 +228,10 @@ class GlRenderer:
         rgb = np.ascontiguousarray(image[::-1, :, ::-1])  # GL's first row is the image's bottom one
         texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
         texture.build_mipmaps()
+        texture.filter = (
+            moderngl.LINEAR_MIPMAP_NEAREST,
+            moderngl.LINEAR,
+        )  # trilinear cost half as much again on llvmpipe
         self._textures[path] = texture
 
     def _target(self, spec: CameraSpec) -> _Target:
