@@ -1,8 +1,9 @@
-"""What the OpenGL renderer shades, with real GL (skipped where no EGL context opens) and real
-PyBullet scenes: a point light's falloff and a spot light's cone against Gazebo's formulas, the
+"""What the OpenGL renderer shades, with real GL (those tests skipped where no EGL context opens)
+and real PyBullet scenes: a point light's falloff and a spot light's cone against Gazebo's formulas, the
 sun's shadow on the side away from it (from a static and from a moving body, and none with the
 scene's shadows off), the sky colour, emissive and unlit surfaces, translucency, textures, and
-Gazebo's near clip (a depth camera inside its housing box reads the scene).
+Gazebo's near clip (a depth camera inside its housing box reads the scene), a world's SDF lights
+and scene turned into the renderers' lighting, and the limit on lights.
 
 Most tests draw in this process (`GlRenderer` on a `BulletScene`, as a worker does), where a test
 can dress a body's pieces in surfaces of its own (`dressed`): the materials that SDF gives them
@@ -31,7 +32,7 @@ from simbot.sim.render.surfaces import Piece, Surface
 from simbot.sim.render.visuals import body_pieces
 from simbot.transform import Transform
 
-pytestmark = pytest.mark.skipif(NO_EGL is not None, reason=NO_EGL or "")
+needs_gl = pytest.mark.skipif(NO_EGL is not None, reason=NO_EGL or "")
 
 SIZE = 201  # odd: the centre pixel looks along the optical axis
 HFOV = 2.0 * math.atan((SIZE / 2.0) / 100.0)  # fx = fy = 100 px
@@ -98,6 +99,7 @@ def floor_point(spec: CameraSpec, height: float, u: float, v: float) -> tuple[fl
     return (cy - v) / spec.fx * height, -(u - cx) / spec.fx * height
 
 
+@needs_gl
 def test_point_light_falls_off_as_gazebo_attenuates_it_and_stops_at_its_range() -> None:
     """A point light 1 m above a white floor: each pixel of the centre row shows
     N·L / (c + l·d + q·d²) with N·L = 1/d, and nothing beyond `range` (2 m)."""
@@ -118,6 +120,7 @@ def test_point_light_falls_off_as_gazebo_attenuates_it_and_stops_at_its_range() 
     assert checked > SIZE * 0.9
 
 
+@needs_gl
 def test_spot_light_cone_ends_at_half_its_outer_angle_and_fades_from_the_inner_one() -> None:
     """A spot 2 m above the floor pointing down, cones 40° and 60° (full angles), falloff 1: full
     light within 20° of the axis, none beyond 30°, and Ogre's linear fade between."""
@@ -141,6 +144,7 @@ def test_spot_light_cone_ends_at_half_its_outer_angle_and_fades_from_the_inner_o
     assert max(lit_radii) == pytest.approx(height * math.tan(outer / 2), abs=2 * pixel)
 
 
+@needs_gl
 @pytest.mark.parametrize("static", [True, False], ids=["static", "moving"])
 def test_a_box_casts_the_suns_shadow_on_the_floor_away_from_the_sun(static: bool) -> None:
     """The sun travels along +x and down at 45°: a 1 m cube's shadow lies on the floor from its +x
@@ -163,6 +167,7 @@ def test_a_box_casts_the_suns_shadow_on_the_floor_away_from_the_sun(static: bool
             assert abs(value - expected) <= TOLERANCE, f"shadows {shadows}, floor {x} m from the cube: {value}"
 
 
+@needs_gl
 def test_the_sky_is_the_scene_background_in_colour_and_in_mono() -> None:
     sky = (0.2, 0.4, 0.6)
     light = replace(Light(), background=sky)
@@ -174,6 +179,7 @@ def test_the_sky_is_the_scene_background_in_colour_and_in_mono() -> None:
     assert abs(float(mono[0, 0]) - 255 * float(np.dot(sky, LUMA))) <= 1
 
 
+@needs_gl
 def test_emissive_adds_to_the_lit_colour_and_unlit_shows_its_colour_as_is() -> None:
     """Lit face on: ambient 0.2 × 0.4 + sun 0.5 × 0.4 + emissive (0.3, 0, 0); an unlit surface shows
     its diffuse colour whatever the light."""
@@ -195,6 +201,7 @@ def test_emissive_adds_to_the_lit_colour_and_unlit_shows_its_colour_as_is() -> N
     np.testing.assert_allclose(right, 255 * np.array([0.1, 0.8, 0.3]), atol=TOLERANCE)
 
 
+@needs_gl
 def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -> None:
     """A green box of opacity 0.5 before a red wall: its back face, then its front face, each blend
     half over what lies behind (0.75 green + 0.25 red); the depth is the wall's."""
@@ -215,6 +222,7 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
     assert float(frame["depth"][SIZE // 2, SIZE // 2]) == pytest.approx(3.0, abs=0.005)
 
 
+@needs_gl
 def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -250,6 +258,7 @@ def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
     ) == 1
 
 
+@needs_gl
 def test_a_depth_camera_inside_its_housing_box_reads_the_scene() -> None:
     """gz-sim's depth_camera_sensor world in shape: the camera at the centre of its 0.1 m housing box
     (near 0.1 m), 4 m from a 1 m box it faces, over a floor. The housing is cut away at the near
@@ -275,3 +284,52 @@ def test_a_depth_camera_inside_its_housing_box_reads_the_scene() -> None:
     assert not np.isneginf(depth).any()
     assert np.isfinite(depth[size - 10]).all()  # the floor at the bottom of the image
     assert np.isposinf(depth[round(cy) - 10, size - 10])
+
+
+WORLD_SDF = """<?xml version="1.0"?>
+<sdf version="1.9"><world name="lit">
+  <scene><ambient>0.1 0.2 0.3 1</ambient><background>0.4 0.5 0.6 1</background><shadows>false</shadows></scene>
+  <light type="directional" name="sun"><cast_shadows>true</cast_shadows><diffuse>0.8 0.8 0.8 1</diffuse>
+    <direction>0 0 -1</direction><intensity>0.5</intensity></light>
+  <light type="spot" name="lamp"><pose>1 2 3 0 1.5707963 0</pose><diffuse>1 0.5 0 1</diffuse>
+    <direction>0 0 -1</direction>
+    <attenuation><range>7</range><constant>0.2</constant><linear>0.3</linear><quadratic>0.4</quadratic></attenuation>
+    <spot><inner_angle>0.5</inner_angle><outer_angle>1.0</outer_angle><falloff>2</falloff></spot></light>
+  <light type="point" name="bulb"><range>3</range></light>
+</world></sdf>"""
+
+
+def test_the_worlds_sdf_lights_and_scene_become_the_renderers_lighting(tmp_path: Path) -> None:
+    """Intensity scales the colours, the pose places the light and turns its direction (here
+    pitched 90°: −z becomes −x), attenuation and spot as written, SDF's defaults elsewhere (a
+    point light's `<attenuation>` block absent: range 10, constant 1, linear 1, quadratic 0);
+    `<scene><shadows>` false leaves no shadow caster."""
+    from simbot.description import load_world
+    from simbot.sim.systems.rendering import world_light
+
+    path = tmp_path / "lit.sdf"
+    path.write_text(WORLD_SDF)
+    lighting = world_light(load_world(path))
+    sun, lamp, bulb = lighting.sources
+    assert (lighting.ambient, lighting.background, lighting.shadows) == ((0.1, 0.2, 0.3), (0.4, 0.5, 0.6), False)
+    assert sun.diffuse == pytest.approx((0.4, 0.4, 0.4)) and sun.cast_shadows
+    assert lighting.shadow_caster is None and replace(lighting, shadows=True).shadow_caster == 0
+    assert lamp.type == "spot" and lamp.position == pytest.approx((1.0, 2.0, 3.0))
+    assert lamp.direction == pytest.approx((-1.0, 0.0, 0.0), abs=1e-6)
+    assert (lamp.range, lamp.attenuation, lamp.spot) == (7.0, (0.2, 0.3, 0.4), (0.5, 1.0, 2.0))
+    assert (bulb.range, bulb.attenuation) == (10.0, (1.0, 1.0, 0.0))  # <range> outside <attenuation> is not SDF
+
+
+@needs_gl
+def test_more_lights_than_the_shader_holds_are_one_warning(caplog: pytest.LogCaptureFixture) -> None:
+    """Nine lights: the first eight shade (the ninth, a bright sun, changes nothing), one warning."""
+    dim = LightSource(diffuse=(0.05, 0.05, 0.05), direction=(1.0, 0.0, 0.0))
+    bright = LightSource(diffuse=(1.0, 1.0, 1.0), direction=(1.0, 0.0, 0.0))
+    wall = [SceneBody("wall", box_urdf((0.1, 10.0, 10.0), WHITE), True, ((3.05, 0.0, 0.0), AHEAD))]
+    with (
+        caplog.at_level(logging.WARNING),
+        drawing(wall, replace(DARK, sources=(dim,) * 8 + (bright,)), camera()) as draw,
+    ):
+        pixel = draw(((0.0, 0.0, 0.0), AHEAD))["color"][SIZE // 2, SIZE // 2].astype(float)
+    assert abs(pixel[0] - 255 * 0.4) <= TOLERANCE
+    assert sum("the renderer shades the first 8" in r.message for r in caplog.records) == 1

@@ -38,7 +38,7 @@ from simbot.sim.render.gl_shadow import ShadowMap
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import LUMA
 from simbot.sim.render.scene import BulletScene, Matrix, projection_matrix, view_matrix
-from simbot.sim.render.specs import CameraSpec, Light, SceneBody
+from simbot.sim.render.specs import MAX_LIGHTS, CameraSpec, Light, SceneBody
 from simbot.sim.render.surfaces import Piece, Surface
 from simbot.sim.render.visuals import body_pieces
 from simbot.transform import Transform
@@ -107,6 +107,8 @@ class GlRenderer:
         self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
+        if len(light.sources) > MAX_LIGHTS:
+            log.warning("the world has %d lights; the renderer shades the first %d", len(light.sources), MAX_LIGHTS)
         self.programs: dict[shaders.Kind, shaders.Program] = {}
         """The camera programs, one a kind of surface, compiled when a piece of the kind first comes."""
         caster = light.shadow_caster

@@ -17,7 +17,6 @@ uniform arrays cost three times the whole frame). At most `MAX_LIGHTS` lights.
 
 from __future__ import annotations
 
-import logging
 import math
 from typing import Any, NamedTuple
 
@@ -27,7 +26,6 @@ import numpy.typing as npt
 from simbot.sim.render.specs import MAX_LIGHTS, Light, LightSource
 from simbot.sim.render.surfaces import Surface
 
-log = logging.getLogger(__name__)
 
 _VERTEX = """
 #version 330
@@ -147,11 +145,8 @@ def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
     written in as constants (lighting never changes in a worker's life), so a fragment runs no loop
     and reads no light arrays. Directional lights' diffuse light is worked out per vertex (exact on flat faces:
     one normal, one direction), the sun's shadow, point and spot lights and highlights per
-    fragment. At most `MAX_LIGHTS` lights, with a warning for the rest."""
-    sources = lighting.sources
-    if len(sources) > MAX_LIGHTS:
-        log.warning("the world has %d lights; the renderer shades the first %d", len(sources), MAX_LIGHTS)
-        sources = sources[:MAX_LIGHTS]
+    fragment. The first `MAX_LIGHTS` lights (the renderer warns of the rest)."""
+    sources = lighting.sources[:MAX_LIGHTS]
     caster = lighting.shadow_caster
     directional = [(i, s) for i, s in enumerate(sources) if s.type == "directional"]
     per_vertex = "".join(
