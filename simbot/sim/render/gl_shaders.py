@@ -26,7 +26,6 @@ import numpy.typing as npt
 from simbot.sim.render.specs import MAX_LIGHTS, Light, LightSource
 from simbot.sim.render.surfaces import Surface
 
-
 _VERTEX = """
 #version 330
 uniform mat4 view_projection;
