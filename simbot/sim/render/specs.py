@@ -178,10 +178,11 @@ class Light:
     @property
     def shadow_caster(self) -> int | None:
         """Index of the light whose shadows are drawn: the first directional light with
-        `<cast_shadows>`, where the scene has shadows on."""
+        `<cast_shadows>` among those shaded, where the scene has shadows on."""
         if not self.shadows:
             return None
-        return next((i for i, s in enumerate(self.sources) if s.type == "directional" and s.cast_shadows), None)
+        shaded = self.sources[:MAX_LIGHTS]
+        return next((i for i, s in enumerate(shaded) if s.type == "directional" and s.cast_shadows), None)
 
 
 @dataclass(frozen=True, eq=False)
