@@ -39,6 +39,8 @@ out vec3 normal;
 out vec2 uv;
 out vec3 direct;  // diffuse light of the directional lights but the sun that casts shadows
 out vec3 sun;  // diffuse light of that sun, before its shadow
+out vec3 in_shadow_map;  // where the fragment lies in the sun's shadow maps (texture coordinates, depth)
+uniform mat4 shadow_matrix;  // world -> the shadow maps' texture coordinates and depth
 void main() {
     vec4 placed = model * vec4(in_position, 1.0);
     world = placed.xyz;
@@ -47,6 +49,7 @@ void main() {
     uv = in_uv;
     direct = vec3(0.0);
     sun = vec3(0.0);
+    in_shadow_map = (shadow_matrix * placed).xyz;  // orthographic: no division
 DIRECTIONAL
     gl_Position = view_projection * placed;
 }
@@ -54,7 +57,6 @@ DIRECTIONAL
 
 _FRAGMENT = """
 #version 330
-uniform mat4 shadow_matrix;  // world -> the shadow maps' texture coordinates and depth
 uniform sampler2DShadow shadow_static;
 uniform sampler2DShadow shadow_moving;
 uniform bool shadow_has_moving;
@@ -73,10 +75,11 @@ in vec3 normal;
 in vec2 uv;
 in vec3 direct;
 in vec3 sun;
+in vec3 in_shadow_map;
 out vec4 out_color;
 
 float lit_by_sun() {
-    vec4 p = shadow_matrix * vec4(world, 1.0);
+    vec3 p = in_shadow_map;
     if (any(lessThan(p.xyz, vec3(0.0))) || any(greaterThan(p.xyz, vec3(1.0)))) return 1.0;
     float lit = texture(shadow_static, p.xyz);
     if (shadow_has_moving) lit = min(lit, texture(shadow_moving, p.xyz));
