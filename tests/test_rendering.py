@@ -223,6 +223,18 @@ def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, r
     np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
 
 
+def test_a_coloured_sun_and_the_scene_ambient_shade_alike_in_both_renderers(renderer: str) -> None:
+    """Scene ambient 0.3 (grey) and a sun of diffuse (0.5, 0.3, 0.2) face on: the orange face shows
+    colour × (0.3 + sun), channel by channel, in GL and in TinyRenderer (its one light's colour
+    and ambient coefficient)."""
+    sun = LightSource(diffuse=(0.5, 0.3, 0.2), direction=(1.0, 0.0, 0.0))
+    lighting = Light(sources=(sun,), ambient=(0.3, 0.3, 0.3))
+    orange = [b for b in scene() if b.name == "orange"]
+    with RenderPool(orange, CAMERAS[:1], workers=1, renderer=renderer, light=lighting) as one:
+        pixel = render(one, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
+    np.testing.assert_allclose(pixel, 255 * np.array(ORANGE[:3]) * (0.3 + np.array(sun.diffuse)), atol=2)
+
+
 def test_mono_is_luminance(pool: RenderPool) -> None:
     """The mono output: H×W uint8, the BT.601 luminance of the RGB image."""
     rgb = render(pool, RGB, AHEAD)["color"].astype(float)
