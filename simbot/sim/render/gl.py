@@ -222,7 +222,9 @@ class GlRenderer:
         import cv2
         import moderngl
 
-        image = cv2.imread(path, cv2.IMREAD_COLOR)
+        image = (
+            cv2.imread(path, cv2.IMREAD_COLOR) if os.path.isfile(path) else None
+        )  # OpenCV writes its own line for a missing file
         if image is None:
             log.warning("texture %s cannot be read; its surfaces show their colour", path)
             self._textures[path] = None
