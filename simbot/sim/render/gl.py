@@ -7,8 +7,9 @@ Bodies that never move are baked into world-frame vertex buffers, one per surfac
 material); each (link, surface) of a moving body is one buffer in its link frame, drawn with the
 link's transform of the request. A body added or removed at run time adds or drops its parts; a
 static one re-bakes the world's buffers from the static bodies' vertices, which are kept for that.
-Textures are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per worker, the first time a piece names them; an
-image that cannot be read is one warning and the piece shows its colour.
+Textures are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per
+worker, the first time a piece names them; an image that cannot be read is one warning and the
+piece shows its colour.
 
 Shading is in `gl_shaders.py` (Gazebo's material model, the world's lights, `Light`), the sun's
 shadows in `gl_shadow.py`. The sky is `<scene><background>`. Opaque parts are drawn first, then
@@ -144,7 +145,12 @@ class GlRenderer:
         """Draw a body the scene has just loaded."""
         body = self.scene.bodies[name]
         self._load(body)
-        self._bake()
+        if body.static:
+            self._bake()
+            return
+        self._posed = -1
+        if self.shadow is not None:
+            self._fit_shadow()  # the sun's view takes in where it came
 
     def remove_body(self, name: str) -> None:
         """Stop drawing a body, before the scene drops it."""
@@ -152,8 +158,9 @@ class GlRenderer:
             if part.body == name:
                 part.release()
         self.parts = [part for part in self.parts if part.body != name]
-        self._static.pop(name, None)
-        self._bake()
+        self._posed = -1
+        if self._static.pop(name, None) is not None:
+            self._bake()
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.targets[index] = self._target(spec)
@@ -209,9 +216,8 @@ class GlRenderer:
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
         program = self._program(shaders.Kind.of(surface, texture is not None))
         attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
-        vao = self.ctx.vertex_array(
-            program.program, attributes, skip_errors=True
-        )  # what the kind does not read is skipped
+        # attributes the kind does not read (a world with no light reads no normal) are skipped
+        vao = self.ctx.vertex_array(program.program, attributes, skip_errors=True)
         depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
         return _Part(buffer, vao, depth_vao, body, link, surface, texture, program)
 
@@ -222,9 +228,8 @@ class GlRenderer:
         import cv2
         import moderngl
 
-        image = (
-            cv2.imread(path, cv2.IMREAD_COLOR) if os.path.isfile(path) else None
-        )  # OpenCV writes its own line for a missing file
+        # OpenCV would write a line of its own for a missing file
+        image = cv2.imread(path, cv2.IMREAD_COLOR) if os.path.isfile(path) else None
         if image is None:
             log.warning("texture %s cannot be read; its surfaces show their colour", path)
             self._textures[path] = None
@@ -232,10 +237,8 @@ class GlRenderer:
         rgb = np.ascontiguousarray(image[::-1, :, ::-1])  # GL's first row is the image's bottom one
         texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
         texture.build_mipmaps()
-        texture.filter = (
-            moderngl.LINEAR_MIPMAP_NEAREST,
-            moderngl.LINEAR,
-        )  # trilinear cost half as much again on llvmpipe
+        # bilinear from the nearest level: trilinear cost half as much again on llvmpipe
+        texture.filter = (moderngl.LINEAR_MIPMAP_NEAREST, moderngl.LINEAR)
         self._textures[path] = texture
 
     def _target(self, spec: CameraSpec) -> _Target:
