@@ -222,6 +222,20 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
     assert float(frame["depth"][SIZE // 2, SIZE // 2]) == pytest.approx(3.0, abs=0.005)
 
 
+PANEL = SceneBody("panel", box_urdf((0.01, 0.01, 0.01), WHITE), True, ((0.0, 0.0, 0.0), AHEAD))
+"""A body whose pieces `panel_pieces` gives."""
+
+
+def panel_pieces(surface: Surface) -> Pieces:
+    """A quad 2 m ahead of a camera at the origin, 2 m wide, facing it: y +1 (the image's left) is
+    u 0, z −0.5 (its bottom) is v 0."""
+    corners = np.array([[2.0, 1.0, -0.5], [2.0, -1.0, -0.5], [2.0, -1.0, 0.5], [2.0, 1.0, 0.5]], dtype=np.float32)
+    uvs = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], dtype=np.float32)
+    order = [0, 1, 2, 0, 2, 3]
+    normals = np.tile(np.array([[-1.0, 0.0, 0.0]], dtype=np.float32), (6, 1))
+    return lambda scene, name: [Piece(-1, corners[order], normals, uvs[order], surface)]
+
+
 @needs_gl
 def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
@@ -235,17 +249,11 @@ def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
     image[:, 32:] = (255, 0, 0)  # blue on the right
     cv2.imwrite(str(tmp_path / "halves.png"), image)
     (tmp_path / "broken.png").write_bytes(b"not an image")
-    # a quad 2 m ahead, 2 m wide: y +1 (image left) is u 0, z −0.5 (bottom) is v 0
-    corners = np.array([[2.0, 1.0, -0.5], [2.0, -1.0, -0.5], [2.0, -1.0, 0.5], [2.0, 1.0, 0.5]], dtype=np.float32)
-    uvs = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]], dtype=np.float32)
-    order = [0, 1, 2, 0, 2, 3]
-    normals = np.tile(np.array([[-1.0, 0.0, 0.0]], dtype=np.float32), (6, 1))
 
     def panel(texture: str) -> Pieces:
-        surface = Surface(diffuse=(1.0, 1.0, 1.0), lit=False, albedo_map=str(tmp_path / texture))
-        return lambda scene, name: [Piece(-1, corners[order], normals, uvs[order], surface)]
+        return panel_pieces(Surface(diffuse=(1.0, 1.0, 1.0), lit=False, albedo_map=str(tmp_path / texture)))
 
-    body = [SceneBody("panel", box_urdf((0.01, 0.01, 0.01), WHITE), True, ((0.0, 0.0, 0.0), AHEAD))]
+    body = [PANEL]
     with drawing(body, DARK, camera(), panel("halves.png")) as draw:
         row = draw(((0.0, 0.0, 0.0), AHEAD))["color"][SIZE // 2]
     np.testing.assert_array_equal(row[SIZE // 2 - 20], [255, 0, 0])
@@ -256,6 +264,29 @@ def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
     assert [r.message for r in caplog.records].count(
         f"texture {tmp_path / 'broken.png'} cannot be read; its surfaces show their colour"
     ) == 1
+
+
+@needs_gl
+@pytest.mark.parametrize("axis", ["u", "v"])
+def test_a_normal_map_tilts_the_surface_towards_its_texture_axes(tmp_path: Path, axis: str) -> None:
+    """A panel facing the camera, its normal map tilting every normal 30° towards +u (the image's
+    right: world −y) or +v (up: world +z): a light grazing the panel from that side lights it by
+    sin 30°, one from the other side not at all (the flat panel: by neither)."""
+    import cv2
+
+    tilt = math.radians(30.0)
+    tangent = (math.sin(tilt), 0.0, math.cos(tilt)) if axis == "u" else (0.0, math.sin(tilt), math.cos(tilt))
+    rgb = np.rint((np.array(tangent) * 0.5 + 0.5) * 255).astype(np.uint8)
+    cv2.imwrite(str(tmp_path / "bumps.png"), np.tile(rgb[::-1], (16, 16, 1)))
+    towards = (0.0, -1.0, 0.0) if axis == "u" else (0.0, 0.0, 1.0)  # where +u / +v points in the world
+    surface = Surface(diffuse=(1.0, 1.0, 1.0), ambient=(0.0, 0.0, 0.0), normal_map=str(tmp_path / "bumps.png"))
+    centre = []
+    for sign in (1.0, -1.0):
+        grazing = LightSource(diffuse=(1.0, 1.0, 1.0), direction=tuple(-sign * c for c in towards))  # type: ignore[arg-type]
+        with drawing([PANEL], replace(DARK, sources=(grazing,)), camera(), panel_pieces(surface)) as draw:
+            centre.append(float(draw(((0.0, 0.0, 0.0), AHEAD))["color"][SIZE // 2, SIZE // 2, 0]))
+    assert centre[0] == pytest.approx(255 * math.sin(tilt), abs=3)  # 8-bit normals
+    assert centre[1] == 0.0
 
 
 @needs_gl

@@ -7,7 +7,7 @@ Bodies that never move are baked into world-frame vertex buffers, one per surfac
 material); each (link, surface) of a moving body is one buffer in its link frame, drawn with the
 link's transform of the request. A body added or removed at run time adds or drops its parts; a
 static one re-bakes the world's buffers from the static bodies' vertices, which are kept for that.
-Textures are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per
+Textures (albedo and normal maps) are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per
 worker, the first time a piece names them; an image that cannot be read is one warning and the
 piece shows its colour.
 
@@ -49,7 +49,7 @@ log = logging.getLogger(__name__)
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 ROW = "3f 3f 2f"
 """A vertex: position, normal, texture coordinates (float32, 32 bytes)."""
-ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT = 0, 1, 2
+ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 
 Rows = npt.NDArray[np.float32]
 
@@ -68,6 +68,7 @@ class _Part:
     link: int
     surface: Surface
     texture: Any | None
+    normal_map: Any | None
     program: shaders.Program
 
     def release(self) -> None:
@@ -170,6 +171,7 @@ class GlRenderer:
         pieces = self.pieces(self.scene, body.name)
         for piece in pieces:
             self._texture(piece.surface.albedo_map)
+            self._texture(piece.surface.normal_map)
         if body.static:
             frames = self.scene.link_matrices(body.name)
             self._static[body.name] = [(p.surface, _rows(p, frames[p.link])) for p in pieces]
@@ -214,12 +216,13 @@ class GlRenderer:
     def _part(self, data: Rows, body: str | None, link: int, surface: Surface) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
-        program = self._program(shaders.Kind.of(surface, texture is not None))
+        normal_map = self._textures.get(surface.normal_map) if surface.normal_map else None
+        program = self._program(shaders.Kind.of(surface, texture is not None, normal_map is not None))
         attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
         # attributes the kind does not read (a world with no light reads no normal) are skipped
         vao = self.ctx.vertex_array(program.program, attributes, skip_errors=True)
         depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
-        return _Part(buffer, vao, depth_vao, body, link, surface, texture, program)
+        return _Part(buffer, vao, depth_vao, body, link, surface, texture, normal_map, program)
 
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
@@ -299,6 +302,8 @@ class GlRenderer:
         part.program.surface(part.surface)
         if part.texture is not None:
             part.texture.use(ALBEDO_UNIT)
+        if part.normal_map is not None:
+            part.normal_map.use(NORMAL_UNIT)
         part.vao.render()
 
     def _transforms(self) -> list[bytes]:
@@ -338,7 +343,12 @@ class GlRenderer:
         self.ctx.release()  # with it everything it made
 
 
-_SAMPLERS = {"albedo": ALBEDO_UNIT, "shadow_static": SHADOW_STATIC_UNIT, "shadow_moving": SHADOW_MOVING_UNIT}
+_SAMPLERS = {
+    "albedo": ALBEDO_UNIT,
+    "shadow_static": SHADOW_STATIC_UNIT,
+    "shadow_moving": SHADOW_MOVING_UNIT,
+    "normal_map": NORMAL_UNIT,
+}
 """Texture units of the programs' samplers, fixed for their life."""
 
 

@@ -7,8 +7,10 @@ material specular × (N·H)^shininess, scaled by the light's attenuation (point 
 the inner angle, none outside half the outer angle, ((cos θ − cos ½outer) / (cos ½inner − cos ½outer))^falloff
 between) and, for the sun that casts shadows, its shadow map; plus emissive. An albedo map
 multiplies the diffuse and ambient colours. An unlit surface (`<lighting>` false) shows its diffuse
-colour (or texture) as is. Normals face the viewer (a mesh's winding is not trusted), and normal
-maps are not applied (their cost is a tangent frame per vertex; not reached).
+colour (or texture) as is. Normals face the viewer (a mesh's winding is not trusted). A normal
+map (tangent space, OpenGL's convention: green up the texture's v) bends the normal in a tangent
+frame worked out per fragment from the derivatives of position and texture coordinates, so no
+tangents are stored; only its surfaces pay for it.
 
 The shaders are written for the world's lights (`shaders`): their values are
 constants in it, so a fragment runs no loop over lights and reads no arrays (on llvmpipe a loop over
@@ -69,6 +71,7 @@ uniform float m_shininess;
 uniform float m_opacity;
 KIND
 uniform sampler2D albedo;
+uniform sampler2D normal_map;
 uniform bool mono;
 in vec3 world;
 in vec3 normal;
@@ -98,6 +101,22 @@ void add_light(vec3 n, vec3 v, vec3 l, float k, vec3 light_diffuse, vec3 light_s
     if (m_shiny) add_specular(n, v, l, k, light_specular, specular);
 }
 
+vec3 bumped(vec3 n) {
+    // the tangent frame from the screen-space derivatives of position and uv (no tangents stored);
+    // negated, as the projection flips y (which flips both derivatives along y)
+    vec3 dp1 = dFdx(world);
+    vec3 dp2 = dFdy(world);
+    vec2 duv1 = dFdx(uv);
+    vec2 duv2 = dFdy(uv);
+    vec3 dp2perp = cross(dp2, n);
+    vec3 dp1perp = cross(n, dp1);
+    vec3 t = dp2perp * duv1.x + dp1perp * duv2.x;
+    vec3 b = dp2perp * duv1.y + dp1perp * duv2.y;
+    if (dot(t, t) < 1e-20 || dot(b, b) < 1e-20) return n;  // no texture coordinates to bend along
+    vec3 m = texture(normal_map, uv).rgb * 2.0 - 1.0;
+    return normalize(-normalize(t) * m.x - normalize(b) * m.y + n * m.z);  // unit tangents, as stored ones
+}
+
 void main() {
     vec3 base = m_textured ? texture(albedo, uv).rgb : vec3(1.0);
     vec3 color;
@@ -110,11 +129,13 @@ void main() {
 SUN
         if (PER_FRAGMENT) {
             vec3 n = normalize(normal);
+            if (m_bumpy) n = bumped(n);
             vec3 v = normalize(eye - world);
             vec3 l;
             vec3 d;
             float dist;
             float k;
+DIRECTIONAL
 POSITIONAL
             if (m_shiny) {
 SPECULAR
@@ -136,18 +157,20 @@ class Kind(NamedTuple):
     textured: bool
     shiny: bool
     """Its specular colour is not black: highlights are worked out."""
+    bumpy: bool
+    """It has a normal map: the directional lights too are worked out per fragment."""
 
     @staticmethod
-    def of(surface: Surface, textured: bool) -> Kind:
-        return Kind(surface.lit, textured, any(surface.specular))
+    def of(surface: Surface, textured: bool, bumpy: bool) -> Kind:
+        return Kind(surface.lit, textured, any(surface.specular), bumpy)
 
 
 def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
     """(vertex, fragment) shaders for a kind of surface in the world's lighting, its lights' values
     written in as constants (lighting never changes in a worker's life), so a fragment runs no loop
-    and reads no light arrays. Directional lights' diffuse light is worked out per vertex (exact on flat faces:
-    one normal, one direction), the sun's shadow, point and spot lights and highlights per
-    fragment. The first `MAX_LIGHTS` lights (the renderer warns of the rest)."""
+    and reads no light arrays. Directional lights' diffuse light is worked out per vertex (exact on
+    flat faces: one normal, one direction; per fragment on a normal-mapped surface), the sun's
+    shadow, point and spot lights and highlights per fragment. The first `MAX_LIGHTS` lights (the renderer warns of the rest)."""
     sources = lighting.sources[:MAX_LIGHTS]
     caster = lighting.shadow_caster
     directional = [(i, s) for i, s in enumerate(sources) if s.type == "directional"]
@@ -160,6 +183,9 @@ def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
         if caster is not None
         else ""
     )
+    per_fragment_directional = "".join(_bumpy_directional_code(s, i == caster) for i, s in directional)
+    if kind.bumpy:  # the map's normal varies within a face: every light per fragment, highlights with them
+        per_vertex, sun = "", ""
     positional = "".join(_positional_code(s) for s in sources if s.type != "directional")
     specular = "".join(
         f"                add_specular(n, v, {_vec3(_towards(s))}, {'sunlit' if i == caster else '1.0'}, {_vec3(s.specular)}, specular);\n"
@@ -167,8 +193,12 @@ def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
         if any(s.specular)
     )
     vertex = _VERTEX.replace("DIRECTIONAL\n", per_vertex)
-    fragment = _FRAGMENT.replace("SUN\n", sun).replace("POSITIONAL\n", positional).replace("SPECULAR\n", specular)
-    per_fragment = "true" if positional else "m_shiny"  # else only a highlight needs the fragment's normal
+    fragment = _FRAGMENT.replace("SUN\n", sun).replace("POSITIONAL\n", positional)
+    fragment = fragment.replace("DIRECTIONAL\n", per_fragment_directional if kind.bumpy else "")
+    fragment = fragment.replace("SPECULAR\n", "" if kind.bumpy else specular)
+    per_fragment = (
+        "true" if positional or kind.bumpy else "m_shiny"
+    )  # else only a highlight needs the fragment's normal
     flags = "".join(f"#define m_{name} {str(value).lower()}\n" for name, value in kind._asdict().items())
     fragment = fragment.replace("SCENE_AMBIENT", _vec3(lighting.ambient)).replace("PER_FRAGMENT", per_fragment)
     return vertex, fragment.replace("KIND\n", flags)
@@ -178,6 +208,15 @@ def _towards(source: LightSource) -> npt.NDArray[np.float64]:
     """Unit vector towards a directional light (against the way it travels)."""
     direction = np.asarray(source.direction, dtype=np.float64)
     return -direction / (np.linalg.norm(direction) or 1.0)
+
+
+def _bumpy_directional_code(source: LightSource, shadowed: bool) -> str:
+    """GLSL adding a directional light per fragment (a normal-mapped surface), the sun's shadow with it."""
+    code = f"l = {_vec3(_towards(source))}; k = 1.0;"
+    if shadowed:
+        code += " if (dot(n, l) > 0.0) { sunlit = lit_by_sun(); k = sunlit; }"
+    diffuse, specular = _vec3(source.diffuse), _vec3(source.specular)
+    return f"            {code}\n            add_light(n, v, l, k, {diffuse}, {specular}, diffuse, specular);\n"
 
 
 def _positional_code(source: LightSource) -> str:
