@@ -1,7 +1,8 @@
 """What the OpenGL renderer shades, with real GL (those tests skipped where no EGL context opens)
 and real PyBullet scenes: a point light's falloff and a spot light's cone against Gazebo's formulas, the
 sun's shadow on the side away from it (from a static and from a moving body, and none with the
-scene's shadows off), the sky colour, emissive and unlit surfaces, translucency, textures, and
+scene's shadows off), the sky colour, emissive and unlit surfaces, translucency, textures, normal
+maps, and
 Gazebo's near clip (a depth camera inside its housing box reads the scene), a world's SDF lights
 and scene turned into the renderers' lighting, and the limit on lights.
 

@@ -6,8 +6,8 @@ It lights the scene as far as getCameraImage allows: one light, the world's firs
 of `<scene><ambient>`), no specular (TinyRenderer's highlight ignores the material's specular colour,
 so simbot leaves it off). It has no sky colour (it clears to white whatever `<scene><background>`
 says), no point or spot lights, no emissive, unlit or translucent surfaces, no textures but those
-PyBullet reads itself, no shadows (PyBullet's own are not the sun's), and it does not cut away
-geometry nearer than the near plane as OpenGL does."""
+PyBullet reads itself, no shadows (PyBullet's own are not the sun's). Like OpenGL it cuts away
+geometry nearer than the near plane (a camera inside its housing sees out)."""
 
 from __future__ import annotations
 
