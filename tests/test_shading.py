@@ -268,6 +268,32 @@ def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
 
 
 @needs_gl
+@pytest.mark.parametrize("face", ["-x", "+x"])
+def test_a_textured_box_shows_its_image_upright_on_each_face_it_turns_to_a_camera(tmp_path: Path, face: str) -> None:
+    """A 1 m box whose URDF material names a texture (as the server writes an SDF albedo map): red
+    left half, blue right half, a green top band. Seen from outside, face on, from either side,
+    red lies left, blue right, green on top (not mirrored, not upside down). Lit by the scene's
+    ambient alone (1): the texture's colours exactly."""
+    import cv2
+
+    image = np.zeros((32, 64, 3), dtype=np.uint8)
+    image[:, :32], image[:, 32:], image[:4] = (0, 0, 255), (255, 0, 0), (0, 255, 0)  # BGR
+    cv2.imwrite(str(tmp_path / "halves.png"), image)
+    urdf = box_urdf((1.0, 1.0, 1.0), WHITE).replace(
+        '<color rgba="1.0 1.0 1.0 1.0"/>', f'<color rgba="1 1 1 1"/><texture filename="{tmp_path / "halves.png"}"/>'
+    )
+    box = SceneBody("box", urdf, True, ((2.0, 0.0, 0.0), AHEAD))
+    pose = ((0.0, 0.0, 0.0), AHEAD) if face == "-x" else ((4.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
+    with drawing([box], Light(sources=(), ambient=(1.0, 1.0, 1.0)), camera()) as draw:
+        seen = draw(pose)["color"]
+    c = SIZE // 2  # the face spans 33 px either side of the centre (0.5 m at 1.5 m, fx 100)
+    np.testing.assert_array_equal(seen[c, c - 20], [255, 0, 0])
+    np.testing.assert_array_equal(seen[c, c + 20], [0, 0, 255])
+    np.testing.assert_array_equal(seen[c - 31, c - 20], [0, 255, 0])
+    np.testing.assert_array_equal(seen[c + 31, c - 20], [255, 0, 0])
+
+
+@needs_gl
 @pytest.mark.parametrize("axis", ["u", "v"])
 def test_a_normal_map_tilts_the_surface_towards_its_texture_axes(tmp_path: Path, axis: str) -> None:
     """A panel facing the camera, its normal map tilting every normal 30° towards +u (the image's
