@@ -63,6 +63,7 @@ from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene
+from simbot.sim.render.tiny import tiny_lighting
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
 from simbot.sim.systems.camera import Camera, CameraParams
@@ -131,12 +132,8 @@ def bare_render(client: int, view: View, light: Light) -> None:
         renderer=pb.ER_TINY_RENDERER,
         flags=pb.ER_NO_SEGMENTATION_MASK,
         shadow=0,
-        lightDirection=[-v for v in light.direction],
-        lightColor=list(light.color),
-        lightAmbientCoeff=light.ambient,
-        lightDiffuseCoeff=light.diffuse,
-        lightSpecularCoeff=light.specular,
         physicsClientId=client,
+        **tiny_lighting(light),
     )
 
 
