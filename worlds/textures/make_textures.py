@@ -180,6 +180,11 @@ def paint(name: str) -> Image:
     return image.astype(np.float32)
 
 
+def paint_across(name: str) -> Image:
+    """Worn paint for markings that run along y (a box's top face maps the image's u to x)."""
+    return np.ascontiguousarray(np.rot90(paint(name)))
+
+
 def wall_panel(name: str) -> Image:
     """A 2.5 × 3 m sandwich panel: shallow vertical ribs, seams on its edges and a horizontal one,
     rows of screws, dirt rising from the floor, scuffs where trolleys hit."""
@@ -371,6 +376,7 @@ WORLD_TEXTURES: dict[str, Callable[[str], Image]] = {
     "floor_a.jpg": concrete,
     "floor_b.jpg": concrete,
     "paint.png": paint,
+    "paint_v.png": paint_across,
     "wall_panel_a.jpg": wall_panel,
     "wall_panel_b.jpg": wall_panel,
     "wall_panel_c.jpg": wall_panel,
@@ -391,7 +397,7 @@ MODEL_TEXTURES: dict[str, dict[str, Callable[[str], Image]]] = {
         "carton_c.jpg": carton,
     },
     "pillar": {"column.jpg": column, "paint.png": paint},
-    "workcell": {"pegboard.png": pegboard, "paint.png": paint},
+    "workcell": {"pegboard.png": pegboard, "paint.png": paint, "paint_v.png": paint_across},
     "bin": {"bin_wall.png": bin_wall},
 }
 """worlds/models/<model>/materials/textures/: each model's own, beside it (Gazebo's layout)."""
