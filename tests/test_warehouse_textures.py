@@ -31,9 +31,9 @@ SCRIPT = WORLDS / "textures" / "make_textures.py"
 IMAGE = "sensor_msgs/msg/Image"
 MEAN_LEVELS = 1.0
 """Largest mean absolute difference, in 8-bit levels, between a committed image and the script's."""
-KEYPOINT_RATIO = 1.5
-"""Textured over flat ORB keypoints at the start pose; measured about 2 (1726 against 887 median
-on the drive of bench_vo.py)."""
+KEYPOINT_RATIO = 1.4
+"""Textured over flat ORB keypoints at the start pose: measured 1.8 (2159 against 1197, the
+render deterministic in lockstep); the margin is for another GL driver's rasterisation."""
 
 
 def committed_images() -> dict[str, Path]:
@@ -79,11 +79,13 @@ def flat_copy(folder: Path) -> Path:
 
 
 def orb_keypoints(world: Path) -> int:
-    """ORB keypoints (2000 asked) in the front camera's first frame, the tug at its start pose."""
+    """ORB keypoints in the front camera's first frame, the tug at its start pose; 50 000 asked, so
+    the count is what the image holds, not the cap (bench_vo.py asks 2000, and the textured
+    hall reaches the cap in most frames)."""
     with running_server(str(world), "lockstep", extra=["--renderer", "gl"], world_name="warehouse") as sim:
         frame = sim.latest({"camera_front": IMAGE})["camera_front"]
     gray = cv2.cvtColor(messages.image_pixels(frame), cv2.COLOR_RGB2GRAY)
-    return len(cv2.ORB_create(2000).detect(gray, None))  # type: ignore[attr-defined]
+    return len(cv2.ORB_create(50_000).detect(gray, None))  # type: ignore[attr-defined]
 
 
 @pytest.mark.skipif(NO_EGL is not None, reason=NO_EGL or "")
