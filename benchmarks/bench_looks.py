@@ -5,9 +5,11 @@ Four copies of the warehouse are written to a temporary folder (the world and it
 that `model://` finds the copies first through SIMBOT_RESOURCE_PATH): as shipped (textures and
 shadows), without shadows (`<scene><shadows>false</shadows>`), without textures (every
 `<pbr>` albedo map taken out, so each surface shows its colour), and without either, the
-baseline. Each runs under `simbot-server` as bench_sensors.py runs it (`run_server`); the figures
-are each camera's images per wall second, the real-time factor, and the render workers' CPU per
-image, that last one also as a ratio to the baseline measured in the same run.
+baseline. Each copy is drawn first by the OpenGL renderer alone in this process, the robot's six
+views in turn (bench_sensors.py's bare loop: CPU per frame, the figure least moved by a busy
+machine), then run under `simbot-server` as bench_sensors.py runs it (`run_server`): each
+camera's images per wall second, the real-time factor, and the render workers' CPU per image.
+The costs are also given as ratios to the baseline measured in the same run.
 
     python benchmarks/bench_looks.py [--seconds S]
 """
@@ -23,10 +25,26 @@ import sys
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sensors import CAMERAS, IMU, LIDARS, RTF_TARGET, Run, camera_fps, describe, run_server, verdict
+from bench_sensors import (
+    CAMERAS,
+    IMU,
+    LIDARS,
+    RTF_TARGET,
+    Rendering,
+    Run,
+    bare_gl_fps,
+    camera_fps,
+    describe,
+    in_process_server,
+    robot_views,
+    run_server,
+    systems_of,
+    verdict,
+)
 
 from simbot.description.resources import asset
 
@@ -71,19 +89,40 @@ def resources_from(models: Path) -> Iterator[None]:
             os.environ["SIMBOT_RESOURCE_PATH"] = before
 
 
-def measure(seconds: float) -> dict[str, Run]:
-    """Each variant in turn, every sensor subscribed, six cameras at 640×480."""
+@dataclass(frozen=True)
+class Looks:
+    """One copy of the world measured: the bare draw, and the server in real time."""
+
+    bare_ms: float
+    """The OpenGL renderer alone in this process, the robot's six views in turn: CPU ms per frame."""
+    device: str
+    run: Run
+
+
+def bare_gl_ms(world: Path, seconds: float) -> tuple[float, str]:
+    """CPU milliseconds per 640×480 frame of the OpenGL renderer alone on `world`, and its device."""
+    with in_process_server(str(world)) as (server, _client):
+        light = systems_of(server, Rendering)[0].light
+        views = robot_views(server.physics, (640, 480))
+        _wall, cpu_fps, device = bare_gl_fps(server.physics, views, light, seconds)
+    return 1e3 / cpu_fps, device
+
+
+def measure(seconds: float) -> dict[str, Looks]:
+    """Each variant in turn: the bare draw, then the server with every sensor subscribed, six
+    cameras at 640×480."""
     everything = [*CAMERAS, *LIDARS, IMU]
-    runs = {}
+    looks = {}
     with tempfile.TemporaryDirectory(prefix="bench-looks-") as tmp:
         for index, (label, (textures, shadows)) in enumerate(VARIANTS.items()):
             world = write_variant(Path(tmp) / f"variant_{index}", textures, shadows)
-            log.info("server: real time, every sensor subscribed, 640x480, %s", label)
             with resources_from(world.parent / "models"):
-                runs[label] = run_server(
-                    "realtime", everything, seconds, ["--camera-size", "640x480"], world=str(world)
-                )
-    return runs
+                log.info("bare GL, six views, %s", label)
+                bare_ms, device = bare_gl_ms(world, seconds / 2)
+                log.info("server: real time, every sensor subscribed, 640x480, %s", label)
+                run = run_server("realtime", everything, seconds, ["--camera-size", "640x480"], world=str(world))
+            looks[label] = Looks(bare_ms, device, run)
+    return looks
 
 
 def worker_ms_per_image(run: Run) -> float:
@@ -91,21 +130,25 @@ def worker_ms_per_image(run: Run) -> float:
     return 1e3 * run.worker_cpu / camera_fps(run)
 
 
-def table(runs: dict[str, Run]) -> list[str]:
+def _ratio(value: float, base: float, label: str) -> str:
+    return "baseline" if label == BASELINE else f"{value / base:.2f}×"
+
+
+def table(looks: dict[str, Looks]) -> list[str]:
     """One markdown table, ready for the README."""
-    base = worker_ms_per_image(runs[BASELINE])
+    bare0, worker0 = looks[BASELINE].bare_ms, worker_ms_per_image(looks[BASELINE].run)
     lines = [
-        "| world | images/s per camera (min–max of six) | real-time factor (worst half second) "
-        "| render-worker CPU per image | ÷ baseline |",
+        "| world | bare GL draw, CPU per frame (÷ baseline) | images/s per camera (min–max of six) "
+        "| real-time factor (worst half second) | render-worker CPU per image (÷ baseline) |",
         "| --- | --- | --- | --- | --- |",
     ]
-    for label, run in runs.items():
-        rates = [run.per_second(c) for c in CAMERAS]
-        ms = worker_ms_per_image(run)
+    for label, look in looks.items():
+        run, rates, worker = look.run, [look.run.per_second(c) for c in CAMERAS], worker_ms_per_image(look.run)
         lines.append(
-            f"| {label} | {min(rates):.1f}–{max(rates):.1f} ({verdict(min(rates) >= CAMERA_TARGET_HZ)}) "
+            f"| {label} | {look.bare_ms:.1f} ms ({_ratio(look.bare_ms, bare0, label)}) "
+            f"| {min(rates):.1f}–{max(rates):.1f} ({verdict(min(rates) >= CAMERA_TARGET_HZ)}) "
             f"| {run.rtf:.3f} ({min(run.intervals):.2f}; {verdict(run.rtf >= RTF_TARGET)}) "
-            f"| {ms:.1f} ms | {'baseline' if label == BASELINE else f'{ms / base:.2f}'} |"
+            f"| {worker:.1f} ms ({_ratio(worker, worker0, label)}) |"
         )
     return lines
 
@@ -115,12 +158,13 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0, help="wall seconds measured per variant")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    runs = measure(args.seconds)
+    looks = measure(args.seconds)
     print()
-    print("\n".join(table(runs)))
+    print("\n".join(table(looks)))
     print(f"\ntargets: ≥ {CAMERA_TARGET_HZ:.0f} images/s each camera (aim 30), real-time factor ≥ {RTF_TARGET}")
-    for label, run in runs.items():
-        describe(label, run)
+    print(f"GL device: {looks[BASELINE].device}")
+    for label, look in looks.items():
+        describe(label, look.run)
 
 
 if __name__ == "__main__":

@@ -233,12 +233,12 @@ class Costs:
 
 
 @contextmanager
-def in_process_server() -> Iterator[tuple[Server, Node]]:
+def in_process_server(world: str = WORLD) -> Iterator[tuple[Server, Node]]:
     """A `Server` built as simbot-server builds it (lockstep, so that starting the render pool
     waits), on its own loopback port, and a client node on it."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
     config = ServerConfig(
-        world_path(WORLD),
+        world_path(world),
         asset("urdf/flexley_tug.sdf"),
         mode=Mode.LOCKSTEP,
         overrides={"camera.size": (640, 480)},
