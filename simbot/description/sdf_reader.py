@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from simbot.description import sdf_frames
+from simbot.description.actors import read_actor
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
@@ -37,7 +39,7 @@ from simbot.description.model import (
     Visual,
     World,
 )
-from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
+from simbot.description.poses import Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.sdf_elements import (
     model_file,
@@ -52,12 +54,13 @@ from simbot.description.sdf_elements import (
     version_key,
 )
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.transform import Transform
 
 logger = logging.getLogger(__name__)
 
 SUPPORTED_VERSIONS = ((1, 4), (1, 11))
-MODEL_FRAME = "__model__"
+MODEL_FRAME = sdf_frames.MODEL_FRAME
+_pose = sdf_frames.read_pose
+_Frames = sdf_frames.Frames
 JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic", "ball")
 UNLIMITED = 1e16
 """SDF writes an unlimited joint as ±1e16 (or more); such limits become None."""
@@ -73,10 +76,10 @@ def load_sdf(path: Path | str) -> Model | World:
     world = root.find("world")
     if world is not None:
         return _read_world(reader, version, world)
-    model = root.find("model")
-    if model is None:
-        raise reader.error(root, "no <world> or <model> in this SDF file")
-    return _read_model(reader, version, model)
+    found = root.find("model") if root.find("model") is not None else root.find("actor")
+    if found is None:
+        raise reader.error(root, "no <world>, <model> or <actor> in this SDF file")
+    return _read_model(reader, version, found) if found.tag == "model" else _read_actor(reader, found)
 
 
 def load_model(path: Path | str) -> Model:
@@ -106,64 +109,6 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
     if not low <= version <= high:
         raise reader.error(root, f"unsupported SDF version {text} (supported: 1.4 to 1.11)")
     return (version[0], version[1])
-
-
-# ---------------------------------------------------------------- poses and frames
-
-
-def _pose(reader: Reader, element: Element) -> tuple[Pose, str | None]:
-    """The `<pose>` child of `element` and the frame it is relative to (None: the default)."""
-    found = element.find("pose")
-    if found is None:
-        return IDENTITY, None
-    relative_to = (found.get("relative_to") or found.get("frame") or "").strip() or None
-    values = reader.floats(found)
-    fmt = found.get("rotation_format", "euler_rpy")
-    degrees = found.get("degrees", "false").lower() in ("1", "true")
-    if not values:
-        return IDENTITY, relative_to
-    if fmt == "quat_xyzw" and len(values) == 7:
-        return Pose.from_transform(Transform.of(values[:3], values[3:7])), relative_to
-    if fmt != "euler_rpy" or len(values) != 6:
-        raise reader.error(found, f"expected 6 numbers 'x y z roll pitch yaw', got {len(values)}")
-    rpy = tuple(math.radians(v) if degrees else v for v in values[3:])
-    return Pose(values[:3], rpy), relative_to  # type: ignore[arg-type]
-
-
-@dataclass
-class _Frames:
-    """The frame graph of one model: each frame's pose and the frame it is relative to."""
-
-    reader: Reader
-    edges: dict[str, tuple[Pose, str, Element]] = field(default_factory=dict)
-    resolved: dict[str, Pose] = field(default_factory=lambda: {MODEL_FRAME: IDENTITY})
-
-    def add(self, name: str, pose: Pose, relative_to: str, element: Element) -> None:
-        if name in self.edges or name == MODEL_FRAME:
-            raise self.reader.error(element, f"duplicate frame name {name!r} in this model")
-        self.edges[name] = (pose, relative_to, element)
-
-    def in_model(self, name: str, asked_by: Element, visiting: tuple[str, ...] = ()) -> Pose:
-        """model_T_name, following relative_to links; unknown names and cycles are errors."""
-        if name in self.resolved:
-            return self.resolved[name]
-        if name not in self.edges:
-            raise self.reader.error(asked_by, f"unknown frame {name!r}")
-        pose, parent, element = self.edges[name]
-        if name in visiting:
-            raise self.reader.error(element, f"frame {name!r} is defined relative to itself (cycle)")
-        result = self.in_model(parent, element, visiting + (name,)) @ pose
-        self.resolved[name] = result
-        return result
-
-    def in_link(self, link: str, element: Element, default: str | None = None) -> Pose:
-        """The pose of `element` (a collision, visual or sensor) in the frame of `link`; its pose is
-        relative to `default` (a joint's sensor: the joint) when it names no frame, else to the link."""
-        pose, relative_to = _pose(self.reader, element)
-        relative_to = relative_to or default
-        if relative_to is None or relative_to == link:
-            return pose
-        return self.in_model(link, element).inverse() @ self.in_model(relative_to, element) @ pose
 
 
 # ---------------------------------------------------------------- models
@@ -443,6 +388,7 @@ def _read_plugin(reader: Reader, element: Element) -> Plugin:
 def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> World:
     models = [_read_model(reader, version, e) for e in element.findall("model")]
     models += [_read_include(reader, e) for e in element.findall("include")]
+    models += [_read_actor(reader, e) for e in element.findall("actor")]
     seen: set[str] = set()
     for model in models:
         if model.name in seen:
@@ -476,6 +422,15 @@ def _read_light(reader: Reader, element: Element) -> SdfLight:
         direction=reader.vector(element, "direction", 3, defaults.direction),  # type: ignore[arg-type]
         cast_shadows=reader.flag(element, "cast_shadows", False),
     )
+
+
+def _read_actor(reader: Reader, element: Element) -> Model:
+    """An `<actor>` (simbot.description.actors): its links framed as a model's are, relative to the actor."""
+    links = element.findall("link")
+    frames = _model_frames(reader, element, links, [])
+    plugins = tuple(_read_plugin(reader, e) for e in element.findall("plugin"))
+    own = tuple(_read_link(reader, frames, e) for e in links)
+    return read_actor(reader, element, _pose(reader, element)[0], own, plugins)
 
 
 def _read_include(reader: Reader, element: Element) -> Model:

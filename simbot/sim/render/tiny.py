@@ -34,7 +34,9 @@ class TinyRenderer:
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.cameras[index] = spec
-        self.projections[index] = _flat(projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far))
+        self.projections[index] = _flat(
+            projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
+        )
 
     def add_body(self, name: str) -> None:
         """Nothing to do: PyBullet draws the scene's bodies as they are."""
