@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from simbot.description.missing_meshes import visuals_with_fallbacks
-from simbot.description.model import Capsule, Collision, Joint, Link, Mesh, Model, Plugin, Visual
+from simbot.description.model import Capsule, Collision, Joint, Link, Material, Mesh, Model, Plugin, Visual
 from simbot.description.poses import Pose
 from simbot.description.resources import resolve
 from simbot.description.sdf_frames import read_pose
@@ -43,6 +43,8 @@ PROXY_RADIUS = 0.25
 """Metres: half a standing adult's shoulder width."""
 PROXY_HEIGHT = 1.8
 """Metres, from the soles to the top of the head."""
+PROXY_COLOUR = (0.95, 0.45, 0.05, 1.0)
+"""A high-visibility orange: how a proxy is drawn where its skin cannot be found."""
 PROXY_FEET = -1.0
 """Where the proxy's soles are in the actor frame when the skin's bounds are unknown (see the module docstring)."""
 
@@ -143,9 +145,11 @@ def _body(reader: Reader, skin: Skin | None) -> Link:
     scale = (skin.scale,) * 3
     proxy = Collision("proxy", Capsule(PROXY_RADIUS, PROXY_HEIGHT - 2 * PROXY_RADIUS), proxy_pose(skin))
     skin_visual = Visual("skin", Mesh(skin.filename, scale, skin.path))
-    return Link(
-        BODY, collisions=(proxy,), visuals=tuple(visuals_with_fallbacks(reader.file, BODY, [skin_visual], [proxy]))
-    )
+    if skin.path is not None:
+        return Link(BODY, collisions=(proxy,), visuals=(skin_visual,))
+    drawn = visuals_with_fallbacks(reader.file, BODY, [skin_visual], [proxy])  # one warning naming the file
+    colour = Material(diffuse=PROXY_COLOUR, ambient=PROXY_COLOUR)
+    return Link(BODY, collisions=(proxy,), visuals=tuple(replace(v, material=colour) for v in drawn))
 
 
 def proxy_pose(skin: Skin) -> Pose:
