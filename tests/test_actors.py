@@ -148,3 +148,25 @@ def test_the_camera_sees_the_walker_where_the_projection_puts_it(sim: SimServer)
     assert crossing[:, 60:100].any(axis=1).sum() > 60, "the walker does not stand from the floor up past the camera"
     passed = _orange(_image_at(sim, DELAY + DURATION))
     assert int(passed.sum()) == 0, f"{int(passed.sum())} orange pixels once the walker has passed"
+
+
+def test_ground_truth_on_model_pose_is_where_the_script_puts_it(sim: SimServer) -> None:
+    time = DELAY + DURATION / 4
+    pose = _message_at(sim, "model/walker/pose", "geometry_msgs/msg/PoseStamped", time)
+    assert pose.header.frame_id == "world"
+    assert abs(pose.pose.position.y - _gazebo_y(time)) <= CM and abs(pose.pose.position.x - WALKER_X) <= CM
+
+
+def test_set_pose_moves_the_trajectorys_origin_and_reset_brings_it_back(sim: SimServer) -> None:
+    """As Gazebo's set_pose sets an actor's Pose component: the script runs on from the new frame."""
+    _at(sim, DELAY)
+    reply = sim.call("set_pose", {"name": "walker", "position": {"x": 1.0, "y": 2.0, "z": 1.0}})
+    assert reply["ok"], reply
+    moved = _at(sim, DELAY + DURATION / 2)
+    assert abs(moved["x"] - 1.0) <= CM and abs(moved["y"] - 2.0) <= CM, moved
+    assert moved["yaw"] == pytest.approx(1.5708, abs=1e-4)
+    assert sim.control({"reset": {"all": True}})["ok"]
+    (x, y, z), _ = sim.pose("walker")
+    assert (x, y, z) == pytest.approx((WALKER_X, START_Y, WALKER_Z), abs=CM)
+    again = _at(sim, DELAY + DURATION / 2)
+    assert abs(again["x"] - WALKER_X) <= CM and abs(again["y"]) <= CM, again
