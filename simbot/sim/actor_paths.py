@@ -102,18 +102,20 @@ def _exp(q: Q) -> Q:
 
 
 def _slerp(t: float, p: Q, q: Q, shortest: bool) -> Q:
-    """gz-math's Quaternion::Slerp, its near-parallel fallback included."""
-    cos = sum(a * b for a, b in zip(p, q))
+    """gz-math's Quaternion::Slerp, its near-parallel fallback included (written out: it runs every step)."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    cos = pw * qw + px * qx + py * qy + pz * qz
     if cos < 0.0 and shortest:
-        cos, q = -cos, (-q[0], -q[1], -q[2], -q[3])
+        cos, qw, qx, qy, qz = -cos, -qw, -qx, -qy, -qz
     if abs(cos) < 1 - 1e-3:
         sin = math.sqrt(1 - cos * cos)
         angle = math.atan2(sin, cos)
         c0, c1 = math.sin((1.0 - t) * angle) / sin, math.sin(t * angle) / sin
-        return (c0 * p[0] + c1 * q[0], c0 * p[1] + c1 * q[1], c0 * p[2] + c1 * q[2], c0 * p[3] + c1 * q[3])
-    mixed = tuple((1.0 - t) * a + t * b for a, b in zip(p, q))
-    norm = math.sqrt(sum(v * v for v in mixed))
-    return (mixed[0] / norm, mixed[1] / norm, mixed[2] / norm, mixed[3] / norm)
+        return (c0 * pw + c1 * qw, c0 * px + c1 * qx, c0 * py + c1 * qy, c0 * pz + c1 * qz)
+    w, x, y, z = (1.0 - t) * pw + t * qw, (1.0 - t) * px + t * qx, (1.0 - t) * py + t * qy, (1.0 - t) * pz + t * qz
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / norm, x / norm, y / norm, z / norm)
 
 
 def _close(a: Sequence[float], b: Sequence[float]) -> bool:
@@ -158,6 +160,8 @@ class TrajectoryPath:
     rotations: tuple[Q, ...]
     turns: tuple[Q, ...]
     """The rotation spline's tangents."""
+    still: tuple[bool, ...]
+    """Per segment: whether its rotation stays one (its ends and their tangents equal)."""
 
     @staticmethod
     def of(trajectory: Trajectory) -> TrajectoryPath:
@@ -165,12 +169,15 @@ class TrajectoryPath:
         points = [w.pose.xyz for w in trajectory.waypoints]
         rotations = [_quat(w.pose) for w in trajectory.waypoints]
         many = len(points) > 1
+        turns = _rotation_tangents(rotations) if many else rotations
+        ends = zip(rotations, rotations[1:], turns, turns[1:])
         return TrajectoryPath(
             tuple(w.time - start for w in trajectory.waypoints),
             tuple(points),
             tuple(_position_tangents(points, trajectory.tension) if many else points),
             tuple(rotations),
-            tuple(_rotation_tangents(rotations) if many else rotations),
+            tuple(turns),
+            tuple(p == q == a == b for p, q, a, b in ends),
         )
 
     @property
@@ -203,8 +210,9 @@ class TrajectoryPath:
         )
 
     def _rotation(self, i: int, t: float) -> Q:
-        """Squad from waypoint i, the shortest way (gz-math RotationSpline::Interpolate)."""
-        if abs(t - 1.0) < EPSILON:
+        """Squad from waypoint i, the shortest way (gz-math RotationSpline::Interpolate); a segment whose
+        ends and tangents are one rotation (walking straight) is that rotation, as squad gives it."""
+        if abs(t - 1.0) < EPSILON or self.still[i]:
             return self.rotations[i + 1]
         p, q, a, b = self.rotations[i], self.rotations[i + 1], self.turns[i], self.turns[i + 1]
         return _slerp(2.0 * t * (1.0 - t), _slerp(t, p, q, True), _slerp(t, a, b, False), False)

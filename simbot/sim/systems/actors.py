@@ -31,7 +31,6 @@ origin, as Gazebo's set_pose sets an actor's Pose component), so it walks its sc
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from simbot.description.actors import ActorModel
@@ -111,7 +110,8 @@ class Actors:
 
 def _near(a: Transform, b: Transform) -> bool:
     """Whether two poses are one (a quaternion and its negation are one rotation)."""
-    if any(abs(x - y) > MOVED_TOLERANCE for x, y in zip(a.position, b.position)):
+    (ax, ay, az), (bx, by, bz) = a.position, b.position
+    if abs(ax - bx) > MOVED_TOLERANCE or abs(ay - by) > MOVED_TOLERANCE or abs(az - bz) > MOVED_TOLERANCE:
         return False
-    dot = abs(sum(x * y for x, y in zip(a.orientation, b.orientation)))
-    return math.isclose(dot, 1.0, abs_tol=MOVED_TOLERANCE)
+    (qx, qy, qz, qw), (rx, ry, rz, rw) = a.orientation, b.orientation
+    return abs(abs(qx * rx + qy * ry + qz * rz + qw * rw) - 1.0) <= MOVED_TOLERANCE
