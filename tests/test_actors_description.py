@@ -8,10 +8,12 @@ found is one warning naming its file, and the actor is drawn as its proxy.
 from __future__ import annotations
 
 import logging
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
-from conftest import run_cli
+from conftest import REPO, run_cli
 
 from simbot.description import load_sdf
 from simbot.description.actors import PROXY_HEIGHT, PROXY_RADIUS, ActorModel
@@ -115,3 +117,20 @@ def test_a_bad_script_is_one_line_naming_the_actor_and_the_element(case: str, tm
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
     assert lines[0].startswith(f"simbot describe: error: {bad}:") and message in lines[0], lines[0]
+
+
+def test_the_workers_skin_is_made_by_its_script_and_stands_on_its_soles(tmp_path: Path) -> None:
+    """worlds/models/worker: the committed COLLADA is what meshes/make_worker.py writes, byte for byte;
+    read as an actor, its skin is found and the proxy's soles are on the skin's lowest point, 1.0 m
+    below the actor's frame (the figure's pelvis)."""
+    out = tmp_path / "worker.dae"
+    subprocess.run(
+        [sys.executable, str(REPO / "meshes" / "make_worker.py"), "--out", str(out)], check=True, timeout=120
+    )
+    committed = REPO / "worlds" / "models" / "worker" / "meshes" / "worker.dae"
+    assert committed.read_bytes() == out.read_bytes(), "the committed skin is stale: run meshes/make_worker.py"
+    actor = load_sdf(REPO / "worlds" / "models" / "worker" / "model.sdf")
+    assert isinstance(actor, ActorModel) and actor.skin is not None and actor.skin.path == committed
+    proxy = actor.links[0].collisions[0]
+    assert proxy.pose.xyz[2] - PROXY_HEIGHT / 2 == pytest.approx(-1.0, abs=1e-6)
+    assert isinstance(actor.links[0].visuals[0].geometry, Mesh)
