@@ -14,7 +14,7 @@ import math
 from collections.abc import Iterator
 
 import pytest
-from server_helpers import SimServer, running_server
+from server_helpers import REPO, SimServer, running_server
 
 from simbot.transform import quaternion_to_matrix
 
@@ -75,3 +75,18 @@ def test_an_actor_walking_through_the_tug_pushes_it_aside(sim: SimServer) -> Non
     assert math.degrees(math.acos(min(1.0, up))) < 2.0, "the tug tipped"
     assert y0 == pytest.approx(0.0, abs=0.01)
     sim.step(100)
+
+
+def test_the_worker_spawned_with_a_pose_walks_its_beat_from_there(sim: SimServer) -> None:
+    """worlds/models/worker, created from its file at (0, 4, 1) turned to +y: its 4 m beat runs along +y
+    (half way out at 2 s of its 10 s round: the beat's middle waypoint is at 2 s on a straight stretch)."""
+    assert sim.control({"reset": {"all": True}})["ok"]
+    path = str(REPO / "worlds" / "models" / "worker" / "model.sdf")
+    pose = {
+        "position": {"x": 0.0, "y": 4.0, "z": 1.0},
+        "orientation": {"z": math.sin(math.pi / 4), "w": math.cos(math.pi / 4)},
+    }
+    assert sim.call("create", {"sdf_filename": path, "name": "alice", "pose": pose}) == {"ok": True, "name": "alice"}
+    sim.step(2000)
+    (x, y, z), _ = sim.pose("alice")
+    assert (x, y, z) == pytest.approx((0.0, 6.0, 1.0), abs=0.01)

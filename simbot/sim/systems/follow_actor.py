@@ -12,8 +12,8 @@ this system moves the actor in its place (`ActorDriver`), as Gazebo's Trajectory
 | `min_distance` | 1.2 | m: stops this close (planar distance) |
 | `max_distance` | 4.0 | m: does not follow a target farther away |
 | `velocity` | 0.8 | m/s |
-| `animation` | the actor's first | read; the skin is not animated here |
-| `animation_x_vel` | 2.0 | read; the skin is not animated here |
+| `animation` | the actor's first | accepted, unused: the skin is not animated here |
+| `animation_x_vel` | 2.0 | accepted, unused: the skin is not animated here |
 
 As in gz-sim, the actor keeps the height of its SDF `<pose>` and walks on the plane: it stands
 where its `<pose>` put it until it first moves, then faces the target (gz-sim also composes the
