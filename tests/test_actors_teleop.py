@@ -2,7 +2,7 @@
 server in real time: tests/fixtures/teleop_person.sdf).
 
 simbot-teleop drives the tug along the lane at 0.5 m/s; once it is under way, the person beside the
-lane steps into it (world control's set_pose puts the actor's frame there), 2.5 m or more ahead of
+lane steps into it (world control's set_pose puts the actor's frame there), more than 1 m ahead of
 the front lidar. The lidars see the actor's proxy as any collision: the teleop refuses to drive on
 (`BLOCKED forward`) and the tug stops short of the person, the front lidar between 0.25 m (its
 braking from 0.5 m/s at the lidars' 5 Hz) and the 0.5 m stop distance from the proxy's near face.
@@ -30,7 +30,7 @@ def test_the_tug_stops_for_a_person_stepping_into_its_path(sim: SimServer) -> No
         start = sample(sim)
         wait_until(lambda: sample(sim)[1] > start[1] + 0.2, timeout=20.0, what="the tug to drive")
         lidar_x = sample(sim)[1] + FRONT_LIDAR_X
-        assert PERSON_X - PROXY_RADIUS - lidar_x > 2.0, (
+        assert PERSON_X - PROXY_RADIUS - lidar_x > 1.0, (
             f"the tug was already at x {lidar_x:.2f} when the person stepped in"
         )
         reply = sim.call("set_pose", {"name": "person", "position": {"x": PERSON_X, "y": 0.0, "z": 1.0}})
