@@ -3,15 +3,16 @@
 An actor is a model that moves by itself, kinematically, along its script (gz-sim's actors). It is
 read into an `ActorModel`: a `Model` (so the running world loads, poses, removes and creates it like
 any other) that also carries the skin, the animations and the script. Its one root link `body`
-holds the skin as its visual and a ray-visible collision proxy (`proxy_capsule`); the actor's own
-`<link>`s hang from `body` by fixed joints at their SDF poses (relative to the actor's frame).
+holds the skin as its visual and a ray-visible collision proxy (placed by `proxy_pose`); the actor's
+own `<link>`s hang from `body` by fixed joints at their SDF poses (relative to the actor's frame).
+`<joint>`s inside an actor are not simulated: its links are held as they stand.
 
 The proxy is an upright capsule the size of a standing adult (PROXY_RADIUS, PROXY_HEIGHT), its axis
 on the actor frame's z axis. Its feet: at the skin's lowest point where the skin is found and
 trimesh reads its bounds, else PROXY_FEET below the actor frame, where Gazebo's stock skins
 (walk.dae, talk_b.dae: their root at the pelvis, placed at z = 1 in gz-sim's worlds) have theirs.
 A skin that cannot be found is one warning naming the file (`missing_meshes`), and the actor is
-drawn as its proxy. An actor with no skin has no proxy: its links are its body.
+drawn as its proxy, in PROXY_COLOUR. An actor with no skin has no proxy: its links are its body.
 
 The script, as gz-sim reads it: `<loop>` (default true), `<delay_start>` (0 s), `<auto_start>`
 (true), and `<trajectory id type tension>` (tension 0) of `<waypoint>`s, each a `<time>` and a
