@@ -7,10 +7,11 @@ stamp. The stitcher publishes nothing on tf. Two layouts (`--layout`):
 
 - `strip`: the six images side by side in the order above, as the original ROS stitcher did;
   each tile is the camera's image untouched, so anything in two cameras' overlap shows twice.
-  camera_info is the front camera's (frame `camera_front_optical_frame`, its K): tile 0 is
+  camera_info is the front camera's (frame `camera_front_optical_frame`, its K and D): tile 0 is
   exactly the front image, and tile i is camera i with the same K shifted by i·w columns, in its
   own optical frame (the six cameras share their intrinsics on the Tug).
-- `cylindrical` (the default): every camera reprojected by its intrinsics (camera_info) and its
+- `cylindrical` (the default): every camera reprojected by its intrinsics (camera_info's K, and
+  its plumb_bob D as cv2.projectPoints applies it: a lens's bent image comes out straight) and its
   optical frame's pose in `base_link` (tf_static) onto a vertical cylinder of radius `--radius`
   (default 3 m) about base_link's z axis, unrolled. Columns are azimuth (REP-103: about +z from
   +x), decreasing to the right, so the image reads like a person on base_link turning right:
@@ -79,6 +80,7 @@ from simbot.bus.frames import optical_frame
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
 
+from .camera_model import BadInput, Intrinsics
 from .common import ClockSubscriber, Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.stitcher")
@@ -112,34 +114,6 @@ POLL_S = 0.1
 Pixels = npt.NDArray[np.uint8]
 
 
-class BadInput(ValueError):
-    """An image or camera_info that cannot be used (encoding, size, intrinsics); str() is one line."""
-
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """A pinhole camera's frame, image size and K, from its camera_info."""
-
-    frame_id: str
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @classmethod
-    def from_info(cls, info: Any) -> Intrinsics:
-        """The intrinsics of a sensor_msgs/CameraInfo; BadInput when it describes no usable camera."""
-        k = [float(v) for v in info.k]
-        fx, fy, cx, cy = k[0], k[4], k[2], k[5]
-        if info.width < 1 or info.height < 1:
-            raise BadInput(f"camera_info size {info.width}×{info.height}")
-        if not (fx > 0 and fy > 0 and all(math.isfinite(v) for v in (fx, fy, cx, cy))):
-            raise BadInput(f"camera_info K has fx {fx}, fy {fy}, cx {cx}, cy {cy}")
-        return cls(info.header.frame_id.lstrip("/"), int(info.width), int(info.height), fx, fy, cx, cy)
-
-
 @dataclass(frozen=True)
 class CameraModel:
     """What the cylinder needs of a camera: its intrinsics and its optical frame's pose in base_link."""
@@ -165,6 +139,7 @@ class PanoramaInfo:
     fy: float
     cx: float
     cy: float
+    d: tuple[float, ...] = (0.0,) * 5
 
 
 class Stitcher(Protocol):
@@ -242,7 +217,7 @@ class StripStitcher:
         self.tiles = Tiles([(c.width, c.height) for c in self.cameras.values()])
         self.width, self.height = self.tiles.buffer.shape[1], self.tiles.buffer.shape[0]
         front = self.cameras.get(CAMERAS[0])
-        self.info = PanoramaInfo(front.frame_id, front.fx, front.fy, front.cx, front.cy) if front else None
+        self.info = PanoramaInfo(front.frame_id, front.fx, front.fy, front.cx, front.cy, front.d) if front else None
 
     def stitch(self, images: Mapping[str, Pixels]) -> Pixels:
         return self.tiles.fill(images)
@@ -315,7 +290,7 @@ class CylinderStitcher:
             oz = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
             ahead = oz > 1e-9
             depth = np.where(ahead, oz, 1.0)
-            u, v = k.fx * ox / depth + k.cx, k.fy * oy / depth + k.cy
+            u, v = k.pixels(ox / depth, oy / depth)
             cosine = oz / np.sqrt(dx * dx + dy * dy + dz * dz)
             take = ahead & (u >= -0.5) & (u <= k.width - 0.5) & (v >= -0.5) & (v <= k.height - 0.5) & (cosine > best)
             best[take] = cosine[take]
@@ -438,7 +413,9 @@ class StitcherNode:
         self._image_out.put(messages.image(stamp, info.frame_id if info else optical_frame(CAMERAS[0]), panorama))
         if info is not None:
             size = (stitcher.width, stitcher.height)
-            self._info_out.put(messages.camera_info(stamp, info.frame_id, *size, info.fx, info.fy, info.cx, info.cy))
+            self._info_out.put(
+                messages.camera_info(stamp, info.frame_id, *size, info.fx, info.fy, info.cx, info.cy, info.d)
+            )
         else:
             self._warnings.warn(INFO_TOPIC, "not published: no camera_info from camera_front yet")
         self.published += 1

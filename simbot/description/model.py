@@ -93,10 +93,19 @@ Geometry = Box | Cylinder | Sphere | Plane | Mesh | Capsule | Ellipsoid | Cone |
 
 @dataclass(frozen=True)
 class Material:
+    """SDF `<material>`: the colours as written (None where left out), `<lighting>`, `<shininess>`,
+    and PBR's maps (`<pbr><metal>` or `<pbr><specular>`), each map the file it resolved to."""
+
     ambient: RGBA | None = None
     diffuse: RGBA | None = None
     specular: RGBA | None = None
     emissive: RGBA | None = None
+    lighting: bool = True
+    shininess: float | None = None
+    albedo_map: Path | None = None
+    normal_map: Path | None = None
+    metalness: float | None = None
+    roughness: float | None = None
 
     def color(self) -> RGBA | None:
         """The one colour a renderer without lighting terms should use."""
@@ -134,6 +143,8 @@ class Visual:
     geometry: Geometry
     pose: Pose = IDENTITY
     material: Material | None = None
+    transparency: float = 0.0
+    cast_shadows: bool = True
 
 
 @dataclass(frozen=True)

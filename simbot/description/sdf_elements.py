@@ -9,7 +9,9 @@ folder an `<include>` means.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
+from functools import cache
 from pathlib import Path
 
 from simbot.description.model import (
@@ -33,6 +35,8 @@ from simbot.description.model import (
 )
 from simbot.description.resources import resolve
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
+
+logger = logging.getLogger(__name__)
 
 
 def read_geometry(reader: Reader, owner: Element) -> Geometry:
@@ -116,7 +120,57 @@ def rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, floa
 
 
 def read_material(reader: Reader, element: Element) -> Material:
-    return Material(*(rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")))
+    """Colours, `<lighting>`, `<shininess>` and PBR (`<pbr><metal>` or `<pbr><specular>`; the first
+    one written). A map that does not resolve is a warning, and the visual keeps its colour."""
+    colours = {tag: rgba(reader, element, tag) for tag in ("ambient", "diffuse", "specular", "emissive")}
+    shininess = element.find("shininess")
+    workflow = next(iter(element.findall("pbr/metal") + element.findall("pbr/specular")), None)
+    pbr: dict[str, object] = {}
+    if workflow is not None:
+        glossiness = workflow.find("glossiness")
+        roughness = (
+            reader.number(workflow, "roughness", 0.5) if glossiness is None else 1.0 - reader.floats(glossiness, 1)[0]
+        )
+        pbr = {
+            "albedo_map": _texture(reader, workflow, "albedo_map"),
+            "normal_map": _texture(reader, workflow, "normal_map"),
+            "metalness": reader.number(workflow, "metalness", 0.0 if workflow.tag == "specular" else 0.5),
+            "roughness": roughness,
+        }
+    return Material(
+        **colours,  # type: ignore[arg-type]
+        lighting=reader.flag(element, "lighting", True),
+        shininess=None if shininess is None else reader.floats(shininess, 1)[0],
+        **pbr,  # type: ignore[arg-type]
+    )
+
+
+def _texture(reader: Reader, workflow: Element, tag: str) -> Path | None:
+    """The image a PBR map names, resolved as a mesh is (relative to the file, `model://`, the resource path)."""
+    uri = reader.text(workflow, tag)
+    if not uri:
+        return None
+    resolution = resolve(uri, reader.file.parent)
+    if resolution.path is not None and resolution.path.is_file():
+        return resolution.path if _decodable(resolution.path) else None
+    line = workflow.find(tag).sourceline
+    tried = resolution.describe_tried()
+    logger.warning(
+        "%s:%s: <%s> %r not found (tried %s); the visual keeps its colour", reader.file, line, tag, uri, tried
+    )
+    return None
+
+
+@cache
+def _decodable(path: Path) -> bool:
+    """Whether OpenCV (what the renderers read textures with) knows the image's format; a warning
+    naming it, once, where not."""
+    import cv2
+
+    if cv2.haveImageReader(str(path)):
+        return True
+    logger.warning("texture %s is not an image OpenCV can decode; the visual keeps its colour", path)
+    return False
 
 
 def read_spherical_coordinates(reader: Reader, element: Element | None) -> SphericalCoordinates:

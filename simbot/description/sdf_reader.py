@@ -270,6 +270,8 @@ def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -
         geometry=read_geometry(reader, element),
         pose=frames.in_link(link, element),
         material=None if material is None else read_material(reader, material),
+        transparency=reader.number(element, "transparency", 0.0),
+        cast_shadows=reader.flag(element, "cast_shadows", True),
     )
 
 

@@ -22,6 +22,11 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   link holds is re-expressed; the physics does not change.
 - Limits SDF calls unlimited: a revolute joint becomes continuous; effort or velocity, and a
   prismatic joint's range, are written as ±UNLIMITED.
+- A visual's material: URDF's `<material>` holds its colour and its texture (the PBR albedo map);
+  the rest of SDF's material and the visual's `<transparency>` and `<cast_shadows>` are attributes
+  of an `<sdf_material>` element beside it, which PyBullet and ROS's URDF readers skip and the
+  render workers read (sim/render/visuals.py). A mesh PyBullet cannot read (glTF, GLB, ...) is
+  named by an OBJ stand-in of its triangles, and the file itself by `<sdf_material mesh=...>`.
 Sensors, plugins and friction, which URDF has no place for, stay in the parsed model.
 """
 
@@ -31,7 +36,7 @@ import logging
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -40,6 +45,7 @@ import numpy as np
 from simbot.description.errors import DescriptionError
 from simbot.description.generated_meshes import Generated, mesh_file
 from simbot.description.model import (
+    RGBA,
     Axis,
     Box,
     Capsule,
@@ -52,6 +58,7 @@ from simbot.description.model import (
     Inertial,
     Joint,
     Link,
+    Material,
     Mesh,
     Model,
     Plane,
@@ -60,6 +67,7 @@ from simbot.description.model import (
     Visual,
 )
 from simbot.description.poses import IDENTITY, Pose, matrix_to_rpy
+from simbot.description.stand_in_meshes import needs_stand_in, stand_in
 
 MASSLESS = Inertial(0.0, IDENTITY, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))
@@ -67,6 +75,8 @@ UNLIMITED = 1e16
 PLANE_THICKNESS = 0.01
 BALL_AXES = (("yaw", (0.0, 0.0, 1.0)), ("pitch", (0.0, 1.0, 0.0)), ("roll", (1.0, 0.0, 0.0)))
 GENERATED = (Ellipsoid, Cone, Polyline, Heightmap)
+SDF_MATERIAL = "sdf_material"
+"""The extension element of a URDF `<visual>` carrying the SDF material and visual settings URDF lacks."""
 
 logger = logging.getLogger(__name__)
 
@@ -133,10 +143,30 @@ class _Urdf:
             pose = pose @ _plane_offset(shape.geometry)
         self.origin(element, pose)
         self.add_geometry(ET.SubElement(element, "geometry"), shape.geometry)
-        color = shape.material.color() if isinstance(shape, Visual) and shape.material else None
-        if color is not None:
-            material = ET.SubElement(element, "material", name=f"{link.get('name')}__{shape.name}")
-            ET.SubElement(material, "color", rgba=_fmts(color))
+        if isinstance(shape, Visual):
+            self.add_material(element, f"{link.get('name')}__{shape.name}", shape)
+
+    def add_material(self, element: ET.Element, name: str, visual: Visual) -> None:
+        """URDF's own `<material>` (colour, texture: what PyBullet and ROS tools read), and beside
+        it `<sdf_material>` with what URDF has no place for (every URDF reader skips it)."""
+        material = visual.material or Material()
+        color, texture = material.color(), material.albedo_map
+        if color is not None or texture is not None:
+            urdf_material = ET.SubElement(element, "material", name=name)
+            if color is not None:
+                ET.SubElement(urdf_material, "color", rgba=_fmts(color))
+            if texture is not None:
+                ET.SubElement(urdf_material, "texture", filename=self.filename(texture))
+        extra = {
+            **{tag: _fmts(value) for tag, value in _colours(material).items() if value is not None},
+            **{tag: _fmt(value) for tag, value in _numbers(material, visual).items() if value is not None},
+            **({"lighting": "false"} if not material.lighting else {}),
+            **({"cast_shadows": "false"} if not visual.cast_shadows else {}),
+            **({"normal_map": self.filename(material.normal_map)} if material.normal_map else {}),
+            **_original_mesh(visual, self.filename),
+        }
+        if extra:
+            ET.SubElement(element, SDF_MATERIAL, extra)
 
     def add_geometry(self, parent: ET.Element, geometry: Geometry) -> None:
         if isinstance(geometry, Box):
@@ -157,7 +187,7 @@ class _Urdf:
     def mesh_filename(self, mesh: Mesh) -> str:
         if mesh.path is None:
             raise DescriptionError(self.model.source, f"mesh {mesh.uri!r} was not resolved", "mesh")
-        return self.filename(mesh.path)
+        return self.filename(stand_in(mesh.path, self.generated_dir) if needs_stand_in(mesh.path) else mesh.path)
 
     def generated_filename(self, shape: Generated) -> str:
         return self.filename(mesh_file(shape, self.generated_dir, self.model.source))
@@ -193,6 +223,32 @@ class _Urdf:
         _add_limit(element, kind, axis)
         if axis.damping or axis.friction:
             ET.SubElement(element, "dynamics", damping=_fmt(axis.damping), friction=_fmt(axis.friction))
+
+
+def _original_mesh(visual: Visual, filename: Callable[[Path], str]) -> dict[str, str]:
+    """The mesh file itself where the URDF's `<mesh>` names its stand-in (stand_in_meshes.py)."""
+    mesh = visual.geometry
+    if isinstance(mesh, Mesh) and mesh.path is not None and needs_stand_in(mesh.path):
+        return {"mesh": filename(mesh.path)}
+    return {}
+
+
+def _colours(material: Material) -> dict[str, RGBA | None]:
+    return {
+        "ambient": material.ambient,
+        "diffuse": material.diffuse,
+        "specular": material.specular,
+        "emissive": material.emissive,
+    }
+
+
+def _numbers(material: Material, visual: Visual) -> dict[str, float | None]:
+    return {
+        "shininess": material.shininess,
+        "metalness": material.metalness,
+        "roughness": material.roughness,
+        "transparency": visual.transparency or None,
+    }
 
 
 def _add_limit(joint: ET.Element, kind: str, axis: Axis) -> None:

@@ -88,6 +88,19 @@ class SdfElement:
             raise self.error(tag, f"expected a finite number, got {text!r}")
         return value
 
+    def numbers(self, tag: str, default: tuple[float, ...]) -> tuple[float, ...]:
+        """A vector of as many finite numbers as `default`, space-separated (`<center>0.5 0.5</center>`)."""
+        text = self.text(tag)
+        if text is None:
+            return default
+        try:
+            values = tuple(float(part) for part in text.split())
+        except ValueError:
+            raise self.error(tag, f"expected {len(default)} numbers, got {text!r}") from None
+        if len(values) != len(default) or not all(math.isfinite(v) for v in values):
+            raise self.error(tag, f"expected {len(default)} finite numbers, got {text!r}")
+        return values
+
     def required_number(self, tag: str) -> float:
         if self.text(tag) is None:
             raise self.error(tag, "is required")

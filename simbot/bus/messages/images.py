@@ -1,6 +1,8 @@
-"""sensor_msgs of cameras: colour and depth images, their pixels back, and the pinhole CameraInfo."""
+"""sensor_msgs of cameras: colour and depth images, their pixels back, and the CameraInfo (plumb_bob)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -83,8 +85,19 @@ def image_pixels(msg: Image) -> npt.NDArray[np.uint8]:
     return rows if channels == 1 else rows.reshape(height, width, channels)
 
 
-def camera_info(ns: int, frame: str, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> CameraInfo:
-    """sensor_msgs/CameraInfo of an ideal pinhole camera (no distortion, identity rectification)."""
+def camera_info(
+    ns: int,
+    frame: str,
+    width: int,
+    height: int,
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    d: Sequence[float] = (0.0,) * 5,
+) -> CameraInfo:
+    """sensor_msgs/CameraInfo of a camera with plumb_bob distortion D = [k1, k2, p1, p2, k3] (none
+    by default) and identity rectification; P is K, as for a monocular camera."""
     k = (fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0)
     p = (fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0)
     return CameraInfo(
@@ -92,7 +105,7 @@ def camera_info(ns: int, frame: str, width: int, height: int, fx: float, fy: flo
         height=height,
         width=width,
         distortion_model="plumb_bob",
-        d=np.zeros(5, dtype=np.float64),
+        d=float_array(d, "D", 5),
         k=float_array(k, "K", 9),
         r=float_array((1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), "R", 9),
         p=float_array(p, "P", 12),

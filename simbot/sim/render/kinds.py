@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.plugins import load_group
+from simbot.sim.render.lens import Distortion
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +38,7 @@ Finish = Callable[[Array, Mapping[str, Array]], None]
 
 
 class Intrinsics(Protocol):
-    """What a kind may read of its camera (a `CameraSpec` is one): size, clip, noise, focal length."""
+    """What a kind may read of its camera (a `CameraSpec` is one): size, clip, noise, focal length, lens."""
 
     @property
     def width(self) -> int: ...
@@ -55,6 +56,8 @@ class Intrinsics(Protocol):
     def fx(self) -> float: ...
     @property
     def principal_point(self) -> tuple[float, float]: ...
+    @property
+    def distortion(self) -> Distortion: ...
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,11 @@
 """The built-in camera outputs (`kinds.py`): colour (rgb8) or mono (mono8) with pixel noise,
 depth in metres, and the organised point cloud of an RGBD camera; and the finishing steps that
 turn what a renderer drew into them, in place in the camera's shared memory. Both renderers hand
-over the same raw form (uint8 colour, window depth 0..1), so this is shared by both."""
+over the same raw form (uint8 colour, window depth 0..1), so this is shared by both.
+
+A camera whose lens bends (`lens.py`) has its colour and depth remapped from the pinhole render
+first (noise comes after the lens, as on a real sensor), and its points are cast along each
+pixel's undistorted ray; a camera without one takes none of these steps."""
 
 from __future__ import annotations
 
@@ -9,6 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from simbot.sim.render import lens
 from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
 from simbot.sim.render.specs import Depths, Pixels, Points
 
@@ -42,12 +47,15 @@ def add_noise(pixels: Pixels, stddev: float, rng: np.random.Generator) -> None:
 
 
 class PointGrid:
-    """Per-pixel ray slopes of a camera, (u − cx)/fx and (v − cy)/fy, worked out once."""
+    """Per-pixel ray slopes of a camera, worked out once: (u − cx)/fx and (v − cy)/fy of a pinhole
+    camera, the undistorted ray of each pixel (`lens.rays`, NaN where none) through a lens that bends."""
 
     def __init__(self, spec: Intrinsics) -> None:
         cx, cy = spec.principal_point
-        self.x = ((np.arange(spec.width, dtype=np.float32) - cx) / spec.fx)[np.newaxis, :]
-        self.y = ((np.arange(spec.height, dtype=np.float32) - cy) / spec.fx)[:, np.newaxis]
+        self.x: Depths = ((np.arange(spec.width, dtype=np.float32) - cx) / spec.fx)[np.newaxis, :]
+        self.y: Depths = ((np.arange(spec.height, dtype=np.float32) - cy) / spec.fx)[:, np.newaxis]
+        if spec.distortion.bends:
+            self.x, self.y = lens.rays(spec.distortion, spec.width, spec.height, spec.fx)
 
     def fill(self, depth: Depths, rgb: Pixels, out: Points) -> None:
         """x y z rgb per pixel in the optical frame (x right, y down, z forward); NaN where the
@@ -60,16 +68,39 @@ class PointGrid:
         out[..., 3] = packed.view(np.float32)
 
 
-def noise(spec: Intrinsics) -> Finish | None:
-    """The camera's seeded pixel noise; none at stddev 0."""
-    if spec.noise_stddev <= 0.0:
+def _remap(spec: Intrinsics) -> lens.Remap | None:
+    """The camera's lens as remap tables (shared by its outputs); None for a pinhole camera."""
+    if not spec.distortion.bends:
         return None
-    rng = np.random.default_rng(spec.seed)
-    return lambda pixels, _: add_noise(pixels, spec.noise_stddev, rng)
+    return lens.remap(spec.distortion, spec.width, spec.height, spec.fx)
+
+
+def noise(spec: Intrinsics) -> Finish | None:
+    """The lens, then the camera's seeded pixel noise; none for a pinhole camera at stddev 0."""
+    bend = _remap(spec)
+    rng = np.random.default_rng(spec.seed) if spec.noise_stddev > 0.0 else None
+    if bend is None and rng is None:
+        return None
+
+    def finish(pixels: Array, _: Mapping[str, Array]) -> None:
+        if bend is not None:
+            bend.pixels(pixels)
+        if rng is not None:
+            add_noise(pixels, spec.noise_stddev, rng)
+
+    return finish
 
 
 def metres(spec: Intrinsics) -> Finish:
-    return lambda depth, _: linear_depth(depth, spec.near, spec.far)
+    """Window depth to metres, then the lens (nearest: no depth between two surfaces)."""
+    bend = _remap(spec)
+
+    def finish(depth: Array, _: Mapping[str, Array]) -> None:
+        linear_depth(depth, spec.near, spec.far)
+        if bend is not None:
+            bend.depth(depth)
+
+    return finish
 
 
 def points(spec: Intrinsics) -> Finish:

@@ -1,15 +1,20 @@
-"""Triangles for the OpenGL renderer: each visual shape PyBullet reports, tessellated in its link
-frame as a triangle soup of positions and normals (float32, N×3 each, three rows a triangle)."""
+"""Triangles for the OpenGL renderer: each visual shape, tessellated in its link frame as a
+triangle soup of positions, normals and texture coordinates (N×3, N×3, N×2, three rows a triangle).
+
+Texture coordinates follow Gazebo's primitives: each face of a box shows the whole image, upright
+on the side faces and not mirrored seen from outside; a plane shows it once; a cylinder, sphere or
+capsule wraps it once around (u) and from the bottom to the top along the surface (v, by arc
+length: a sphere's v is its latitude; a cylinder's caps take the ends of the image, where Gazebo
+maps them flat)."""
 
 from __future__ import annotations
 
 import logging
-from functools import cache
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.render.mesh_materials import scaled, submeshes
 from simbot.sim.render.scene import VisualShape
 from simbot.transform import Transform
 
@@ -25,40 +30,64 @@ GEOM_SPHERE, GEOM_BOX, GEOM_CYLINDER, GEOM_MESH, GEOM_PLANE, GEOM_CAPSULE = 2, 3
 """PyBullet's geometry type numbers (pybullet.GEOM_*), fixed in its C API."""
 
 
+Tessellated = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]
+"""Positions, normals, texture coordinates."""
+
+
 def triangles(shape: VisualShape) -> tuple[Array, Array]:
     """(positions, normals) of the shape in its link frame; empty arrays for a shape with no surface."""
-    positions, normals = _local(shape)
+    positions, normals, _ = _local(shape)
     local = Transform.of(*shape.local).matrix()
     rotation = local[:3, :3]
     placed = positions @ rotation.T + local[:3, 3]
     return placed.astype(np.float32), (normals @ rotation.T).astype(np.float32)
 
 
-def _local(shape: VisualShape) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    dims = shape.dimensions
-    if shape.geometry == GEOM_BOX:
-        return box(np.asarray(dims[:3]) / 2.0)
-    if shape.geometry == GEOM_SPHERE:
-        return revolved(_sphere_profile(dims[0], 0.0))
-    if shape.geometry == GEOM_CYLINDER:
-        return revolved(_cylinder_profile(dims[0], dims[1]))
-    if shape.geometry == GEOM_CAPSULE:
-        return revolved(_sphere_profile(dims[1], dims[0] / 2.0))
-    if shape.geometry == GEOM_PLANE:
-        return box(np.array([PLANE_HALF_SIZE, PLANE_HALF_SIZE, 0.0]))
+def _local(shape: VisualShape) -> Tessellated:
     if shape.geometry == GEOM_MESH:
-        return mesh(shape.mesh, tuple(dims[:3]))
-    log.warning("visual of link %d: geometry type %d is not drawn", shape.link, shape.geometry)
-    return np.zeros((0, 3)), np.zeros((0, 3))
+        positions, normals = mesh(shape.mesh, tuple(shape.dimensions[:3]))
+        return positions, normals, np.zeros((len(positions), 2))
+    tessellated = primitive(shape.geometry, shape.dimensions)
+    if tessellated is None:
+        log.warning("visual of link %d: geometry type %d is not drawn", shape.link, shape.geometry)
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2))
+    return tessellated
+
+
+def primitive(geometry: int, dims: tuple[float, ...]) -> Tessellated | None:
+    """A primitive centred on its origin, sized as PyBullet reports it (`VisualShape.dimensions`);
+    None for a mesh or an unknown type."""
+    if geometry == GEOM_BOX:
+        return box(np.asarray(dims[:3]) / 2.0)
+    if geometry == GEOM_SPHERE:
+        return revolved(_sphere_profile(dims[0], 0.0))
+    if geometry == GEOM_CYLINDER:
+        return revolved(_cylinder_profile(dims[0], dims[1]))
+    if geometry == GEOM_CAPSULE:
+        return revolved(_sphere_profile(dims[1], dims[0] / 2.0))
+    if geometry == GEOM_PLANE:
+        return box(np.array([PLANE_HALF_SIZE, PLANE_HALF_SIZE, 0.0]))
+    return None
 
 
 _FACES = [(axis, sign) for axis in range(3) for sign in (1.0, -1.0)]
+_IMAGE_AXES = {
+    (0, 1.0): ((1, 1.0), (2, 1.0)),
+    (0, -1.0): ((1, -1.0), (2, 1.0)),
+    (1, 1.0): ((0, -1.0), (2, 1.0)),
+    (1, -1.0): ((0, 1.0), (2, 1.0)),
+    (2, 1.0): ((0, 1.0), (1, 1.0)),
+    (2, -1.0): ((0, 1.0), (1, -1.0)),
+}
+"""Each face's (axis, direction) of the image's u and v: u × v is the face's outward normal, so
+the image reads unmirrored from outside, and v is up (+z) on the side faces."""
 
 
-def box(half: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Twelve triangles, flat normals, centred on the origin."""
+def box(half: npt.NDArray[np.float64]) -> Tessellated:
+    """Twelve triangles, flat normals, centred on the origin; each face the whole image."""
     positions: list[npt.NDArray[np.float64]] = []
     normals: list[npt.NDArray[np.float64]] = []
+    uvs: list[tuple[float, float]] = []
     for axis, sign in _FACES:
         u, v = (axis + 1) % 3, (axis + 2) % 3
         corners = []
@@ -66,11 +95,19 @@ def box(half: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], npt.NDA
             corner = np.zeros(3)
             corner[axis], corner[u], corner[v] = sign * half[axis], cu * half[u], cv * half[v]
             corners.append(corner)
-        positions += [corners[i] for i in (0, 1, 2, 0, 2, 3)]
+        face = [corners[i] for i in (0, 1, 2, 0, 2, 3)]
+        (image_u, sign_u), (image_v, sign_v) = _IMAGE_AXES[(axis, sign)]
+        uvs += [(_unit(sign_u * c[image_u], half[image_u]), _unit(sign_v * c[image_v], half[image_v])) for c in face]
+        positions += face
         normal = np.zeros(3)
         normal[axis] = sign
         normals += [normal] * 6
-    return np.asarray(positions), np.asarray(normals)
+    return np.asarray(positions), np.asarray(normals), np.asarray(uvs)
+
+
+def _unit(coordinate: float, half: float) -> float:
+    """-half..half as 0..1 (0.5 across a side of no size)."""
+    return 0.5 + coordinate / (2.0 * half) if half > 0 else 0.5
 
 
 def _sphere_profile(radius: float, half_length: float) -> list[tuple[float, float, float, float]]:
@@ -100,15 +137,18 @@ def _cylinder_profile(length: float, radius: float) -> list[tuple[float, float, 
     ]
 
 
-def revolved(
-    profile: list[tuple[float, float, float, float]],
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """A surface of revolution about z: each pair of profile points sweeps a band of quads."""
+def revolved(profile: list[tuple[float, float, float, float]]) -> Tessellated:
+    """A surface of revolution about z: each pair of profile points sweeps a band of quads; u
+    runs around, v along the profile by arc length."""
     angles = np.linspace(0.0, 2.0 * np.pi, SEGMENTS + 1)
     cos, sin = np.cos(angles), np.sin(angles)
+    steps = np.hypot(np.diff([p[0] for p in profile]), np.diff([p[1] for p in profile]))
+    arc = np.concatenate([[0.0], np.cumsum(steps)]) / max(float(steps.sum()), 1e-12)
+    u = angles / (2.0 * np.pi)
     positions: list[npt.NDArray[np.float64]] = []
     normals: list[npt.NDArray[np.float64]] = []
-    for (r0, z0, nr0, nz0), (r1, z1, nr1, nz1) in zip(profile, profile[1:], strict=False):
+    uvs: list[tuple[float, float]] = []
+    for i, ((r0, z0, nr0, nz0), (r1, z1, nr1, nz1)) in enumerate(zip(profile, profile[1:], strict=False)):
         if r0 == r1 == 0.0 or (r0 == r1 and z0 == z1):
             continue  # a degenerate band: the pole, or the seam between a cap and the side
         ring0 = np.stack([r0 * cos, r0 * sin, np.full_like(cos, z0)], axis=1)
@@ -120,25 +160,17 @@ def revolved(
             quad_n = (n0[k], n0[k + 1], n1[k + 1], n0[k], n1[k + 1], n1[k])
             positions += quad_p
             normals += quad_n
-    return np.asarray(positions), np.asarray(normals)
+            v0, v1 = arc[i], arc[i + 1]
+            uvs += [(u[k], v0), (u[k + 1], v0), (u[k + 1], v1), (u[k], v0), (u[k + 1], v1), (u[k], v1)]
+    return np.asarray(positions), np.asarray(normals), np.asarray(uvs)
 
 
 def mesh(path: str, scale: tuple[float, ...]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """A mesh file's triangles, scaled, with flat face normals; nothing (and a warning) when it cannot be read."""
-    positions, normals = _mesh_file(path)
-    return positions * np.asarray(scale), normals * np.sign(np.prod(scale))
-
-
-@cache
-def _mesh_file(path: str) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    import trimesh  # yourdfpy's dependency: STL, OBJ, PLY, glTF
-
-    try:
-        loaded: Any = trimesh.load(path, force="mesh")
-    except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds for a bad file
-        log.warning("mesh %s cannot be read (%s); it is not drawn", path, exc)
+    parts = submeshes(path)
+    if not parts:
         return np.zeros((0, 3)), np.zeros((0, 3))
-    faces = np.asarray(loaded.faces)
-    positions = np.asarray(loaded.vertices, dtype=np.float64)[faces].reshape(-1, 3)
-    normals = np.repeat(np.asarray(loaded.face_normals, dtype=np.float64), 3, axis=0)
+    positions, normals = scaled(
+        np.concatenate([p.positions for p in parts]), np.concatenate([p.normals for p in parts]), scale
+    )
     return positions, normals

@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
+from simbot.sim.render.lens import Distortion, principal_point, render_focal
 from simbot.transform import Transform, Vec3
 
 Pixels = npt.NDArray[np.uint8]
@@ -61,6 +62,8 @@ class CameraSpec:
     noise_stddev: float = 0.0
     """Gaussian pixel noise in units of full scale, as SDF camera noise (0..1)."""
     seed: int = 0
+    distortion: Distortion = Distortion()
+    """The lens (SDF `<distortion>`; `lens.py`); the default bends nothing."""
     kinds: tuple[OutputKind, ...] = field(init=False, repr=False, compare=False)
     """The outputs' kinds, each after those it needs."""
 
@@ -72,6 +75,8 @@ class CameraSpec:
             raise ValueError(f"camera {self.name!r}: horizontal fov {self.hfov} must be in (0, pi)")
         if not 0.0 < self.near < self.far:
             raise ValueError(f"camera {self.name!r}: clip near {self.near} / far {self.far} must be 0 < near < far")
+        if not all(math.isfinite(c) for c in (*self.distortion.d, *self.distortion.center)):
+            raise ValueError(f"camera {self.name!r}: distortion {self.distortion} must be finite")
         if not self.noise_stddev >= 0.0:
             raise ValueError(f"camera {self.name!r}: noise stddev {self.noise_stddev} must be >= 0")
         try:
@@ -110,9 +115,12 @@ class CameraSpec:
 
     @property
     def render_vfov_deg(self) -> float:
-        """The vertical field of view the renderer draws with, degrees: the camera's own (a lens
-        that bends the image draws a wider one to remap from)."""
-        return self.vfov_deg
+        """The vertical field of view the renderer draws with, degrees: the camera's own, or the one
+        a lens that bends the image samples its rays from (`lens.render_focal`)."""
+        if not self.distortion.bends:
+            return self.vfov_deg
+        focal = render_focal(self.distortion, self.width, self.height, self.fx)
+        return math.degrees(2.0 * math.atan((self.height / 2.0) / focal))
 
     @property
     def fx(self) -> float:
@@ -121,8 +129,9 @@ class CameraSpec:
 
     @property
     def principal_point(self) -> tuple[float, float]:
-        """(cx, cy) in ROS's pixel-centre coordinates: the image centre, where a symmetric frustum puts it."""
-        return (self.width - 1) / 2.0, (self.height - 1) / 2.0
+        """(cx, cy) in ROS's pixel-centre coordinates: the image centre, where a symmetric frustum puts
+        it, or the distortion centre of a lens that bends (`lens.principal_point`)."""
+        return principal_point(self.distortion, self.width, self.height)
 
 
 @dataclass(frozen=True)

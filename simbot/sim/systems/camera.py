@@ -13,9 +13,12 @@ it), as ROS expects of camera data. Its image key is `<topic>`, else Gazebo's
 `world/<w>/model/<m>/link/<l>/sensor/<s>/image` (`.../depth_image` for a depth camera). Every
 frame goes out with its `camera_info` under the same stamp (image_transport's CameraSubscriber,
 RViz and exact-time synchronisers pair them by stamp); while only camera_info is subscribed, it
-goes out at the camera's rate without rendering. camera_info holds the true pinhole intrinsics: fx = fy = (w/2)/tan(hfov/2), principal
-point at the image centre ((w−1)/2, (h−1)/2 in ROS's pixel-centre coordinates, where the
-symmetric frustum puts it). Its key is the image key's sibling, as Gazebo names it: the last
+goes out at the camera's rate without rendering. camera_info holds the camera's true intrinsics:
+fx = fy = (w/2)/tan(hfov/2), principal point at the image centre ((w−1)/2, (h−1)/2 in ROS's
+pixel-centre coordinates, where the symmetric frustum puts it), distortion_model `plumb_bob` with
+D = [k1, k2, p1, p2, k3] of `<distortion>` (all zero without one). A lens that bends the image
+puts the principal point at its `<center>` (simbot/sim/render/lens.py says how the image is bent,
+so that cv2.undistortPoints with this K and D straightens it). Its key is the image key's sibling, as Gazebo names it: the last
 segment replaced by `camera_info` (`a/b/image` → `a/b/camera_info`), or `<key>/camera_info` for a
 key of one segment (`camera_front` → `camera_front/camera_info`).
 
@@ -27,7 +30,9 @@ SDF parameters (under `<camera>`; `CameraParams`):
 | `<image><width>`, `<height>` | 320, 240 | pixels, 1..8192 (`--camera-size` overrides) |
 | `<image><format>` | R8G8B8 | R8G8B8 / RGB_INT8 (rgb8) or L8 / L_INT8 (mono8); depth cameras ignore it |
 | `<clip><near>`, `<far>` | 0.1, 100 | metres, 0 < near < far |
-| `<noise>` (`type`, `stddev`) | none | gaussian pixel noise, fraction of full scale |
+| `<noise>` (`type`, `stddev`) | none | gaussian pixel noise, fraction of full scale, after the lens |
+| `<distortion>` `<k1>` `<k2>` `<k3>` `<p1>` `<p2>` | 0 | plumb_bob lens distortion of colour, depth and points |
+| `<distortion><center>` | 0.5 0.5 | distortion centre, normalised image coordinates; the principal point |
 | `<update_rate>` (of the `<sensor>`) | 30 | frames per second (`--camera-rate` overrides) |
 
 Command-line parameters (`RunOptions.overrides`): `camera.size` ((width, height)), `camera.rate` (Hz).
@@ -48,6 +53,7 @@ from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.contract import RenderStatus
+from simbot.sim.render.lens import Distortion
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
@@ -68,6 +74,7 @@ class CameraParams:
     near: float = 0.1
     far: float = 100.0
     noise_stddev: float = 0.0
+    distortion: Distortion = Distortion()
 
     @staticmethod
     def from_sdf(sensor: Sensor, color: bool = True) -> CameraParams:
@@ -83,6 +90,7 @@ class CameraParams:
             near=clip.number("near", 0.1),
             far=clip.number("far", 100.0),
             noise_stddev=(camera.noise() or Noise()).applied.stddev,
+            distortion=_distortion(camera.child_or_empty("distortion")),
         )
         for tag, value in (("width", params.width), ("height", params.height)):
             if not 1 <= value <= MAX_SIDE:
@@ -96,6 +104,13 @@ class CameraParams:
         if params.noise_stddev < 0:
             raise camera.error("noise", f"stddev must be >= 0, got {params.noise_stddev}")
         return params
+
+
+def _distortion(lens: SdfElement) -> Distortion:
+    """SDF `<distortion>`: every element optional, zero (the centre 0.5 0.5) when absent."""
+    k1, k2, k3, p1, p2 = (lens.number(tag, 0.0) for tag in ("k1", "k2", "k3", "p1", "p2"))
+    cx, cy = lens.numbers("center", (0.5, 0.5))
+    return Distortion(k1, k2, k3, p1, p2, (cx, cy))
 
 
 def camera_info_key(image_key: str) -> str:
@@ -163,6 +178,7 @@ class Camera(Sampled):
             outputs=tuple(dict.fromkeys(outputs)),
             noise_stddev=params.noise_stddev,
             seed=int(ctx.rng.integers(2**31)),
+            distortion=params.distortion,
         )
         super().__init__(sensor.name, ctx.override("camera.rate") or sensor_rate(sensor, DEFAULT_RATE_HZ))
         self.where = (model, link.name, sensor.pose)
@@ -206,7 +222,9 @@ class Camera(Sampled):
             spec = self.spec
             cx, cy = spec.principal_point
             self._info.put(
-                messages.camera_info(stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy)
+                messages.camera_info(
+                    stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy, spec.distortion.d
+                )
             )
 
     def report(self) -> dict[str, Any]:

@@ -4,7 +4,9 @@ where nothing lies within the far clip, −inf where a surface is nearer than th
 
 The same camera as `camera` (its SDF parameters, its camera_info beside the image key, Gazebo's
 sibling `camera_info`), rendering depth only; `<image><format>` is ignored. Pixel noise is not
-applied to depth.
+applied to depth. A `<distortion>` bends the depth image as it bends a colour one
+(simbot/sim/render/lens.py), taking the nearest rendered depth so that none is invented across an
+edge; +inf where the lens brings no ray.
 """
 
 from __future__ import annotations

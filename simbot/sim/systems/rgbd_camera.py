@@ -9,7 +9,9 @@ one render, as Gazebo's RGBD camera publishes them under its topic (`<topic>`, e
 | `<topic>/points` | sensor_msgs/PointCloud2, H×W, fields x y z rgb (float32, rgb packed 0x00RRGGBB), optical frame, NaN where no surface |
 | `<topic>/camera_info` | sensor_msgs/CameraInfo |
 
-All four share one stamp. The SDF parameters are the camera's (`camera.py`).
+All four share one stamp. The SDF parameters are the camera's (`camera.py`). Through a
+`<distortion>` lens the image and depth are bent alike and each point lies along its pixel's
+undistorted ray, so the cloud stays metric (simbot/sim/render/lens.py).
 """
 
 from __future__ import annotations
