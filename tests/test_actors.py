@@ -123,9 +123,9 @@ def test_the_lidar_reads_the_proxys_near_face_as_it_crosses_and_the_wall_once_it
 
 
 def _orange(image: np.ndarray) -> np.ndarray:
-    """The proxy's high-visibility orange, whatever the shading: red well over green well over blue."""
+    """The proxy's high-visibility orange, lit or in shade: red twice green, green far over blue."""
     r, g, b = (image[..., i].astype(int) for i in range(3))
-    return (r > 120) & (r > g + 40) & (g > b + 30)
+    return (r > 60) & (r > 1.6 * g) & (g > 2 * b) & (g > 15)
 
 
 def _image_at(sim: SimServer, time: float) -> np.ndarray:
