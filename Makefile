@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench urdf meshes layout image clean
+.PHONY: run test lint bench urdf meshes textures layout image clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -30,6 +30,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
 	$(BIN)/python benchmarks/bench_fleet.py
 	$(BIN)/python benchmarks/bench_sensors.py
+	$(BIN)/python benchmarks/bench_looks.py
+	$(BIN)/python benchmarks/bench_vo.py
 	$(BIN)/python benchmarks/bench_merger.py
 	$(BIN)/python benchmarks/bench_stitcher.py
 	$(BIN)/python benchmarks/bench_record.py
@@ -49,6 +51,10 @@ urdf: $(STAMP)
 ## Regenerate the meshes from primitives.
 meshes: $(STAMP)
 	$(BIN)/python meshes/make_meshes.py
+
+## Regenerate the warehouse's textures from seeded noise and drawing (a test checks they match).
+textures: $(STAMP)
+	$(BIN)/python worlds/textures/make_textures.py
 
 ## Regenerate the Foxglove layout for `simbot foxglove` (a test checks it is up to date).
 layout: $(STAMP)

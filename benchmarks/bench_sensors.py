@@ -63,6 +63,7 @@ from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene
+from simbot.sim.render.tiny import tiny_lighting
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
 from simbot.sim.simulation import Mode
 from simbot.sim.systems.camera import Camera, CameraParams
@@ -131,12 +132,8 @@ def bare_render(client: int, view: View, light: Light) -> None:
         renderer=pb.ER_TINY_RENDERER,
         flags=pb.ER_NO_SEGMENTATION_MASK,
         shadow=0,
-        lightDirection=[-v for v in light.direction],
-        lightColor=list(light.color),
-        lightAmbientCoeff=light.ambient,
-        lightDiffuseCoeff=light.diffuse,
-        lightSpecularCoeff=light.specular,
         physicsClientId=client,
+        **tiny_lighting(light),
     )
 
 
@@ -233,12 +230,12 @@ class Costs:
 
 
 @contextmanager
-def in_process_server() -> Iterator[tuple[Server, Node]]:
+def in_process_server(world: str = WORLD) -> Iterator[tuple[Server, Node]]:
     """A `Server` built as simbot-server builds it (lockstep, so that starting the render pool
     waits), on its own loopback port, and a client node on it."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
     config = ServerConfig(
-        world_path(WORLD),
+        world_path(world),
         asset("urdf/flexley_tug.sdf"),
         mode=Mode.LOCKSTEP,
         overrides={"camera.size": (640, 480)},
@@ -496,11 +493,19 @@ def _wait_first(counters: dict[str, Counter], topics: Sequence[str], proc: subpr
         time.sleep(0.1)
 
 
-def run_server(mode: str, topics: Sequence[str], seconds: float, extra: Sequence[str] = (), drive: bool = False) -> Run:
+def run_server(
+    mode: str,
+    topics: Sequence[str],
+    seconds: float,
+    extra: Sequence[str] = (),
+    drive: bool = False,
+    world: str = WORLD,
+) -> Run:
     """`simbot-server` on a fresh loopback port and namespace, `topics` subscribed; measured over
-    `seconds` of wall time once every subscribed topic has delivered and the loop has settled."""
+    `seconds` of wall time once every subscribed topic has delivered and the loop has settled.
+    `world`: a name or an SDF path whose `<world>` is named warehouse (world control's key)."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    command = [sys.executable, "-m", "simbot.sim.server", "--world", WORLD, "--mode", mode, "--quiet"]
+    command = [sys.executable, "-m", "simbot.sim.server", "--world", world, "--mode", mode, "--quiet"]
     proc = subprocess.Popen(
         [*command, *extra, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL
     )

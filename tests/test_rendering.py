@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
-from gl_helpers import NO_EGL
+from gl_helpers import INERTIA, NO_EGL, box_urdf
 from server_helpers import exited, wait_until
 
 from simbot.sim.render import (
@@ -28,6 +28,7 @@ from simbot.sim.render import (
     CameraSpec,
     Frame,
     Light,
+    LightSource,
     OutputKind,
     PoolPlan,
     RenderPool,
@@ -46,7 +47,8 @@ WAIT = 10.0  # seconds a test waits for a frame before failing (a bug fails, nev
 RED = (1.0, 0.0, 0.0, 1.0)
 GREEN = (0.0, 1.0, 0.0, 1.0)
 ORANGE = (0.8, 0.5, 0.2, 1.0)
-FRONT_LIT = Light(direction=(1.0, 0.0, 0.0))  # travels along +x: lights the faces that look back at -x
+FRONT_LIT = Light(sources=(LightSource(diffuse=(0.4, 0.4, 0.4), direction=(1.0, 0.0, 0.0)),))
+"""The default lighting but its sun travels along +x: it lights the faces that look back at -x."""
 
 # The scene: each test's objects sit in their own region, 100 m apart (beyond the far clip).
 RED_FACE = 2.0  # the red box's front face, metres ahead of a camera at the origin
@@ -62,18 +64,6 @@ LATE_AT = (600.0, 0.0, 0.0)  # empty until a test adds bodies to the running poo
 LATE_FACE, LATE_SIZE, LATE_SIDE = 2.0, 0.4, 0.5  # their front faces 2 m ahead, 0.4 m wide, 0.5 m either side
 
 AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
-INERTIA = '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/>'
-
-
-def box_urdf(
-    size: tuple[float, float, float], rgba: tuple[float, ...], com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-) -> str:
-    """A one-link box; `com` puts its centre of mass beside the visual."""
-    return f"""<robot name="box"><link name="box">
-      <inertial><origin xyz="{com[0]} {com[1]} {com[2]}"/><mass value="1"/>{INERTIA}</inertial>
-      <visual><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry>
-        <material name="c"><color rgba="{" ".join(map(str, rgba))}"/></material></visual>
-    </link></robot>"""
 
 
 ARM_URDF = f"""<robot name="arm">
@@ -221,8 +211,9 @@ def test_base_poses_are_centre_of_mass_frames(pool: RenderPool) -> None:
 
 
 def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, renderer: str) -> None:
-    """Lit from behind the camera, an orange face shows its material colour; the default light (travelling
-    towards -x) leaves that face in ambient light only: 60 % of it, same hue."""
+    """Lit from behind the camera, an orange face shows scene ambient (0.6) × its colour + sun diffuse
+    (0.4) × its colour × N·L (1): its colour exactly; the default sun (travelling towards -x) leaves
+    that face in the ambient light only: 60 % of it, same hue. Both renderers shade so."""
     lit = render(pool, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
     np.testing.assert_allclose(lit, np.array(ORANGE[:3]) * 255, atol=2)
     with RenderPool(
@@ -230,6 +221,18 @@ def test_light_travels_along_its_direction_and_keeps_the_hue(pool: RenderPool, r
     ) as default_light:
         shaded = render(default_light, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
     np.testing.assert_allclose(shaded, np.array(ORANGE[:3]) * 255 * Light().ambient, atol=2)
+
+
+def test_a_coloured_sun_and_the_scene_ambient_shade_alike_in_both_renderers(renderer: str) -> None:
+    """Scene ambient 0.3 (grey) and a sun of diffuse (0.5, 0.3, 0.2) face on: the orange face shows
+    colour × (0.3 + sun), channel by channel, in GL and in TinyRenderer (its one light's colour
+    and ambient coefficient)."""
+    sun = LightSource(diffuse=(0.5, 0.3, 0.2), direction=(1.0, 0.0, 0.0))
+    lighting = Light(sources=(sun,), ambient=(0.3, 0.3, 0.3))
+    orange = [b for b in scene() if b.name == "orange"]
+    with RenderPool(orange, CAMERAS[:1], workers=1, renderer=renderer, light=lighting) as one:
+        pixel = render(one, RGB, at(ORANGE_AT))["color"][H // 2, W // 2].astype(float)
+    np.testing.assert_allclose(pixel, 255 * np.array(ORANGE[:3]) * (0.3 + np.array(sun.diffuse)), atol=2)
 
 
 def test_mono_is_luminance(pool: RenderPool) -> None:

@@ -269,7 +269,8 @@ class SdfPhysics:
 
 @dataclass(frozen=True)
 class SdfLight:
-    """SDF `<light>` as the world declares it (simbot.sim.render's Light is what the renderers shade with)."""
+    """SDF `<light>` as the world declares it, with SDF's defaults (simbot.sim.render's Lighting is
+    what the renderers shade with). `direction` is in the light's frame (its pose turns it)."""
 
     name: str
     type: str
@@ -278,12 +279,27 @@ class SdfLight:
     specular: RGBA = (0.1, 0.1, 0.1, 1.0)
     direction: Vec3 = (0.0, 0.0, -1.0)
     cast_shadows: bool = False
+    intensity: float = 1.0
+    attenuation_range: float = 10.0
+    """`<attenuation><range>`: no light beyond this distance (point and spot)."""
+    constant: float = 1.0
+    linear: float = 1.0
+    quadratic: float = 0.0
+    """Attenuation 1 / (constant + linear·d + quadratic·d²), as Gazebo."""
+    inner_angle: float = 0.0
+    outer_angle: float = 0.0
+    """`<spot>` cone angles, radians, full angles (Ogre's: the edge is at half of each from the axis)."""
+    falloff: float = 0.0
+    """`<spot><falloff>`: exponent of the fade from the inner to the outer cone."""
 
 
 @dataclass(frozen=True)
 class Scene:
+    """SDF `<scene>`: the ambient light, the sky's colour, and whether lights cast shadows."""
+
     ambient: RGBA = (0.4, 0.4, 0.4, 1.0)
     background: RGBA = (0.7, 0.7, 0.7, 1.0)
+    shadows: bool = True
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from simbot.description.model import (
     Plane,
     Polyline,
     Scene,
+    SdfLight,
     SdfPhysics,
     Sphere,
     SphericalCoordinates,
@@ -226,7 +227,36 @@ def read_scene(reader: Reader, element: Element | None) -> Scene:
     return Scene(
         ambient=rgba(reader, element, "ambient") or defaults.ambient,
         background=rgba(reader, element, "background") or defaults.background,
+        shadows=reader.flag(element, "shadows", defaults.shadows),
     )
+
+
+def read_light(reader: Reader, element: Element) -> SdfLight:
+    """A `<light>` but its pose (which `sdf_reader` places in the frame graph)."""
+    defaults = SdfLight("", "")
+    attenuation = element.find("attenuation")
+    spot = element.find("spot")
+    return SdfLight(
+        name=element.get("name", ""),
+        type=element.get("type", "point"),
+        diffuse=rgba(reader, element, "diffuse") or defaults.diffuse,
+        specular=rgba(reader, element, "specular") or defaults.specular,
+        direction=reader.vector(element, "direction", 3, defaults.direction),  # type: ignore[arg-type]
+        cast_shadows=reader.flag(element, "cast_shadows", defaults.cast_shadows),
+        intensity=reader.number(element, "intensity", defaults.intensity),
+        attenuation_range=_number(reader, attenuation, "range", defaults.attenuation_range),
+        constant=_number(reader, attenuation, "constant", defaults.constant),
+        linear=_number(reader, attenuation, "linear", defaults.linear),
+        quadratic=_number(reader, attenuation, "quadratic", defaults.quadratic),
+        inner_angle=_number(reader, spot, "inner_angle", defaults.inner_angle),
+        outer_angle=_number(reader, spot, "outer_angle", defaults.outer_angle),
+        falloff=_number(reader, spot, "falloff", defaults.falloff),
+    )
+
+
+def _number(reader: Reader, element: Element | None, tag: str, default: float) -> float:
+    """A number of an optional block (`<attenuation>`, `<spot>`): the default where the block is absent."""
+    return default if element is None else reader.number(element, tag, default)
 
 
 def model_file(reader: Reader, include: Element, found: Path) -> Path:

@@ -46,11 +46,11 @@ from simbot.description.sdf_elements import (
     read_atmosphere,
     read_friction,
     read_geometry,
+    read_light,
     read_material,
     read_physics,
     read_scene,
     read_spherical_coordinates,
-    rgba,
     version_key,
 )
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
@@ -414,16 +414,7 @@ def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> W
 
 
 def _read_light(reader: Reader, element: Element) -> SdfLight:
-    defaults = SdfLight("", "")
-    return SdfLight(
-        name=element.get("name", ""),
-        type=element.get("type", "point"),
-        pose=_pose(reader, element)[0],
-        diffuse=rgba(reader, element, "diffuse") or defaults.diffuse,
-        specular=rgba(reader, element, "specular") or defaults.specular,
-        direction=reader.vector(element, "direction", 3, defaults.direction),  # type: ignore[arg-type]
-        cast_shadows=reader.flag(element, "cast_shadows", False),
-    )
+    return replace(read_light(reader, element), pose=_pose(reader, element)[0])
 
 
 def _read_actor(reader: Reader, element: Element) -> Model:

@@ -1,95 +1,79 @@
 """The OpenGL 3.3 renderer: moderngl on a headless EGL context (the GPU where there is one, Mesa's
 llvmpipe on the CPU where there is not).
 
-The scene comes from the worker's PyBullet copy (`BulletScene`): every visual shape of every link,
-tessellated once (`shapes.py`). Bodies that never move are baked into one world-frame vertex
-buffer, drawn in one call; each link of a moving body is one buffer in its link frame, drawn with
-the link's transform of the request. A body added or removed at run time adds or drops its links'
-buffers; a static one re-bakes the world buffer from the static bodies' vertices, which are kept
-for that (tessellating them again would cost far more than concatenating). Lighting is TinyRenderer's model (ambient + diffuse of the
-world's sun, no specular), per vertex, so a fragment costs one colour write.
+The scene comes from the worker's PyBullet copy (`BulletScene`) as each body's pieces
+(`visuals.py::body_pieces`: triangles with one `Surface` each), read once when the body loads.
+Bodies that never move are baked into world-frame vertex buffers, one per surface (one draw per
+material); each (link, surface) of a moving body is one buffer in its link frame, drawn with the
+link's transform of the request. A body added or removed at run time adds or drops its parts; a
+static one re-bakes the world's buffers from the static bodies' vertices, which are kept for that.
+Textures (albedo and normal maps) are read and uploaded (mipmapped, sampled bilinearly from the nearest level) once per
+worker, the first time a piece names them; an image that cannot be read is one warning and the
+piece shows its colour.
 
-The projection flips y, so the framebuffer's first row is the image's top row and the pixels are
-read straight into the camera's shared memory, with no copy. A depth camera reads the depth
-buffer too, which its depth output turns into metres (`outputs.py`); it draws with depth
-clamping, so geometry nearer than the near plane is kept (and reads −inf) rather than cut away,
-and it discards what lies beyond the far plane (+inf, the background).
+Shading is in `gl_shaders.py` (Gazebo's material model, the world's lights, `Light`), the sun's
+shadows in `gl_shadow.py`. The sky is `<scene><background>`. Opaque parts are drawn first, then
+those with opacity < 1 blended over them (not sorted, and writing no depth: a depth camera sees
+through them). No face is culled (a mesh's winding is not trusted), so a translucent box blends
+its back face and then its front one over what lies behind it.
+
+Clipping is Gazebo's: geometry nearer than the camera's `near` or beyond its `far` is cut away, so
+a camera inside its housing sees out. The projection flips y, so the framebuffer's first row is the
+image's top row and the pixels are read straight into the camera's shared memory, with no copy. A
+depth camera reads the depth buffer too, which its depth output turns into metres (`outputs.py`).
 """
 
 from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.render import gl_shaders as shaders
+from simbot.sim.render.gl_shadow import ShadowMap
 from simbot.sim.render.kinds import Array, Raw
-from simbot.sim.render.scene import BulletScene, Matrix, VisualShape, projection_matrix, view_matrix
-from simbot.sim.render.shapes import triangles
-from simbot.sim.render.specs import CameraSpec, Light, SceneBody
+from simbot.sim.render.outputs import LUMA
+from simbot.sim.render.scene import BulletScene, Matrix, projection_matrix, view_matrix
+from simbot.sim.render.specs import MAX_LIGHTS, CameraSpec, Light, SceneBody
+from simbot.sim.render.surfaces import Piece, Surface
+from simbot.sim.render.visuals import body_pieces
 from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 
-GL_DEPTH_CLAMP = 0x864F
-BACKGROUND = (1.0, 1.0, 1.0)
-"""White, as TinyRenderer clears (so the two renderers give the same images, and mono of it is white too)."""
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
+ROW = "3f 3f 2f"
+"""A vertex: position, normal, texture coordinates (float32, 32 bytes)."""
+ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 
-_VERTEX = """
-#version 330
-uniform mat4 view_projection;
-uniform mat4 model;
-uniform vec3 to_light;
-uniform float ambient;
-uniform float diffuse;
-uniform mat4 view;
-in vec3 in_position;
-in vec3 in_normal;
-in vec3 in_color;
-out vec3 color;
-out float eye_depth;
-void main() {
-    vec4 world = model * vec4(in_position, 1.0);
-    vec3 normal = normalize(mat3(model) * in_normal);
-    color = in_color * (ambient + diffuse * max(dot(normal, to_light), 0.0));
-    eye_depth = -(view * world).z;
-    gl_Position = view_projection * world;
-}
-"""
-
-_FRAGMENT = """
-#version 330
-uniform float far;
-uniform bool mono;
-in vec3 color;
-in float eye_depth;
-out vec4 out_color;
-void main() {
-    if (eye_depth > far) discard;
-    float luma = dot(color, vec3(0.299, 0.587, 0.114));
-    out_color = vec4(mono ? vec3(luma) : color, 1.0);
-}
-"""
+Rows = npt.NDArray[np.float32]
 
 
 @dataclass
 class _Part:
-    """A vertex array drawn with one transform: the static world, or one moving link."""
+    """A vertex buffer drawn with one transform and one surface: a batch of the static world, or
+    one surface of a moving link."""
 
-    vao: Any
     buffer: Any
+    vao: Any
+    depth_vao: Any
+    """For the depth-only program: the sun's shadow maps."""
     body: str | None
     """None for the static world (identity transform)."""
     link: int
+    surface: Surface
+    texture: Any | None
+    normal_map: Any | None
+    program: shaders.Program
 
     def release(self) -> None:
-        self.vao.release()
-        self.buffer.release()
+        for item in (self.vao, self.depth_vao, self.buffer):
+            item.release()
 
 
 @dataclass
@@ -99,8 +83,6 @@ class _Target:
     projection: Matrix
     mono: bool
     """The colour buffer holds luminance (drawn so by the shader)."""
-    depth: bool
-    """Depth is read back: drawn with depth clamping (see the module docstring)."""
 
 
 class GlRenderer:
@@ -109,44 +91,67 @@ class GlRenderer:
     name = "gl"
 
     def __init__(
-        self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec], threads: int | None = None
+        self,
+        scene: BulletScene,
+        light: Light,
+        cameras: Mapping[int, CameraSpec],
+        threads: int | None = None,
+        pieces: Callable[[BulletScene, str], list[Piece]] = body_pieces,
     ) -> None:
+        """`pieces` gives a body's pieces (`visuals.py::body_pieces`; a test may dress them in surfaces of its own)."""
         if threads is not None:
             os.environ["LP_NUM_THREADS"] = str(threads)  # read by Mesa's llvmpipe when the context opens
         import moderngl  # an import error is a reason to fall back, reported by the worker
 
         self.scene = scene
+        self.light = light
+        self.pieces = pieces
         self.ctx = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub lags the signature
         self.device = str(self.ctx.info.get("GL_RENDERER", "unknown"))
         self.ctx.enable(moderngl.DEPTH_TEST)
-        self.program = self.ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
-        self.uniforms = {name: _uniform(self.program, name) for name in _UNIFORMS}
-        to_light = -np.asarray(light.direction, dtype=np.float64)
-        self.uniforms["to_light"].value = tuple(to_light / np.linalg.norm(to_light))
-        self.uniforms["ambient"].value = light.ambient
-        self.uniforms["diffuse"].value = light.diffuse
+        if len(light.sources) > MAX_LIGHTS:
+            log.warning("the world has %d lights; the renderer shades the first %d", len(light.sources), MAX_LIGHTS)
+        self.programs: dict[shaders.Kind, shaders.Program] = {}
+        """The camera programs, one a kind of surface, compiled when a piece of the kind first comes."""
+        caster = light.shadow_caster
+        self.depth_program: Any = self.ctx.program(
+            vertex_shader=shaders.DEPTH_VERTEX, fragment_shader=shaders.DEPTH_FRAGMENT
+        )
+        self.shadow = (
+            None if caster is None else ShadowMap(self.ctx, self.depth_program, light.sources[caster].direction)
+        )
         self.parts: list[_Part] = []
-        """The static world first (if any), then each moving link, in the order the bodies came."""
-        self._static: dict[str, npt.NDArray[np.float32]] = {}
-        """Each static body's vertices in the world frame: what the world buffer is baked from."""
+        """The static world first, then each moving link's surfaces, in the order the bodies came."""
+        self._static: dict[str, list[tuple[Surface, Rows]]] = {}
+        """Each static body's pieces in the world frame: what the world's buffers are baked from."""
+        self._textures: dict[str, Any | None] = {}
         self._posed = -1
         self._model_matrices: list[bytes] = []
         for body in scene.bodies.values():
-            self._tessellate(body)
+            self._load(body)
         self._bake()
         self.targets: dict[int, _Target] = {}
         for index, spec in cameras.items():
             self.add_camera(index, spec)
+
+    def _program(self, kind: shaders.Kind) -> shaders.Program:
+        if kind not in self.programs:
+            self.programs[kind] = shaders.Program(self.ctx, self.light, kind, _SAMPLERS)
+            self._posed = -1  # its shadow uniforms are set with the next pose
+        return self.programs[kind]
 
     # --- the scene
 
     def add_body(self, name: str) -> None:
         """Draw a body the scene has just loaded."""
         body = self.scene.bodies[name]
-        self._tessellate(body)
+        self._load(body)
         if body.static:
             self._bake()
+            return
         self._posed = -1
+        if self.shadow is not None:
+            self._fit_shadow()  # the sun's view takes in where it came
 
     def remove_body(self, name: str) -> None:
         """Stop drawing a body, before the scene drops it."""
@@ -154,50 +159,99 @@ class GlRenderer:
             if part.body == name:
                 part.release()
         self.parts = [part for part in self.parts if part.body != name]
+        self._posed = -1
         if self._static.pop(name, None) is not None:
             self._bake()
-        self._posed = -1
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.targets[index] = self._target(spec)
 
-    def _tessellate(self, body: SceneBody) -> None:
-        """A static body's vertices in the world frame (for `_bake`); a moving body's links as parts."""
-        shapes = self.scene.visual_shapes(body.name)
+    def _load(self, body: SceneBody) -> None:
+        """A static body's pieces in the world frame (for `_bake`); a moving body's link surfaces as parts."""
+        pieces = self.pieces(self.scene, body.name)
+        for piece in pieces:
+            self._texture(piece.surface.albedo_map)
+            self._texture(piece.surface.normal_map)
         if body.static:
             frames = self.scene.link_matrices(body.name)
-            self._static[body.name] = _stack([_vertices(shape, frames[shape.link]) for shape in shapes])
+            self._static[body.name] = [(p.surface, _rows(p, frames[p.link])) for p in pieces]
             return
-        for link in sorted({shape.link for shape in shapes}):
-            data = _stack([_vertices(s, np.eye(4)) for s in shapes if s.link == link])
+        identity = np.eye(4)
+        for link, surface in dict.fromkeys((p.link, p.surface) for p in pieces):
+            data = _stack([_rows(p, identity) for p in pieces if p.link == link and p.surface == surface])
             if len(data):
-                self.parts.append(self._part(data, body.name, link))
+                self.parts.append(self._part(data, body.name, link, surface))
 
     def _bake(self) -> None:
-        """Every static body into one world buffer, drawn in one call, replacing the old one."""
+        """Every static body into one world buffer per surface, replacing the old ones; the sun's
+        view refitted and its static map redrawn."""
         for part in self.parts:
             if part.body is None:
                 part.release()
-        self.parts = [part for part in self.parts if part.body is not None]
-        world = _stack(list(self._static.values()))
-        if len(world):
-            self.parts.insert(0, self._part(world, None, -1))
+        moving = [part for part in self.parts if part.body is not None]
+        batches: dict[Surface, list[Rows]] = {}
+        for pieces in self._static.values():
+            for surface, rows in pieces:
+                batches.setdefault(surface, []).append(rows)
+        static = [self._part(_stack(rows), None, -1, surface) for surface, rows in batches.items()]
+        self.parts = [part for part in static if part.vao.vertices] + moving
+        self._posed = -1
+        if self.shadow is not None:
+            self._fit_shadow()
         log.debug("GL scene: %d draws, %d vertices", len(self.parts), sum(p.vao.vertices for p in self.parts))
 
-    def _part(self, data: npt.NDArray[np.float32], body: str | None, link: int) -> _Part:
+    def _fit_shadow(self) -> None:
+        """The sun's view over the static casters and the moving bodies as they are now; the static map drawn."""
+        assert self.shadow is not None
+        static = [rows[:, :3] for pieces in self._static.values() for surface, rows in pieces if surface.cast_shadows]
+        moving = [frame[:3, 3].reshape(1, 3).astype(np.float32) for frame in self._link_origins()]
+        self.shadow.fit(static + moving)
+        identity = shaders.gl_matrix(np.eye(4))
+        self.shadow.draw(0, ((p.depth_vao, identity) for p in self.parts if p.body is None and p.surface.cast_shadows))
+
+    def _link_origins(self) -> Iterator[Matrix]:
+        for body in {p.body for p in self.parts if p.body is not None}:
+            yield from self.scene.link_matrices(body).values()
+
+    def _part(self, data: Rows, body: str | None, link: int, surface: Surface) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
-        vao = self.ctx.vertex_array(self.program, [(buffer, "3f 3f 3f", "in_position", "in_normal", "in_color")])
-        return _Part(vao, buffer, body, link)
+        texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
+        normal_map = self._textures.get(surface.normal_map) if surface.normal_map else None
+        program = self._program(shaders.Kind.of(surface, texture is not None, normal_map is not None))
+        attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
+        # attributes the kind does not read (a world with no light reads no normal) are skipped
+        vao = self.ctx.vertex_array(program.program, attributes, skip_errors=True)
+        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
+        return _Part(buffer, vao, depth_vao, body, link, surface, texture, normal_map, program)
+
+    def _texture(self, path: str | None) -> None:
+        """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
+        if path is None or path in self._textures:
+            return
+        import cv2
+        import moderngl
+
+        # OpenCV would write a line of its own for a missing file
+        image = cv2.imread(path, cv2.IMREAD_COLOR) if os.path.isfile(path) else None
+        if image is None:
+            log.warning("texture %s cannot be read; its surfaces show their colour", path)
+            self._textures[path] = None
+            return
+        rgb = np.ascontiguousarray(image[::-1, :, ::-1])  # GL's first row is the image's bottom one
+        texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
+        texture.build_mipmaps()
+        # bilinear from the nearest level: trilinear cost half as much again on llvmpipe
+        texture.filter = (moderngl.LINEAR_MIPMAP_NEAREST, moderngl.LINEAR)
+        self._textures[path] = texture
 
     def _target(self, spec: CameraSpec) -> _Target:
         size, drawn = (spec.width, spec.height), spec.drawn()
         mono = len(drawn.get("color", ())) == 2  # an H×W colour buffer: luminance
-        read_depth = "depth" in drawn
         color = self.ctx.renderbuffer(size, components=1 if mono else 3)
-        depth = self.ctx.depth_texture(size) if read_depth else self.ctx.depth_renderbuffer(size)
+        depth = self.ctx.depth_texture(size) if "depth" in drawn else self.ctx.depth_renderbuffer(size)
         projection = FLIP_Y @ projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
         fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
-        return _Target(spec, fbo, projection, mono, read_depth)
+        return _Target(spec, fbo, projection, mono)
 
     # --- a frame
 
@@ -205,73 +259,107 @@ class GlRenderer:
         """Draw camera `camera` at `pose` (the scene already posed); read colour (uint8) and window
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
+        transforms = self._transforms()
         view = view_matrix(pose)
-        uniforms = self.uniforms
-        uniforms["view_projection"].write(_gl(target.projection @ view))
-        uniforms["view"].write(_gl(view))
-        uniforms["far"].value = target.spec.far
-        uniforms["mono"].value = target.mono
+        view_projection = shaders.gl_matrix(target.projection @ view)
+        for program in self.programs.values():
+            program.write("view_projection", view_projection)
+            program.set("eye", tuple(float(v) for v in pose[0]))
+            program.set("mono", target.mono)
         target.fbo.use()
-        target.fbo.clear(*BACKGROUND, 1.0, depth=1.0)
-        if target.depth:
-            self.ctx.enable_direct(GL_DEPTH_CLAMP)
-        try:
-            self._draw()
-        finally:
-            if target.depth:
-                self.ctx.disable_direct(GL_DEPTH_CLAMP)
+        sky = self.light.background
+        target.fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
+        self._draw(transforms, target.fbo)
         if (color := drawn.get("color")) is not None:
             target.fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
         if (depth := drawn.get("depth")) is not None:
             target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
-    def _draw(self) -> None:
-        model = self.uniforms["model"]
-        for part, transform in zip(self.parts, self._transforms(), strict=True):
-            model.write(transform)
-            part.vao.render()
+    def _draw(self, transforms: list[bytes], fbo: Any) -> None:
+        """The opaque parts, then the translucent ones blended over them without writing depth.
+        (A depth pre-pass, to shade each pixel once, cost more on llvmpipe than it saved: the
+        vertices, drawn twice, are the larger part of a frame.)"""
+        import moderngl
+
+        drawn = list(zip(self.parts, transforms, strict=True))
+        for part, transform in drawn:
+            if part.surface.opacity >= 1.0:
+                self._draw_part(part, transform)
+        translucent = [(part, transform) for part, transform in drawn if part.surface.opacity < 1.0]
+        if not translucent:
+            return
+        self.ctx.enable(moderngl.BLEND)
+        fbo.depth_mask = False
+        try:
+            for part, transform in translucent:
+                self._draw_part(part, transform)
+        finally:
+            fbo.depth_mask = True
+            self.ctx.disable(moderngl.BLEND)
+
+    def _draw_part(self, part: _Part, transform: bytes) -> None:
+        part.program.write("model", transform)
+        part.program.surface(part.surface)
+        if part.texture is not None:
+            part.texture.use(ALBEDO_UNIT)
+        if part.normal_map is not None:
+            part.normal_map.use(NORMAL_UNIT)
+        part.vao.render()
 
     def _transforms(self) -> list[bytes]:
-        """Each part's model matrix for the scene's current pose, worked out once per pose (the
-        six cameras of a set share it)."""
+        """Each part's model matrix for the scene's current pose, and the sun's moving map, worked
+        out once per pose (the cameras of a set share them)."""
         if self._posed != self.scene.version:
             frames = {
                 body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}
             }
-            self._model_matrices = [_gl(np.eye(4) if p.body is None else frames[p.body][p.link]) for p in self.parts]
+            identity = np.eye(4)
+            self._model_matrices = [
+                shaders.gl_matrix(identity if p.body is None else frames[p.body][p.link]) for p in self.parts
+            ]
             self._posed = self.scene.version
+            self._shadow_moving()
         return self._model_matrices
 
+    def _shadow_moving(self) -> None:
+        """The moving casters into the sun's second map, as posed now."""
+        if self.shadow is None:
+            return
+        casters = [
+            (p.depth_vao, m)
+            for p, m in zip(self.parts, self._model_matrices, strict=True)
+            if p.body and p.surface.cast_shadows
+        ]
+        self.shadow.has_moving = bool(casters)
+        if casters:
+            self.shadow.draw(1, casters)
+        self.shadow.bind(SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT)
+        matrix = shaders.gl_matrix(self.shadow.matrix)
+        for program in self.programs.values():
+            program.write("shadow_matrix", matrix)
+            program.set("shadow_has_moving", self.shadow.has_moving)
+
     def close(self) -> None:
-        self.ctx.release()
+        self.ctx.release()  # with it everything it made
 
 
-_UNIFORMS = ("view_projection", "view", "model", "to_light", "ambient", "diffuse", "far", "mono")
+_SAMPLERS = {
+    "albedo": ALBEDO_UNIT,
+    "shadow_static": SHADOW_STATIC_UNIT,
+    "shadow_moving": SHADOW_MOVING_UNIT,
+    "normal_map": NORMAL_UNIT,
+}
+"""Texture units of the programs' samplers, fixed for their life."""
 
 
-def _uniform(program: Any, name: str) -> Any:
-    """A uniform of the program; a shader that lost one (the compiler drops what is unused) fails here, not mid-frame."""
-    member = program.get(name, None)
-    if member is None:
-        raise RuntimeError(f"the GL program has no uniform {name!r}")
-    return member
-
-
-def _gl(m: Matrix) -> bytes:
-    """A 4×4 matrix as GLSL's column-major float32 bytes."""
-    return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
-
-
-def _stack(arrays: list[npt.NDArray[np.float32]]) -> npt.NDArray[np.float32]:
+def _stack(arrays: list[Rows]) -> Rows:
     """Vertex rows one after the other; no rows for no arrays."""
-    return np.concatenate(arrays) if arrays else np.empty((0, 9), dtype=np.float32)
+    return np.concatenate(arrays) if arrays else np.empty((0, 8), dtype=np.float32)
 
 
-def _vertices(shape: VisualShape, link_to_world: Matrix) -> npt.NDArray[np.float32]:
-    """Interleaved position, normal, colour rows of the shape, transformed by `link_to_world`."""
-    local_positions, local_normals = triangles(shape)
+def _rows(piece: Piece, link_to_world: Matrix) -> Rows:
+    """Interleaved position, normal, uv rows of the piece, transformed by `link_to_world`."""
     rotation = link_to_world[:3, :3]
-    positions = local_positions @ rotation.T + link_to_world[:3, 3]
-    normals = local_normals @ rotation.T
-    colors = np.broadcast_to(np.asarray(shape.rgba[:3], dtype=np.float32), positions.shape)
-    return np.hstack([positions, normals, colors]).astype(np.float32)
+    positions = piece.positions @ rotation.T + link_to_world[:3, 3]
+    normals = piece.normals @ rotation.T
+    return np.hstack([positions, normals, piece.uvs]).astype(np.float32)

@@ -23,15 +23,14 @@ LUMA = (0.299, 0.587, 0.114)
 
 def linear_depth(window: Depths, near: float, far: float) -> None:
     """Window depth (0..1, OpenGL's perspective) → metres along the optical axis, in place.
-    REP 118: +inf where nothing was drawn (beyond far), −inf where the nearest surface was
-    nearer than near (a depth camera draws with depth clamping, so those read exactly 0)."""
+    REP 118: +inf where nothing was drawn (nothing within far). −inf never occurs: as in Gazebo,
+    geometry nearer than `near` is cut away (a camera inside its housing sees what lies beyond
+    it), so every finite reading lies in near..far."""
     nothing = window >= 1.0
-    too_near = window <= 0.0
     np.multiply(window, far - near, out=window)
     np.subtract(far, window, out=window)
     np.divide(near * far, window, out=window)
     window[nothing] = np.inf
-    window[too_near] = -np.inf
 
 
 def luminance(rgb: Pixels) -> Pixels:

@@ -1,5 +1,5 @@
 """What the server and the render workers agree on: the scene's bodies, a camera's intrinsics and
-outputs, the light, and a finished frame. Plain frozen data: it crosses the process boundary."""
+outputs, the world's lighting, and a finished frame. Plain frozen data: it crosses the process boundary."""
 
 from __future__ import annotations
 
@@ -134,18 +134,64 @@ class CameraSpec:
         return principal_point(self.distortion, self.width, self.height)
 
 
+RGB = tuple[float, float, float]
+
+MAX_LIGHTS = 8
+"""Lights the OpenGL renderer shades at once (a fixed loop in its shader); a world with more keeps
+the first eight, with a warning."""
+
+
+@dataclass(frozen=True)
+class LightSource:
+    """One light of the world, in the world frame, as Gazebo shades it (SDF `<light>`)."""
+
+    type: str = "directional"
+    """directional, point or spot."""
+    diffuse: RGB = (1.0, 1.0, 1.0)
+    """Colour times `<intensity>`."""
+    specular: RGB = (0.0, 0.0, 0.0)
+    position: Vec3 = (0.0, 0.0, 0.0)
+    """Point and spot lights."""
+    direction: Vec3 = (-0.5, 0.1, -0.9)
+    """Direction the light travels (directional and spot); PyBullet wants the opposite."""
+    range: float = 10.0
+    """No light beyond this distance (point and spot)."""
+    attenuation: Vec3 = (1.0, 1.0, 0.0)
+    """(constant, linear, quadratic): the light falls as 1 / (c + l·d + q·d²) with distance d."""
+    spot: Vec3 = (0.0, 0.0, 0.0)
+    """(inner angle, outer angle, falloff): full cone angles in radians (the edge lies at half the
+    outer angle from the axis); between the cones the light fades as s^falloff, s going 1 → 0."""
+    cast_shadows: bool = False
+
+
 @dataclass(frozen=True)
 class Light:
-    """The world's directional light. ambient + diffuse = 1, so a face that looks at the light
-    shows its material colour exactly (no clipping, hue kept) and faces away from it keep 60 % of
-    it. No specular term: its highlight depends on the view and adds nothing for perception."""
+    """The world's lighting: its lights, the scene's ambient light and sky colour, and whether the
+    sun casts shadows. A fragment shows scene ambient × material ambient + Σ (light diffuse ×
+    material diffuse × N·L + light specular × material specular × Blinn-Phong) + emissive.
 
-    direction: Vec3 = (-0.5, 0.1, -0.9)
-    """Direction the light travels, world frame (SDF <direction>); PyBullet wants the opposite."""
-    ambient: float = 0.6
-    diffuse: float = 0.4
-    specular: float = 0.0
-    color: Vec3 = (1.0, 1.0, 1.0)
+    The default (no world given) is one white sun with ambient 0.6 and diffuse 0.4: a face that
+    looks at the sun shows its material colour exactly, faces away from it 60 % of it; a white sky."""
+
+    sources: tuple[LightSource, ...] = (LightSource(diffuse=(0.4, 0.4, 0.4)),)
+    ambient: RGB = (0.6, 0.6, 0.6)
+    background: RGB = (1.0, 1.0, 1.0)
+    shadows: bool = True
+    """SDF `<scene><shadows>`: the first directional light that casts shadows casts them."""
+
+    @property
+    def sun(self) -> LightSource | None:
+        """The first directional light: TinyRenderer's one light."""
+        return next((s for s in self.sources if s.type == "directional"), None)
+
+    @property
+    def shadow_caster(self) -> int | None:
+        """Index of the light whose shadows are drawn: the first directional light with
+        `<cast_shadows>` among those shaded, where the scene has shadows on."""
+        if not self.shadows:
+            return None
+        shaded = self.sources[:MAX_LIGHTS]
+        return next((i for i, s in enumerate(shaded) if s.type == "directional" and s.cast_shadows), None)
 
 
 @dataclass(frozen=True, eq=False)

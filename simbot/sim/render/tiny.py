@@ -1,9 +1,18 @@
 """PyBullet's TinyRenderer: a software rasterizer in PyBullet itself, the fallback where no EGL
-context opens. About 11 frames per CPU-second at 640×480 in the warehouse (`make bench`)."""
+context opens. About 11 frames per CPU-second at 640×480 in the warehouse (`make bench`).
+
+It lights the scene as far as getCameraImage allows: one light, the world's first directional one
+(its diffuse colour; none: ambient only), the scene's ambient as its ambient coefficient (the grey
+of `<scene><ambient>`), no specular (TinyRenderer's highlight ignores the material's specular colour,
+so simbot leaves it off). It has no sky colour (it clears to white whatever `<scene><background>`
+says), no point or spot lights, no emissive, unlit or translucent surfaces, no textures but those
+PyBullet reads itself, no shadows (PyBullet's own are not the sun's). Like OpenGL it cuts away
+geometry nearer than the near plane (a camera inside its housing sees out)."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +35,7 @@ class TinyRenderer:
 
     def __init__(self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec]) -> None:
         self.scene = scene
-        self.light = light
+        self.lighting = tiny_lighting(light)
         self.cameras: dict[int, CameraSpec] = {}
         self.projections: dict[int, Sequence[float]] = {}
         for index, spec in cameras.items():
@@ -55,12 +64,8 @@ class TinyRenderer:
             renderer=pb.ER_TINY_RENDERER,
             flags=pb.ER_NO_SEGMENTATION_MASK,
             shadow=0,
-            lightDirection=[-v for v in self.light.direction],
-            lightColor=list(self.light.color),
-            lightAmbientCoeff=self.light.ambient,
-            lightDiffuseCoeff=self.light.diffuse,
-            lightSpecularCoeff=self.light.specular,
             physicsClientId=self.scene.client,
+            **self.lighting,
         )
         if (color := drawn.get("color")) is not None:
             rgb = np.asarray(image[2], dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
@@ -71,6 +76,20 @@ class TinyRenderer:
 
     def close(self) -> None:
         """Nothing of its own: the scene's client is the worker's to disconnect."""
+
+
+def tiny_lighting(light: Light) -> dict[str, Any]:
+    """getCameraImage's light arguments for the world's lighting (see the module docstring)."""
+    sun = light.sun
+    colour = sun.diffuse if sun is not None else (0.0, 0.0, 0.0)
+    direction = sun.direction if sun is not None else (0.0, 0.0, -1.0)
+    return {
+        "lightDirection": [-v for v in direction],
+        "lightColor": list(colour),
+        "lightAmbientCoeff": float(np.mean(light.ambient)),
+        "lightDiffuseCoeff": 1.0 if sun is not None else 0.0,
+        "lightSpecularCoeff": 0.0,
+    }
 
 
 def _flat(m: np.ndarray) -> Sequence[float]:

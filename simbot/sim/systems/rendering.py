@@ -41,8 +41,8 @@ from __future__ import annotations
 import logging
 import threading
 
-from simbot.description.model import World
-from simbot.sim.render import BodyState, CameraSpec, Light, RenderPool, SceneBody, plan_pool
+from simbot.description.model import SdfLight, World
+from simbot.sim.render import BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.contract import RenderedSensor, RenderStatus
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 
@@ -53,9 +53,35 @@ LOCKSTEP_TIMEOUT_S = 120.0
 
 
 def world_light(world: World) -> Light:
-    """The world's first directional light (the sun) drives the renderers' one light."""
-    sun = next((light for light in world.lights if light.type == "directional"), None)
-    return Light(direction=sun.direction) if sun else Light()
+    """The world's lighting as the renderers shade it: its `<light>`s in the world frame, and its
+    `<scene>` ambient, background and shadows. Lights of models are not drawn."""
+    scene = world.scene
+    return Light(
+        sources=tuple(_light_source(light) for light in world.lights if light.type in ("directional", "point", "spot")),
+        ambient=scene.ambient[:3],
+        background=scene.background[:3],
+        shadows=scene.shadows,
+    )
+
+
+def _light_source(light: SdfLight) -> LightSource:
+    """An SDF light in the world frame: its pose places it and turns its direction."""
+    placed = light.pose.matrix()
+    return LightSource(
+        type=light.type,
+        diffuse=_scaled(light.diffuse, light.intensity),
+        specular=_scaled(light.specular, light.intensity),
+        position=tuple(float(v) for v in placed[:3, 3]),  # type: ignore[arg-type]
+        direction=tuple(float(v) for v in placed[:3, :3] @ light.direction),  # type: ignore[arg-type]
+        range=light.attenuation_range,
+        attenuation=(light.constant, light.linear, light.quadratic),
+        spot=(light.inner_angle, light.outer_angle, light.falloff),
+        cast_shadows=light.cast_shadows,
+    )
+
+
+def _scaled(rgba: tuple[float, ...], intensity: float) -> tuple[float, float, float]:
+    return (rgba[0] * intensity, rgba[1] * intensity, rgba[2] * intensity)
 
 
 class Rendering:
