@@ -13,9 +13,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 from server_helpers import REPO, SimServer, running_server
 
+from simbot.bus import messages
 from simbot.transform import quaternion_to_matrix
 
 TUG_X = -2.5
@@ -90,3 +92,42 @@ def test_the_worker_spawned_with_a_pose_walks_its_beat_from_there(sim: SimServer
     sim.step(2000)
     (x, y, z), _ = sim.pose("alice")
     assert (x, y, z) == pytest.approx((0.0, 6.0, 1.0), abs=0.01)
+
+
+STANDING_WORKER = """<?xml version="1.0"?>
+<sdf version="1.9">
+  <actor name="bob">
+    <pose>1.5 0 1 0 0 0</pose>
+    <skin><filename>model://worker/meshes/worker.dae</filename></skin>
+  </actor>
+</sdf>
+"""
+CAMERA_X, FX = TUG_X + 1.0, 320 / math.tan(2.0944 / 2)
+"""The tug's front camera (1.0 m ahead of its frame, 120° wide at 640 px)."""
+VEST_BACK_X, VEST_WIDTH = 1.5 - 0.12, 0.40
+
+
+def _yellow(image: np.ndarray) -> np.ndarray:
+    """The worker's high-visibility vest, lit or in shade: red and green alike, blue far below them."""
+    r, g, b = (image[..., i].astype(int) for i in range(3))
+    return (r > 50) & (g > 50) & (abs(r - g) < 0.25 * np.maximum(r, g)) & (b < 0.35 * np.minimum(r, g))
+
+
+def test_the_front_camera_sees_the_workers_skin_where_the_projection_puts_it(sim: SimServer) -> None:
+    """A worker standing 2.9 m ahead of the tug's front camera, its back to it: the vest's yellow (its
+    COLLADA material) stands in the middle of the image, fx · 0.40 / 2.88 = 25.7 px wide, above the
+    camera's horizon (the vest is 1.0 to 1.56 m up)."""
+    assert sim.control({"reset": {"all": True}})["ok"]
+    assert sim.call("create", {"sdf": STANDING_WORKER}) == {"ok": True, "name": "bob"}
+    frame = sim.latest({"camera_front": "sensor_msgs/msg/Image"}, chunk=34)["camera_front"]
+    vest = _yellow(messages.image_pixels(frame))
+    rows = vest.sum(axis=1)
+    assert rows.max() > 0, "the front camera shows no yellow"
+    row = int(np.argmax(rows))
+    columns = np.flatnonzero(vest[row])
+    expected = FX * VEST_WIDTH / (VEST_BACK_X - CAMERA_X)
+    assert abs(len(columns) - expected) <= 3, f"the vest is {len(columns)} px wide, the projection says {expected:.1f}"
+    assert abs((columns[0] + columns[-1]) / 2 - 319.5) <= 2, "the vest is not straight ahead"
+    assert row < 240, "the vest shows below the camera's horizon"
+    sim.unsubscribe_all()
+    assert sim.call("remove", {"name": "bob"})["ok"]
