@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from simbot.description import sdf_frames
 from simbot.description.actors import read_actor
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
@@ -53,14 +52,12 @@ from simbot.description.sdf_elements import (
     read_spherical_coordinates,
     version_key,
 )
+from simbot.description.sdf_frames import MODEL_FRAME, Frames, read_pose
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
 
 logger = logging.getLogger(__name__)
 
 SUPPORTED_VERSIONS = ((1, 4), (1, 11))
-MODEL_FRAME = sdf_frames.MODEL_FRAME
-_pose = sdf_frames.read_pose
-_Frames = sdf_frames.Frames
 JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic", "ball")
 UNLIMITED = 1e16
 """SDF writes an unlimited joint as ±1e16 (or more); such limits become None."""
@@ -116,7 +113,7 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
 
 def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> Model:
     name = reader.attr(element, "name")
-    pose, _ = _pose(reader, element)
+    pose, _ = read_pose(reader, element)
     link_elements = element.findall("link")
     nested = _read_nested(reader, version, element)
     if not link_elements and not nested:
@@ -160,7 +157,7 @@ class _Nested:
     def scoped(self, inner: str) -> str:
         return f"{self.name}::{inner}"
 
-    def add_frames(self, frames: _Frames) -> None:
+    def add_frames(self, frames: Frames) -> None:
         """The nested model's frame, and its links and joints relative to it."""
         frames.add(self.name, self.model.pose, self.relative_to or MODEL_FRAME, self.element)
         for inner, pose in [(link.name, link.pose) for link in self.model.links] + [
@@ -168,13 +165,13 @@ class _Nested:
         ]:
             frames.add(self.scoped(inner), pose, self.name, self.element)
 
-    def links(self, frames: _Frames) -> list[Link]:
+    def links(self, frames: Frames) -> list[Link]:
         return [
             replace(link, name=self.scoped(link.name), pose=frames.in_model(self.scoped(link.name), self.element))
             for link in self.model.links
         ]
 
-    def joints(self, frames: _Frames) -> list[Joint]:
+    def joints(self, frames: Frames) -> list[Joint]:
         return [
             replace(
                 joint,
@@ -202,31 +199,31 @@ def _read_nested(reader: Reader, version: tuple[int, int], model: Element) -> li
                 plugin.name,
                 inner.name,
             )
-        nested.append(_Nested(replace(inner, plugins=()), element, _pose(reader, element)[1]))
+        nested.append(_Nested(replace(inner, plugins=()), element, read_pose(reader, element)[1]))
     return nested
 
 
-def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> _Frames:
-    frames = _Frames(reader)
+def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> Frames:
+    frames = Frames(reader)
     for link in links:
-        pose, relative_to = _pose(reader, link)
+        pose, relative_to = read_pose(reader, link)
         frames.add(reader.attr(link, "name"), pose, relative_to or MODEL_FRAME, link)
     for inner in nested:
         inner.add_frames(frames)
     for joint in model.findall("joint"):
-        pose, relative_to = _pose(reader, joint)
+        pose, relative_to = read_pose(reader, joint)
         child = reader.text(joint, "child")
         if child is None:
             raise reader.error(joint, "missing required element <child>")
         frames.add(reader.attr(joint, "name"), pose, relative_to or child, joint)
     for frame in model.findall("frame"):
-        pose, relative_to = _pose(reader, frame)
+        pose, relative_to = read_pose(reader, frame)
         attached_to = frame.get("attached_to") or MODEL_FRAME
         frames.add(reader.attr(frame, "name"), pose, relative_to or attached_to, frame)
     return frames
 
 
-def _read_link(reader: Reader, frames: _Frames, element: Element) -> Link:
+def _read_link(reader: Reader, frames: Frames, element: Element) -> Link:
     name = reader.attr(element, "name")
     collisions = [_read_collision(reader, frames, name, e) for e in element.findall("collision")]
     collisions = present_collisions(reader.file, name, collisions)
@@ -251,10 +248,10 @@ def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
     tags = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     defaults = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
     values = defaults if inertia is None else tuple(reader.number(inertia, t, d) for t, d in zip(tags, defaults))
-    return Inertial(mass=mass, pose=_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
+    return Inertial(mass=mass, pose=read_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
 
 
-def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
+def _read_collision(reader: Reader, frames: Frames, link: str, element: Element) -> Collision:
     return Collision(
         reader.attr(element, "name"),
         read_geometry(reader, element),
@@ -263,7 +260,7 @@ def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element
     )
 
 
-def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -> Visual:
+def _read_visual(reader: Reader, frames: Frames, link: str, element: Element) -> Visual:
     material = element.find("material")
     return Visual(
         name=reader.attr(element, "name"),
@@ -279,7 +276,7 @@ def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -
 
 
 def _read_joint(
-    reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, ends: dict[str, str]
+    reader: Reader, version: tuple[int, int], frames: Frames, element: Element, ends: dict[str, str]
 ) -> Joint:
     """`ends` maps each name a joint may join (a link, or a nested model: its canonical link) to the link."""
     name = reader.attr(element, "name")
@@ -312,7 +309,7 @@ def _read_joint(
     )
 
 
-def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_pose: Pose, axis: Element) -> Axis:
+def _read_axis(reader: Reader, version: tuple[int, int], frames: Frames, joint_pose: Pose, axis: Element) -> Axis:
     xyz_element = reader.child(axis, "xyz")
     xyz = np.asarray(reader.floats(xyz_element, 3))
     if not (xyz**2).sum() > 0:
@@ -349,9 +346,7 @@ def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_
 # ---------------------------------------------------------------- sensors and plugins
 
 
-def _read_sensor(
-    reader: Reader, frames: _Frames, link: str, element: Element, relative_to: str | None = None
-) -> Sensor:
+def _read_sensor(reader: Reader, frames: Frames, link: str, element: Element, relative_to: str | None = None) -> Sensor:
     """The fields every sensor has; the rest kept whole for the sensor's own module to read. Posed in
     `link`'s frame; its `<pose>` is relative to `relative_to` (a joint's sensor: the joint) by default."""
     frame_name = next((reader.text(element, tag) for tag in FRAME_ID_TAGS if element.find(tag) is not None), None)
@@ -414,7 +409,7 @@ def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> W
 
 
 def _read_light(reader: Reader, element: Element) -> SdfLight:
-    return replace(read_light(reader, element), pose=_pose(reader, element)[0])
+    return replace(read_light(reader, element), pose=read_pose(reader, element)[0])
 
 
 def _read_actor(reader: Reader, element: Element) -> Model:
@@ -423,7 +418,7 @@ def _read_actor(reader: Reader, element: Element) -> Model:
     frames = _model_frames(reader, element, links, [])
     plugins = tuple(_read_plugin(reader, e) for e in element.findall("plugin"))
     own = tuple(_read_link(reader, frames, e) for e in links)
-    return read_actor(reader, element, _pose(reader, element)[0], own, plugins)
+    return read_actor(reader, element, read_pose(reader, element)[0], own, plugins)
 
 
 def _read_include(reader: Reader, element: Element) -> Model:
@@ -437,7 +432,7 @@ def _read_include(reader: Reader, element: Element) -> Model:
     return replace(
         model,
         name=reader.text(element, "name") or model.name,
-        pose=model.pose if pose_element is None else _pose(reader, element)[0],
+        pose=model.pose if pose_element is None else read_pose(reader, element)[0],
         static=reader.flag(element, "static", model.static),
         plugins=model.plugins + tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
         uri=uri,
