@@ -39,9 +39,11 @@ from simbot.sim.physics import compose
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import Transform
 
-MOVED_TOLERANCE = 1e-6
-"""Metres (and quaternion components) by which an actor must stand off where it was put to count as
-moved by someone else (world control's set_pose): PyBullet's round trip of a pose changes the last bits."""
+MOVED_TOLERANCE = 1e-4
+"""Metres by which an actor must stand off where it was put to count as moved by someone else (world
+control's set_pose): PyBullet's transforms round to single precision, a few µm at tens of metres."""
+TURNED_TOLERANCE = 1e-6
+"""1 − |q·q'| beyond which it counts as turned (about 3 mrad)."""
 
 
 @dataclass
@@ -114,4 +116,4 @@ def _near(a: Transform, b: Transform) -> bool:
     if abs(ax - bx) > MOVED_TOLERANCE or abs(ay - by) > MOVED_TOLERANCE or abs(az - bz) > MOVED_TOLERANCE:
         return False
     (qx, qy, qz, qw), (rx, ry, rz, rw) = a.orientation, b.orientation
-    return abs(abs(qx * rx + qy * ry + qz * rz + qw * rw) - 1.0) <= MOVED_TOLERANCE
+    return 1.0 - abs(qx * rx + qy * ry + qz * rz + qw * rw) <= TURNED_TOLERANCE

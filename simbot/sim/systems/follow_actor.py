@@ -34,8 +34,9 @@ from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 
-MOVED_TOLERANCE = 1e-6
-"""Metres by which the actor must stand off where it was put to count as moved by world control."""
+MOVED_TOLERANCE = 1e-4
+"""Metres by which the actor must stand off where it was put to count as moved by world control
+(PyBullet's transforms round to single precision, a few µm at tens of metres)."""
 
 
 class FollowActor:
