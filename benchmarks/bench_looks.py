@@ -2,9 +2,9 @@
 side in one run, with six 640×480 cameras and every other sensor subscribed, in real time.
 
 Four copies of the warehouse are written to a temporary folder (the world and its models, so
-that `model://` finds the copies first through SIMBOT_RESOURCE_PATH): as shipped (textures and
-shadows), without shadows (`<scene><shadows>false</shadows>`), without textures (every
-`<pbr>` albedo map taken out, so each surface shows its colour), and without either, the
+that `model://` finds the copies first through SIMBOT_RESOURCE_PATH): with and without the sun's
+shadows (`<scene><shadows>`; the shipped world has them off), each with and without textures
+(every `<pbr>` albedo map taken out, so each surface shows its colour); without either is the
 baseline. Each copy is drawn first by the OpenGL renderer alone in this process, the robot's six
 views in turn (bench_sensors.py's bare loop: CPU per frame, the figure least moved by a busy
 machine), then run under `simbot-server` as bench_sensors.py runs it (`run_server`): each
@@ -53,9 +53,9 @@ log = logging.getLogger("bench_looks")
 CAMERA_TARGET_HZ = 25.0
 VARIANTS = {
     "textures off, shadows off": (False, False),
-    "textures on, shadows off": (True, False),
+    "textures on, shadows off (as shipped)": (True, False),
     "textures off, shadows on": (False, True),
-    "textures on, shadows on (as shipped)": (True, True),
+    "textures on, shadows on": (True, True),
 }
 BASELINE = "textures off, shadows off"
 
@@ -67,10 +67,10 @@ def write_variant(folder: Path, textures: bool, shadows: bool) -> Path:
         text = sdf.read_text()
         if not textures:
             text = re.sub(r"\s*<pbr>.*?</pbr>", "", text, flags=re.S)
-        if not shadows and sdf.name == "warehouse.sdf":
-            text, count = re.subn(r"<shadows>true</shadows>", "<shadows>false</shadows>", text)
+        if sdf.name == "warehouse.sdf":
+            text, count = re.subn(r"<shadows>\w+</shadows>", f"<shadows>{str(shadows).lower()}</shadows>", text)
             if count != 1:
-                raise RuntimeError(f"{sdf}: expected one <scene><shadows>true</shadows>, found {count}")
+                raise RuntimeError(f"{sdf}: expected one <scene><shadows>, found {count}")
         sdf.write_text(text)
     return folder / "warehouse.sdf"
 
