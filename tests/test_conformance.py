@@ -257,6 +257,21 @@ DRIVE_CASES = {
 }
 
 
+def _actor(name: str, y: float, tension: float) -> str:
+    """An actor walking across the world, its skin not found (drawn and cast at as its proxy)."""
+    return f"""<actor name="{name}"><pose>0.8 {y} 1 0 0 0</pose><skin><filename>absent.dae</filename></skin>
+  <script><delay_start>0.05</delay_start><trajectory id="0" type="walk" tension="{tension}">
+  <waypoint><time>0</time><pose>0 0 0 0 0 0</pose></waypoint><waypoint><time>0.1</time><pose>0.3 0.2 0 0 0 1</pose></waypoint>
+  <waypoint><time>0.15</time><pose>0.1 0.4 0 0 0 2</pose></waypoint></trajectory></script></actor>"""
+
+
+ACTORS = _actor("walker", -0.5, 0.0) + _actor("runner", 0.5, 0.7)
+FOLLOWER = """<actor name="follower"><pose>1 1 1 0 0 0</pose><skin><filename>absent.dae</filename></skin>
+  <plugin name="gz::sim::systems::FollowActor" filename="gz-sim-follow-actor-system"><target>cart</target>
+  <min_distance>0.5</min_distance><velocity>1.5</velocity></plugin></actor>"""
+TRAJECTORY_FOLLOWER = """<plugin name="gz::sim::systems::TrajectoryFollower" filename="gz-sim-trajectory-follower-system">
+  <link_name>base_link</link_name><loop>true</loop><force>20</force><torque>5</torque>
+  <waypoints><waypoint>0.5 0.3</waypoint><waypoint>0 0.6</waypoint></waypoints></plugin>"""
 RECOGNISED = ("Physics", "Sensors", "Imu", "SceneBroadcaster", "UserCommands", "Contact")
 CASES: dict[tuple[str, str], Case] = {
     (GROUP, "DiffDrive"): Case(
@@ -301,6 +316,9 @@ CASES: dict[tuple[str, str], Case] = {
     (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
     (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),
+    (GROUP, "FollowActor"): Case(world_plugins=FOLLOWER, key="model/follower/pose"),
+    (GROUP, "TrajectoryFollower"): Case(plugins=TRAJECTORY_FOLLOWER, key="model/flexley_tug/pose"),
+    (WORLD_GROUP, "Actors"): Case(world_plugins=ACTORS, sensors=_lidar("gpu_lidar"), key="model/runner/pose"),
     (ROBOT_GROUP, "RobotStatePublisher"): Case(key="tf"),
 }
 """One SDF per entry point. A new entry point fails `test_entry_point_is_deterministic` until it has one here."""

@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from simbot.description.actors import read_actor
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
@@ -37,7 +38,7 @@ from simbot.description.model import (
     Visual,
     World,
 )
-from simbot.description.poses import IDENTITY, Pose, rpy_to_matrix
+from simbot.description.poses import Pose, rpy_to_matrix
 from simbot.description.resources import resolve
 from simbot.description.sdf_elements import (
     model_file,
@@ -51,13 +52,12 @@ from simbot.description.sdf_elements import (
     read_spherical_coordinates,
     version_key,
 )
+from simbot.description.sdf_frames import MODEL_FRAME, Frames, read_pose
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.transform import Transform
 
 logger = logging.getLogger(__name__)
 
 SUPPORTED_VERSIONS = ((1, 4), (1, 11))
-MODEL_FRAME = "__model__"
 JOINT_TYPES = ("fixed", "revolute", "continuous", "prismatic", "ball")
 UNLIMITED = 1e16
 """SDF writes an unlimited joint as ±1e16 (or more); such limits become None."""
@@ -73,10 +73,10 @@ def load_sdf(path: Path | str) -> Model | World:
     world = root.find("world")
     if world is not None:
         return _read_world(reader, version, world)
-    model = root.find("model")
-    if model is None:
-        raise reader.error(root, "no <world> or <model> in this SDF file")
-    return _read_model(reader, version, model)
+    found = root.find("model") if root.find("model") is not None else root.find("actor")
+    if found is None:
+        raise reader.error(root, "no <world>, <model> or <actor> in this SDF file")
+    return _read_model(reader, version, found) if found.tag == "model" else _read_actor(reader, found)
 
 
 def load_model(path: Path | str) -> Model:
@@ -108,70 +108,12 @@ def _check_version(reader: Reader, root: Element) -> tuple[int, int]:
     return (version[0], version[1])
 
 
-# ---------------------------------------------------------------- poses and frames
-
-
-def _pose(reader: Reader, element: Element) -> tuple[Pose, str | None]:
-    """The `<pose>` child of `element` and the frame it is relative to (None: the default)."""
-    found = element.find("pose")
-    if found is None:
-        return IDENTITY, None
-    relative_to = (found.get("relative_to") or found.get("frame") or "").strip() or None
-    values = reader.floats(found)
-    fmt = found.get("rotation_format", "euler_rpy")
-    degrees = found.get("degrees", "false").lower() in ("1", "true")
-    if not values:
-        return IDENTITY, relative_to
-    if fmt == "quat_xyzw" and len(values) == 7:
-        return Pose.from_transform(Transform.of(values[:3], values[3:7])), relative_to
-    if fmt != "euler_rpy" or len(values) != 6:
-        raise reader.error(found, f"expected 6 numbers 'x y z roll pitch yaw', got {len(values)}")
-    rpy = tuple(math.radians(v) if degrees else v for v in values[3:])
-    return Pose(values[:3], rpy), relative_to  # type: ignore[arg-type]
-
-
-@dataclass
-class _Frames:
-    """The frame graph of one model: each frame's pose and the frame it is relative to."""
-
-    reader: Reader
-    edges: dict[str, tuple[Pose, str, Element]] = field(default_factory=dict)
-    resolved: dict[str, Pose] = field(default_factory=lambda: {MODEL_FRAME: IDENTITY})
-
-    def add(self, name: str, pose: Pose, relative_to: str, element: Element) -> None:
-        if name in self.edges or name == MODEL_FRAME:
-            raise self.reader.error(element, f"duplicate frame name {name!r} in this model")
-        self.edges[name] = (pose, relative_to, element)
-
-    def in_model(self, name: str, asked_by: Element, visiting: tuple[str, ...] = ()) -> Pose:
-        """model_T_name, following relative_to links; unknown names and cycles are errors."""
-        if name in self.resolved:
-            return self.resolved[name]
-        if name not in self.edges:
-            raise self.reader.error(asked_by, f"unknown frame {name!r}")
-        pose, parent, element = self.edges[name]
-        if name in visiting:
-            raise self.reader.error(element, f"frame {name!r} is defined relative to itself (cycle)")
-        result = self.in_model(parent, element, visiting + (name,)) @ pose
-        self.resolved[name] = result
-        return result
-
-    def in_link(self, link: str, element: Element, default: str | None = None) -> Pose:
-        """The pose of `element` (a collision, visual or sensor) in the frame of `link`; its pose is
-        relative to `default` (a joint's sensor: the joint) when it names no frame, else to the link."""
-        pose, relative_to = _pose(self.reader, element)
-        relative_to = relative_to or default
-        if relative_to is None or relative_to == link:
-            return pose
-        return self.in_model(link, element).inverse() @ self.in_model(relative_to, element) @ pose
-
-
 # ---------------------------------------------------------------- models
 
 
 def _read_model(reader: Reader, version: tuple[int, int], element: Element) -> Model:
     name = reader.attr(element, "name")
-    pose, _ = _pose(reader, element)
+    pose, _ = read_pose(reader, element)
     link_elements = element.findall("link")
     nested = _read_nested(reader, version, element)
     if not link_elements and not nested:
@@ -215,7 +157,7 @@ class _Nested:
     def scoped(self, inner: str) -> str:
         return f"{self.name}::{inner}"
 
-    def add_frames(self, frames: _Frames) -> None:
+    def add_frames(self, frames: Frames) -> None:
         """The nested model's frame, and its links and joints relative to it."""
         frames.add(self.name, self.model.pose, self.relative_to or MODEL_FRAME, self.element)
         for inner, pose in [(link.name, link.pose) for link in self.model.links] + [
@@ -223,13 +165,13 @@ class _Nested:
         ]:
             frames.add(self.scoped(inner), pose, self.name, self.element)
 
-    def links(self, frames: _Frames) -> list[Link]:
+    def links(self, frames: Frames) -> list[Link]:
         return [
             replace(link, name=self.scoped(link.name), pose=frames.in_model(self.scoped(link.name), self.element))
             for link in self.model.links
         ]
 
-    def joints(self, frames: _Frames) -> list[Joint]:
+    def joints(self, frames: Frames) -> list[Joint]:
         return [
             replace(
                 joint,
@@ -257,31 +199,31 @@ def _read_nested(reader: Reader, version: tuple[int, int], model: Element) -> li
                 plugin.name,
                 inner.name,
             )
-        nested.append(_Nested(replace(inner, plugins=()), element, _pose(reader, element)[1]))
+        nested.append(_Nested(replace(inner, plugins=()), element, read_pose(reader, element)[1]))
     return nested
 
 
-def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> _Frames:
-    frames = _Frames(reader)
+def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> Frames:
+    frames = Frames(reader)
     for link in links:
-        pose, relative_to = _pose(reader, link)
+        pose, relative_to = read_pose(reader, link)
         frames.add(reader.attr(link, "name"), pose, relative_to or MODEL_FRAME, link)
     for inner in nested:
         inner.add_frames(frames)
     for joint in model.findall("joint"):
-        pose, relative_to = _pose(reader, joint)
+        pose, relative_to = read_pose(reader, joint)
         child = reader.text(joint, "child")
         if child is None:
             raise reader.error(joint, "missing required element <child>")
         frames.add(reader.attr(joint, "name"), pose, relative_to or child, joint)
     for frame in model.findall("frame"):
-        pose, relative_to = _pose(reader, frame)
+        pose, relative_to = read_pose(reader, frame)
         attached_to = frame.get("attached_to") or MODEL_FRAME
         frames.add(reader.attr(frame, "name"), pose, relative_to or attached_to, frame)
     return frames
 
 
-def _read_link(reader: Reader, frames: _Frames, element: Element) -> Link:
+def _read_link(reader: Reader, frames: Frames, element: Element) -> Link:
     name = reader.attr(element, "name")
     collisions = [_read_collision(reader, frames, name, e) for e in element.findall("collision")]
     collisions = present_collisions(reader.file, name, collisions)
@@ -306,10 +248,10 @@ def _read_inertial(reader: Reader, element: Element | None) -> Inertial | None:
     tags = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
     defaults = (1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
     values = defaults if inertia is None else tuple(reader.number(inertia, t, d) for t, d in zip(tags, defaults))
-    return Inertial(mass=mass, pose=_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
+    return Inertial(mass=mass, pose=read_pose(reader, element)[0], inertia=values)  # type: ignore[arg-type]
 
 
-def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element) -> Collision:
+def _read_collision(reader: Reader, frames: Frames, link: str, element: Element) -> Collision:
     return Collision(
         reader.attr(element, "name"),
         read_geometry(reader, element),
@@ -318,7 +260,7 @@ def _read_collision(reader: Reader, frames: _Frames, link: str, element: Element
     )
 
 
-def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -> Visual:
+def _read_visual(reader: Reader, frames: Frames, link: str, element: Element) -> Visual:
     material = element.find("material")
     return Visual(
         name=reader.attr(element, "name"),
@@ -334,7 +276,7 @@ def _read_visual(reader: Reader, frames: _Frames, link: str, element: Element) -
 
 
 def _read_joint(
-    reader: Reader, version: tuple[int, int], frames: _Frames, element: Element, ends: dict[str, str]
+    reader: Reader, version: tuple[int, int], frames: Frames, element: Element, ends: dict[str, str]
 ) -> Joint:
     """`ends` maps each name a joint may join (a link, or a nested model: its canonical link) to the link."""
     name = reader.attr(element, "name")
@@ -367,7 +309,7 @@ def _read_joint(
     )
 
 
-def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_pose: Pose, axis: Element) -> Axis:
+def _read_axis(reader: Reader, version: tuple[int, int], frames: Frames, joint_pose: Pose, axis: Element) -> Axis:
     xyz_element = reader.child(axis, "xyz")
     xyz = np.asarray(reader.floats(xyz_element, 3))
     if not (xyz**2).sum() > 0:
@@ -404,9 +346,7 @@ def _read_axis(reader: Reader, version: tuple[int, int], frames: _Frames, joint_
 # ---------------------------------------------------------------- sensors and plugins
 
 
-def _read_sensor(
-    reader: Reader, frames: _Frames, link: str, element: Element, relative_to: str | None = None
-) -> Sensor:
+def _read_sensor(reader: Reader, frames: Frames, link: str, element: Element, relative_to: str | None = None) -> Sensor:
     """The fields every sensor has; the rest kept whole for the sensor's own module to read. Posed in
     `link`'s frame; its `<pose>` is relative to `relative_to` (a joint's sensor: the joint) by default."""
     frame_name = next((reader.text(element, tag) for tag in FRAME_ID_TAGS if element.find(tag) is not None), None)
@@ -445,6 +385,7 @@ def _read_plugin(reader: Reader, element: Element) -> Plugin:
 def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> World:
     models = [_read_model(reader, version, e) for e in element.findall("model")]
     models += [_read_include(reader, e) for e in element.findall("include")]
+    models += [_read_actor(reader, e) for e in element.findall("actor")]
     seen: set[str] = set()
     for model in models:
         if model.name in seen:
@@ -468,7 +409,16 @@ def _read_world(reader: Reader, version: tuple[int, int], element: Element) -> W
 
 
 def _read_light(reader: Reader, element: Element) -> SdfLight:
-    return replace(read_light(reader, element), pose=_pose(reader, element)[0])
+    return replace(read_light(reader, element), pose=read_pose(reader, element)[0])
+
+
+def _read_actor(reader: Reader, element: Element) -> Model:
+    """An `<actor>` (simbot.description.actors): its links framed as a model's are, relative to the actor."""
+    links = element.findall("link")
+    frames = _model_frames(reader, element, links, [])
+    plugins = tuple(_read_plugin(reader, e) for e in element.findall("plugin"))
+    own = tuple(_read_link(reader, frames, e) for e in links)
+    return read_actor(reader, element, read_pose(reader, element)[0], own, plugins)
 
 
 def _read_include(reader: Reader, element: Element) -> Model:
@@ -482,7 +432,7 @@ def _read_include(reader: Reader, element: Element) -> Model:
     return replace(
         model,
         name=reader.text(element, "name") or model.name,
-        pose=model.pose if pose_element is None else _pose(reader, element)[0],
+        pose=model.pose if pose_element is None else read_pose(reader, element)[0],
         static=reader.flag(element, "static", model.static),
         plugins=model.plugins + tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
         uri=uri,

@@ -65,6 +65,14 @@ class Commands(Queries):
         )
 
     @changes_world
+    def apply_wrench(self, model: str, link: str, force: Vec3, torque: Vec3) -> None:
+        """Pushes `link` for the next step only, as Gazebo's AddWorldWrench: `force` at its centre of
+        mass and `torque`, both in the world frame (PyBullet clears external forces after each step)."""
+        body_id, index, com = self._com_frame(model, link)
+        pb.applyExternalForce(body_id, index, force, com[0], pb.WORLD_FRAME, physicsClientId=self.client)
+        pb.applyExternalTorque(body_id, index, torque, pb.WORLD_FRAME, physicsClientId=self.client)
+
+    @changes_world
     def measure_joint_wrench(self, model: str, joint: str) -> None:
         """Switches on PyBullet's reaction force sensor of a joint, which `joint_wrench` reads: a
         force/torque sensor asks for it when it is built, before the first step."""

@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from simbot.description.actors import is_actor
 from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Link, Model, Sphere
 from simbot.description.poses import Pose
@@ -76,7 +77,7 @@ class Loader:
             body_id = pb.loadURDF(
                 str(path),
                 *root_pose,
-                useFixedBase=model.static,
+                useFixedBase=model.static or is_actor(model),  # an actor: kinematic, moved by its script
                 flags=flags | (pb.URDF_MERGE_FIXED_LINKS if merge else 0),
                 physicsClientId=self.client,
             )
