@@ -209,6 +209,15 @@ def exited(pid: int) -> bool:
         return True
 
 
+def refused(*args: str) -> str:
+    """The one line a server started with `args` refuses them with (exit code 2 and no traceback asserted)."""
+    done = subprocess.run(server_command(*args), capture_output=True, text=True, timeout=STARTUP_TIMEOUT_S)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
+    return lines[0]
+
+
 def server_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "simbot.sim.server", *args]
 
@@ -472,12 +481,12 @@ def restarted(server: SimServer) -> Iterator[SimServer]:
         yield again
 
 
-def module_server(world: str, mode: str = "lockstep") -> Any:
+def module_server(world: str, mode: str = "lockstep", extra: Sequence[str] = ()) -> Any:
     """A test module's `sim` fixture: one server for the whole module (`sim = module_server("empty")`)."""
 
     @pytest.fixture(scope="module", name="sim")
     def sim() -> Iterator[SimServer]:
-        with running_server(world, mode) as server:
+        with running_server(world, mode, extra=extra) as server:
             yield server
 
     return sim

@@ -10,11 +10,10 @@ loops.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from server_helpers import SimServer, running_server
+from server_helpers import SimServer, module_server, reset_before_each
 
 from simbot.transform import yaw_of
 
@@ -25,18 +24,9 @@ WAYPOINTS = ((4.0, -5.0), (4.0, -8.0), (0.0, -5.0))
 RANGE_TOLERANCE = 0.5
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    with running_server(WORLD, "lockstep", extra=["--robot", "none"]) as server:
-        yield server
-
-
-@pytest.fixture(autouse=True)
-def fresh_world(sim: SimServer) -> Iterator[None]:
-    reply = sim.control({"reset": {"all": True}})
-    assert reply["ok"] and reply["sim_time"] == 0.0, reply
-    yield
-    sim.unsubscribe_all()
+sim = module_server(WORLD, extra=("--robot", "none"))
+"""The world alone, in lockstep."""
+fresh_world = reset_before_each()
 
 
 def _planar(sim: SimServer, model: str) -> tuple[float, float, float]:

@@ -11,13 +11,12 @@ axis at x 3): the lidar's middle ray reads its near face, 2.75 m, as it crosses,
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from server_helpers import SimServer, running_server
+from server_helpers import SimServer, module_server, reset_before_each
 
 from simbot.bus import messages
 from simbot.transform import yaw_of
@@ -31,20 +30,9 @@ STEPS_PER_S = 1000
 CM = 0.01
 
 
-@pytest.fixture(scope="module")
-def sim() -> Iterator[SimServer]:
-    """The world alone, in lockstep."""
-    with running_server(WORLD, "lockstep", extra=["--robot", "none"]) as server:
-        yield server
-
-
-@pytest.fixture(autouse=True)
-def fresh_world(sim: SimServer) -> Iterator[None]:
-    """Each test from time zero (there is no robot to stop first, as `SimServer.reset` does)."""
-    reply = sim.control({"reset": {"all": True}})
-    assert reply["ok"] and reply["sim_time"] == 0.0, reply
-    yield
-    sim.unsubscribe_all()
+sim = module_server(WORLD, extra=("--robot", "none"))
+"""The world alone, in lockstep."""
+fresh_world = reset_before_each()
 
 
 def _gazebo_y(time: float) -> float:
