@@ -11,9 +11,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove,ros2]'
 	touch $(STAMP)
 
-## The main job: the simulator in the warehouse with the lidar merger, the camera stitcher, the monitor and the Foxglove bridge on ws://127.0.0.1:8765 (Ctrl-C ends them all).
+## The main job: the simulator in the warehouse with its people (three workers walking their loops, a cart going round), the lidar merger, the camera stitcher, the monitor and the Foxglove bridge on ws://127.0.0.1:8765 (Ctrl-C ends them all).
 run: $(STAMP)
-	$(BIN)/simbot launch --world warehouse --clients merger,stitcher,monitor,foxglove
+	$(BIN)/simbot launch --world warehouse --server-args="--add warehouse_people" --clients merger,stitcher,monitor,foxglove
 
 ## The lint first (seconds), then every test.
 test: $(STAMP) lint

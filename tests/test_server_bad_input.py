@@ -306,11 +306,22 @@ def bad_files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "broken_xml": _write(folder / "broken.sdf", '<?xml version="1.0"?>\n<sdf version="1.9"><world name="w"><model name="m"><link name="l"></model></world></sdf>\n'),
         "missing_include": _write(folder / "include.sdf", '<?xml version="1.0"?>\n<sdf version="1.9">\n<world name="w">\n<include><uri>model://no_such_model_here</uri></include>\n</world>\n</sdf>\n'),
         "a_model_not_a_world": _write(folder / "model.sdf", '<?xml version="1.0"?>\n<sdf version="1.9"><model name="m"><link name="l"/></model></sdf>\n'),
+        "add_no_models": _write(folder / "nobody.sdf", '<?xml version="1.0"?>\n<sdf version="1.9"><world name="nobody"/></sdf>\n'),
     }  # fmt: skip
 
 
 @pytest.mark.parametrize(
-    "case", ["nosuch", "missing_file", "broken_xml", "missing_include", "a_model_not_a_world", "broken_robot"]
+    "case",
+    [
+        "nosuch",
+        "missing_file",
+        "broken_xml",
+        "missing_include",
+        "a_model_not_a_world",
+        "broken_robot",
+        "add_missing_file",
+        "add_no_models",
+    ],
 )
 def test_a_bad_world_or_robot_is_exit_2_and_one_line(case: str, bad_files: dict[str, Path], tmp_path: Path) -> None:
     if case == "nosuch":
@@ -321,6 +332,12 @@ def test_a_bad_world_or_robot_is_exit_2_and_one_line(case: str, bad_files: dict[
     elif case == "broken_robot":
         named = str(bad_files["broken_xml"])
         args = ["--world", "empty", "--robot", named]
+    elif case == "add_missing_file":
+        named = str(tmp_path / "missing_people.sdf")
+        args = ["--world", "empty", "--add", named]
+    elif case == "add_no_models":
+        named = str(bad_files[case])
+        args = ["--world", "empty", "--add", named]
     else:
         named = str(bad_files[case])
         args = ["--world", named]

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from simbot.description import Model, World, load_model, load_world
+from simbot.description.actors import PROXY_RADIUS, ActorModel
 from simbot.description.model import RGBA, Box, Cylinder, Geometry, Plane, Sphere
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import RESOURCE_PATH_VARIABLES
+from simbot.sim.actor_paths import ScriptPath
 
 REPO = Path(__file__).resolve().parents[1]
 WORLDS = REPO / "worlds"
@@ -154,3 +157,68 @@ def test_robot_drives_under_the_trolley(caplog: pytest.LogCaptureFixture) -> Non
     assert hits == []
     deck_underside = float(trolley["trolley/base/deck_collision"][0][2])
     assert deck_underside - float(chassis[1][2]) >= 0.1 - 1e-9
+
+
+PERSON_CLEARANCE_M = 0.3
+"""Metres at least between a walking worker's proxy (0.25 m about its axis) and any collision of the warehouse."""
+CART_CLEARANCE_M = 0.4
+"""Metres at least between the cart's side (0.3 m from its axis: it is pushed only while it faces its
+next waypoint within 2°) and any collision along its legs, room for its sway and its overshoot past
+a waypoint (under 0.1 m, tests/test_warehouse_people.py); turning on the spot at a corner, its
+half diagonal (0.58 m) keeps 0.2 m."""
+
+
+def planar_gap(point: np.ndarray, box: Aabb) -> float:
+    """Distance in the floor plane from `point` to a box that stands between the floor and head height, else inf."""
+    if box[1][2] <= 0.01 or box[0][2] >= 2.0:
+        return float("inf")
+    outside = np.maximum(np.maximum(box[0][:2] - point[:2], 0.0), point[:2] - box[1][:2])
+    return float(np.linalg.norm(outside))
+
+
+def warehouse_boxes(caplog: pytest.LogCaptureFixture) -> dict[str, Aabb]:
+    """Every collision of the warehouse but the floor, the trolley's included."""
+    world = load("warehouse.sdf", caplog)
+    return {k: v for m in world.models if m.name != "floor" for k, v in collision_boxes(m).items()}
+
+
+def test_the_plain_warehouse_holds_nothing_that_moves_by_itself(caplog: pytest.LogCaptureFixture) -> None:
+    """No actor and no model plugin: the tests that need a still warehouse get one; the people come with --add."""
+    world = load("warehouse.sdf", caplog)
+    movers = [m.name for m in world.models if isinstance(m, ActorModel) or m.plugins]
+    assert movers == []
+
+
+def test_the_workers_walk_clear_of_racks_pillars_work_cells_and_the_trolley(caplog: pytest.LogCaptureFixture) -> None:
+    """Each worker's script sampled every 50 ms over one round keeps its proxy clear of every collision."""
+    boxes = warehouse_boxes(caplog)
+    actors = [m for m in load("additions/warehouse_people.sdf", caplog).models if isinstance(m, ActorModel)]
+    assert len(actors) == 3
+    for actor in actors:
+        path = ScriptPath.of(actor.script)
+        round_s = sum(p.duration for p in path.paths)
+        points = [actor.pose.matrix() @ (*path.pose_at(t).position, 1.0) for t in np.arange(0.0, round_s, 0.05)]
+        gap, nearest = min((planar_gap(p, box), name) for p in points for name, box in boxes.items())
+        assert gap - PROXY_RADIUS >= PERSON_CLEARANCE_M, f"{actor.name} walks {gap - PROXY_RADIUS:.2f} m from {nearest}"
+
+
+def test_the_carts_loop_keeps_clear_and_crosses_the_tugs_lane_east_of_the_trolley(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The cart's legs, start to first waypoint and round its loop, and its turns at the corners keep it clear."""
+    boxes = warehouse_boxes(caplog)
+    cart = load("additions/warehouse_people.sdf", caplog).model("cart")
+    (plugin,) = cart.plugins
+    corners = [np.array([float(v) for v in p.text.split()]) for p in plugin.params[-1].children]
+    legs = [np.array(cart.pose.xyz[:2]), *corners, corners[0]]
+    half_width, half_diagonal = 0.3, math.hypot(0.5, 0.3)
+    for a, b in zip(legs, legs[1:]):
+        for p in np.linspace(a, b, 50):
+            gap, nearest = min((planar_gap(p, box), name) for name, box in boxes.items())
+            assert gap - half_width >= CART_CLEARANCE_M, (
+                f"the cart passes {gap - half_width:.2f} m from {nearest} at {p}"
+            )
+    for corner in corners:
+        gap, nearest = min((planar_gap(corner, box), name) for name, box in boxes.items())
+        assert gap - half_diagonal >= 0.2, f"the cart turns {gap - half_diagonal:.2f} m from {nearest} at {corner}"
+    assert min(c[0] for c in corners) > CORRIDOR[1][0], "the cart's loop reaches into the tug's lane west of x 4.5"

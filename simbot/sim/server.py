@@ -1,10 +1,13 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
-    simbot-server [--world NAME|PATH] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
+    simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
                   [--mode realtime|fast|lockstep] [--seed N] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
 
-`--robot none` runs the world alone, with the models it holds or includes.
+`--robot none` runs the world alone, with the models it holds or includes. `--add` (repeatable)
+puts the models and actors of another SDF file into the world as if its file held them: SDF has
+no way for one world to include another, so the warehouse's people (`--add warehouse_people`,
+worlds/additions/) live in a file of their own and the plain warehouse stays still for the tests.
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
 config) is one line on stderr and exit code 2. SIGINT and SIGTERM end it cleanly.
@@ -19,12 +22,12 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
-from simbot.description import DescriptionError, load_world
+from simbot.description import DescriptionError, World, load_description, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.bus_view import SimBus
@@ -45,6 +48,8 @@ ROW_SPACING = 1.5
 """Metres between the tugs of `--robots N` (a tug is 0.5 m wide; its side cameras and lidars see the next)."""
 NO_ROBOT = "none"
 """`--robot none`: the world alone."""
+ADDITIONS = "worlds/additions"
+"""Where simbot's own files for `--add` are, by name."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +64,8 @@ class ServerConfig:
     """The command line's parameters over the SDF's, by `<system>.<parameter>` (`RunOptions.overrides`)."""
     robots: int = 0
     """`--robots N`: N tugs `tug_1..tug_N` in namespaces of their names; 0: the one `flexley_tug`."""
+    additions: tuple[Path, ...] = ()
+    """`--add`: SDF files whose models and actors join the world's own (`with_additions`)."""
 
     def run_options(self) -> RunOptions:
         """What every system is told: lockstep follows the mode."""
@@ -75,6 +82,39 @@ def world_path(name_or_path: str) -> Path:
         return own
     known = sorted(p.stem for p in asset("worlds").glob("*.sdf"))
     raise DescriptionError(path, f"no such world file or built-in world (built-in: {', '.join(known)})")
+
+
+def addition_path(name_or_path: str) -> Path:
+    """An SDF file to add, or the name of one of simbot's own (`warehouse_people`, in worlds/additions/)."""
+    path = Path(name_or_path)
+    if path.suffix == ".sdf" or path.exists():
+        return path
+    own = asset(f"{ADDITIONS}/{name_or_path}.sdf")
+    if own.is_file():
+        return own
+    known = sorted(p.stem for p in asset(ADDITIONS).glob("*.sdf"))
+    raise DescriptionError(path, f"no such file or built-in addition (built-in: {', '.join(known)})")
+
+
+def with_additions(world: World, paths: Sequence[Path]) -> World:
+    """`world` with the models and actors of each file (a `<world>` holding them, or one model or
+    actor), loaded as the world's own: reset puts them back where they started, as their file says.
+    Only models join: an added world's lights, plugins and settings are a warning, not applied."""
+    models = list(world.models)
+    for path in paths:
+        loaded = load_description(path)
+        added = list(loaded.models) if isinstance(loaded, World) else [loaded]
+        if not added:
+            raise DescriptionError(path, "holds no <model> or <actor> to add to the world")
+        if isinstance(loaded, World) and (loaded.plugins or loaded.lights):
+            log.warning("%s: only its models and actors are added, not its lights or world plugins", path)
+        taken = {model.name for model in models}
+        for model in added:
+            if model.name in taken:
+                raise DescriptionError(path, f"model {model.name!r} is already in world {world.name!r}", "model")
+            taken.add(model.name)
+        models += added
+    return replace(world, models=tuple(models))
 
 
 def robot_places(spawn: tuple[float, float, float, float], robots: int) -> list[Placement]:
@@ -95,7 +135,7 @@ class Server:
     def __init__(self, config: ServerConfig, node: Node) -> None:
         robot = load_robot(config.robot) if config.robot is not None else None
         self.world = SimWorld(
-            load_world(config.world),
+            with_additions(load_world(config.world), config.additions),
             robot,
             robot_places(config.spawn, config.robots),
             SimBus(node),
@@ -132,6 +172,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--world", default="warehouse", help="world file, or a built-in world: warehouse (default), empty"
+    )
+    parser.add_argument(
+        "--add",
+        action="append",
+        default=[],
+        metavar="NAME|PATH",
+        help="an SDF file whose models and actors join the world (repeatable), or a built-in one: warehouse_people",
     )
     parser.add_argument(
         "--robot",
@@ -233,7 +280,10 @@ def _config(args: argparse.Namespace) -> ServerConfig:
     if args.robots and robot is None:
         raise DescriptionError(Path(NO_ROBOT), "--robots N needs a robot; --robot none holds none")
     spawn = tuple(args.spawn)
-    return ServerConfig(world_path(args.world), robot, spawn, Mode(args.mode), args.seed, overrides, args.robots or 0)
+    additions = tuple(addition_path(name) for name in args.add)
+    return ServerConfig(
+        world_path(args.world), robot, spawn, Mode(args.mode), args.seed, overrides, args.robots or 0, additions
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
