@@ -10,21 +10,25 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 import pybullet as pb
 import pytest
+import trimesh
 import yourdfpy
 
 from simbot.description import load_world
 from simbot.description.urdf_reader import load_urdf_model
 from simbot.sim.physics import Physics
 from simbot.sim.render.scene import BulletScene
+from simbot.sim.render.shapes import GEOM_MESH, primitive
 from simbot.sim.render.specs import SceneBody
 from simbot.sim.render.surfaces import Piece
 from simbot.sim.render.visuals import body_pieces
+from simbot.transform import Transform
 
 PiecesOf = Callable[[Path], list[Piece]]
 RED, BLUE, GREEN = (0, 0, 255), (255, 0, 0), (0, 255, 0)
@@ -504,20 +508,29 @@ EVERY_SHAPE_URDF = """<robot name="every">
 </robot>"""
 
 
-def rows(positions: npt.NDArray[np.float32]) -> npt.NDArray[np.float64]:
+def rows(positions: npt.NDArray[np.floating[Any]]) -> npt.NDArray[np.float64]:
     """The vertices as a sorted set of rows (to 0.1 mm): the same triangles whatever their order."""
     return np.unique(np.round(positions.astype(np.float64), 4), axis=0)
 
 
 def pybullet_view(scene: BulletScene, name: str) -> dict[int, tuple[npt.NDArray[np.float64], set[tuple[float, ...]]]]:
-    """Per link: the vertices of PyBullet's visual shapes and their colours."""
-    from simbot.sim.render.shapes import triangles
-
-    links: dict[int, tuple[list[npt.NDArray[np.float32]], set[tuple[float, ...]]]] = {}
-    for shape in scene.visual_shapes(name):
-        positions, colours = links.setdefault(shape.link, ([], set()))
-        positions.append(triangles(shape)[0])
-        colours.add(tuple(round(c, 4) for c in shape.rgba[:3]))
+    """Per link: the vertices of PyBullet's visual shapes (getVisualShapeData, tessellated with the
+    renderer's primitives, meshes read by trimesh alone) and their colours: the reference that
+    body_pieces, which reads the URDF itself, must agree with."""
+    links: dict[int, tuple[list[npt.NDArray[np.float64]], set[tuple[float, ...]]]] = {}
+    for shape in scene.pb.getVisualShapeData(scene.ids[name], physicsClientId=scene.client):
+        link, geometry, dimensions, mesh_file, position, orientation, rgba = shape[1:8]
+        if geometry == GEOM_MESH:
+            loaded = trimesh.load(mesh_file.decode(), force="mesh")
+            local = np.asarray(loaded.vertices)[np.asarray(loaded.faces)].reshape(-1, 3) * np.asarray(dimensions[:3])
+        else:
+            tessellated = primitive(geometry, tuple(dimensions))
+            assert tessellated is not None, f"PyBullet geometry type {geometry}"
+            local = tessellated[0]
+        matrix = Transform.of(position, orientation).matrix()
+        vertices, colours = links.setdefault(link, ([], set()))
+        vertices.append(local @ matrix[:3, :3].T + matrix[:3, 3])
+        colours.add(tuple(round(c, 4) for c in rgba[:3]))
     return {link: (rows(np.concatenate(p)), c) for link, (p, c) in links.items()}
 
 

@@ -8,28 +8,11 @@ import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from types import ModuleType
-from typing import NamedTuple
 
 import numpy as np
 
 from simbot.sim.render.specs import BodyState, SceneBody
 from simbot.transform import Matrix, Transform
-
-
-class VisualShape(NamedTuple):
-    """One visual of a link, as PyBullet's getVisualShapeData gives it."""
-
-    link: int
-    """-1 for the base."""
-    geometry: int
-    """pb.GEOM_BOX, GEOM_SPHERE, GEOM_CYLINDER, GEOM_CAPSULE, GEOM_PLANE or GEOM_MESH."""
-    dimensions: tuple[float, ...]
-    """Box: full size; sphere: (radius, ..); cylinder and capsule: (length, radius, ..); mesh: scale."""
-    mesh: str
-    """The mesh file for GEOM_MESH."""
-    local: Transform
-    """The visual's pose in its URDF link frame."""
-    rgba: tuple[float, float, float, float]
 
 
 class BulletScene:
@@ -116,21 +99,6 @@ class BulletScene:
                     raise ValueError(f"body {name!r}: no position for its joint {joint!r}")
                 pb.resetJointState(body_id, j, state.joints[joint], physicsClientId=client)
         self.posed = dict(states)
-
-    def visual_shapes(self, name: str) -> list[VisualShape]:
-        """The body's visuals, in its URDF link frames."""
-        shapes = self.pb.getVisualShapeData(self.ids[name], physicsClientId=self.client)
-        return [
-            VisualShape(
-                s[1],
-                s[2],
-                tuple(s[3]),
-                s[4].decode(errors="replace") if isinstance(s[4], bytes) else str(s[4]),
-                Transform.of(s[5], s[6]),
-                s[7],
-            )
-            for s in shapes
-        ]
 
     def link_matrices(self, name: str) -> dict[int, Matrix]:
         """World transform (4×4) of each URDF link frame of the body, -1 the base, as posed now."""

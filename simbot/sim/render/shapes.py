@@ -14,10 +14,6 @@ import logging
 import numpy as np
 import numpy.typing as npt
 
-from simbot.sim.render.mesh_materials import scaled, submeshes
-from simbot.sim.render.scene import VisualShape
-from simbot.transform import Transform
-
 log = logging.getLogger(__name__)
 
 Array = npt.NDArray[np.float32]
@@ -34,28 +30,8 @@ Tessellated = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArra
 """Positions, normals, texture coordinates."""
 
 
-def triangles(shape: VisualShape) -> tuple[Array, Array]:
-    """(positions, normals) of the shape in its link frame; empty arrays for a shape with no surface."""
-    positions, normals, _ = _local(shape)
-    local = Transform.of(*shape.local).matrix()
-    rotation = local[:3, :3]
-    placed = positions @ rotation.T + local[:3, 3]
-    return placed.astype(np.float32), (normals @ rotation.T).astype(np.float32)
-
-
-def _local(shape: VisualShape) -> Tessellated:
-    if shape.geometry == GEOM_MESH:
-        positions, normals = mesh(shape.mesh, tuple(shape.dimensions[:3]))
-        return positions, normals, np.zeros((len(positions), 2))
-    tessellated = primitive(shape.geometry, shape.dimensions)
-    if tessellated is None:
-        log.warning("visual of link %d: geometry type %d is not drawn", shape.link, shape.geometry)
-        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 2))
-    return tessellated
-
-
 def primitive(geometry: int, dims: tuple[float, ...]) -> Tessellated | None:
-    """A primitive centred on its origin, sized as PyBullet reports it (`VisualShape.dimensions`);
+    """A primitive centred on its origin, sized as PyBullet reports a visual shape (box: full size; sphere: radius; cylinder and capsule: length, radius);
     None for a mesh or an unknown type."""
     if geometry == GEOM_BOX:
         return box(np.asarray(dims[:3]) / 2.0)
@@ -163,14 +139,3 @@ def revolved(profile: list[tuple[float, float, float, float]]) -> Tessellated:
             v0, v1 = arc[i], arc[i + 1]
             uvs += [(u[k], v0), (u[k + 1], v0), (u[k + 1], v1), (u[k], v0), (u[k + 1], v1), (u[k], v1)]
     return np.asarray(positions), np.asarray(normals), np.asarray(uvs)
-
-
-def mesh(path: str, scale: tuple[float, ...]) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """A mesh file's triangles, scaled, with flat face normals; nothing (and a warning) when it cannot be read."""
-    parts = submeshes(path)
-    if not parts:
-        return np.zeros((0, 3)), np.zeros((0, 3))
-    positions, normals = scaled(
-        np.concatenate([p.positions for p in parts]), np.concatenate([p.normals for p in parts]), scale
-    )
-    return positions, normals
