@@ -307,9 +307,14 @@ class SimServer:
         assert reply.get("ok") is True, f"multi_step {steps} refused: {reply}"
         return reply
 
+    @property
+    def has_robot(self) -> bool:
+        """Whether the server has its robot (it was not started with `--robot none`)."""
+        return not any(a == "--robot" and b == "none" for a, b in zip(self.args, self.args[1:], strict=False))
+
     def reset(self) -> None:
         """Stop command first (it is consumed at the next step), then every model back where it began."""
-        if self.mode == "lockstep":
+        if self.mode == "lockstep" and self.has_robot:
             self.drive(0.0, 0.0)
         reply = self.control({"reset": {"all": True}})
         assert reply.get("ok") is True and reply["sim_time"] == 0.0, f"reset refused: {reply}"
