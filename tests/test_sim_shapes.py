@@ -14,7 +14,7 @@ from conftest import settled_physics
 from simbot.description import load_model, load_world
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
-from simbot.sim.render.shapes import mesh
+from simbot.sim.render.mesh_materials import submeshes
 
 FIXTURES = Path(__file__).parent / "fixtures" / "gazebo"
 SETTLE_STEPS = 3000
@@ -79,7 +79,7 @@ def test_heightfield_visual_is_a_mesh_the_cameras_draw() -> None:
     visuals = pb.getVisualShapeData(body.id, physicsClientId=physics.client)
     files = [Path(v[4].decode()) for v in visuals if v[2] == pb.GEOM_MESH]
     assert len(files) == 1
-    positions, _ = mesh(str(files[0]), (1.0, 1.0, 1.0))
+    positions = np.concatenate([part.positions for part in submeshes(str(files[0]))])
     physics.close()  # removes the generated files
     assert positions.shape == (32 * 3, 3)
     assert positions[:, 2].min() == pytest.approx(0.2) and positions[:, 2].max() == pytest.approx(
