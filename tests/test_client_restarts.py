@@ -43,6 +43,7 @@ from server_helpers import (
     restarted,
     running_server,
     stamp_ns,
+    wait_until,
 )
 from test_client_foxglove import Viewer, viewer
 
@@ -366,10 +367,12 @@ def test_record_marks_the_restart_and_goes_on(restart: Restart) -> None:
     recorder = restart.processes["record"]
     assert restart.up["record"], recorder.stderr()[-2000:]
     assert recorder.alive(), f"record ended after the restart:\n{recorder.stderr()[-2000:]}"
-    deadline = time.monotonic() + WITHIN_S
-    while not any(WENT_BACK in line for line in recorder.stderr().splitlines()):
-        assert time.monotonic() < deadline, f"record did not say that sim time went back:\n{recorder.stderr()[-2000:]}"
-        time.sleep(0.05)
+    wait_until(
+        lambda: any(WENT_BACK in line for line in recorder.stderr().splitlines()),
+        WITHIN_S,
+        "record to say that sim time went back",
+        poll=0.05,
+    )
     assert recorder.stop() == 0, recorder.stderr()[-2000:]
     lines = [line for line in recorder.stderr().splitlines() if WENT_BACK in line]
     assert len(lines) == 1, recorder.stderr()[-2000:]

@@ -227,12 +227,14 @@ def stamp_ns(msg: Any) -> int:
 
 def step_until(server: SimServer, condition: Callable[[], object], timeout: float, what: str) -> None:
     """Lockstep: a chunk of steps at a time until `condition` holds; AssertionError naming `what` after `timeout` s."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+    def stepped() -> bool:
+        if condition():
+            return True
         server.step(STEP_CHUNK)
-        time.sleep(STEP_PAUSE_S)
+        return False
+
+    wait_until(stepped, timeout, what, poll=STEP_PAUSE_S)
 
 
 def rate_hz(msgs: list[Any]) -> float:
