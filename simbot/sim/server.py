@@ -74,26 +74,25 @@ class ServerConfig:
 
 def world_path(name_or_path: str) -> Path:
     """A world file, or the name of one of simbot's own worlds (`warehouse`, `empty`)."""
-    path = Path(name_or_path)
-    if path.suffix == ".sdf" or path.exists():
-        return path
-    own = asset(f"worlds/{name_or_path}.sdf")
-    if own.is_file():
-        return own
-    known = sorted(p.stem for p in asset("worlds").glob("*.sdf"))
-    raise DescriptionError(path, f"no such world file or built-in world (built-in: {', '.join(known)})")
+    return _sdf_file(name_or_path, "worlds", "world file or built-in world")
 
 
 def addition_path(name_or_path: str) -> Path:
     """An SDF file to add, or the name of one of simbot's own (`warehouse_people`, in worlds/additions/)."""
+    return _sdf_file(name_or_path, ADDITIONS, "file or built-in addition")
+
+
+def _sdf_file(name_or_path: str, folder: str, what: str) -> Path:
+    """A path as given (an .sdf, or anything that exists), else simbot's own `folder/<name>.sdf`;
+    DescriptionError listing the built-in names when neither."""
     path = Path(name_or_path)
     if path.suffix == ".sdf" or path.exists():
         return path
-    own = asset(f"{ADDITIONS}/{name_or_path}.sdf")
+    own = asset(f"{folder}/{name_or_path}.sdf")
     if own.is_file():
         return own
-    known = sorted(p.stem for p in asset(ADDITIONS).glob("*.sdf"))
-    raise DescriptionError(path, f"no such file or built-in addition (built-in: {', '.join(known)})")
+    known = sorted(p.stem for p in asset(folder).glob("*.sdf"))
+    raise DescriptionError(path, f"no such {what} (built-in: {', '.join(known)})")
 
 
 def with_additions(world: World, paths: Sequence[Path]) -> World:
