@@ -82,13 +82,14 @@ def _joint(element: ET.Element) -> UrdfJoint:
         element.get("type", ""),
         parent.get("link", "") if parent is not None else "",
         child.get("link", "") if child is not None else "",
-        _origin(element),
+        urdf_origin(element),
         _numbers(axis.get("xyz")) if axis is not None else URDF_DEFAULT_AXIS,
     )
 
 
-def _origin(joint: ET.Element) -> Pose:
-    origin = joint.find("origin")
+def urdf_origin(element: ET.Element) -> Pose:
+    """The pose of a URDF joint's, visual's or collision's `<origin>` (identity without one)."""
+    origin = element.find("origin")
     return Pose(_numbers(origin.get("xyz")), _numbers(origin.get("rpy"))) if origin is not None else Pose()
 
 

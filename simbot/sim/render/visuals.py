@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from simbot.description.poses import rpy_to_matrix
+from simbot.description.kinematics import urdf_origin
 from simbot.description.resources import resolve
 from simbot.sim.render.mesh_materials import pbr_specular, readable_image, scaled, submeshes
 from simbot.sim.render.scene import BulletScene
@@ -55,7 +55,7 @@ def link_indices(scene: BulletScene, name: str) -> dict[str, int]:
 
 
 def _visual_pieces(link: int, visual: ET.Element, materials: dict[str, ET.Element]) -> list[Piece]:
-    origin = _origin(visual.find("origin"))
+    origin = urdf_origin(visual).matrix()
     surface = _surface(visual, materials)
     shape = visual.find("geometry/*")
     if shape is None:
@@ -76,14 +76,6 @@ def _piece(link: int, origin: np.ndarray, tessellated: Tessellated, surface: Sur
     return Piece(
         link, placed.astype(np.float32), (normals @ rotation.T).astype(np.float32), uvs.astype(np.float32), surface
     )
-
-
-def _origin(element: ET.Element | None) -> np.ndarray:
-    matrix = np.eye(4)
-    if element is not None:
-        matrix[:3, :3] = rpy_to_matrix(_numbers(element.get("rpy"), (0.0, 0.0, 0.0)))  # type: ignore[arg-type]
-        matrix[:3, 3] = _numbers(element.get("xyz"), (0.0, 0.0, 0.0))
-    return matrix
 
 
 def _numbers(text: str | None, default: tuple[float, ...]) -> tuple[float, ...]:
