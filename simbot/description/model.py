@@ -145,6 +145,8 @@ class Visual:
     material: Material | None = None
     transparency: float = 0.0
     cast_shadows: bool = True
+    plugins: tuple[Plugin, ...] = ()
+    """The visual's `<plugin>`s (Gazebo's Label, Thermal), after those of the nested model it came from."""
 
 
 @dataclass(frozen=True)

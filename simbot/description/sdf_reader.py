@@ -185,22 +185,27 @@ class _Nested:
 
 
 def _read_nested(reader: Reader, version: tuple[int, int], model: Element) -> list[_Nested]:
-    """The models nested in `model`, inline or included; their plugins are not run (a warning says so)."""
+    """The models nested in `model`, inline or included. simbot flattens them, so a nested model's
+    plugins go to its visuals (`Visual.plugins`, before each visual's own): a Label or Thermal
+    there covers the nested model's visuals; the world runs no other plugin of a visual (a warning
+    says so)."""
     nested = []
     for element in model:
         if element.tag not in ("model", "include"):
             continue
         inner = _read_model(reader, version, element) if element.tag == "model" else _read_include(reader, element)
-        for plugin in inner.plugins:
-            logger.warning(
-                "%s:%s: plugin %r of nested model %r is not run (simbot flattens nested models)",
-                reader.file,
-                element.sourceline,
-                plugin.name,
-                inner.name,
-            )
-        nested.append(_Nested(replace(inner, plugins=()), element, read_pose(reader, element)[1]))
+        nested.append(_Nested(_plugins_to_visuals(inner), element, read_pose(reader, element)[1]))
     return nested
+
+
+def _plugins_to_visuals(model: Model) -> Model:
+    if not model.plugins:
+        return model
+    links = tuple(
+        replace(link, visuals=tuple(replace(v, plugins=model.plugins + v.plugins) for v in link.visuals))
+        for link in model.links
+    )
+    return replace(model, links=links, plugins=())
 
 
 def _model_frames(reader: Reader, model: Element, links: list[Element], nested: list[_Nested]) -> Frames:
@@ -269,6 +274,7 @@ def _read_visual(reader: Reader, frames: Frames, link: str, element: Element) ->
         material=None if material is None else read_material(reader, material),
         transparency=reader.number(element, "transparency", 0.0),
         cast_shadows=reader.flag(element, "cast_shadows", True),
+        plugins=tuple(_read_plugin(reader, e) for e in element.findall("plugin")),
     )
 
 

@@ -24,7 +24,9 @@ for: commands act before the physics step, sensors see its result after.
 
 Systems come from SDF `<plugin>` elements (by plugin name), `<sensor>` elements (by sensor type),
 and the built-in groups every world or described model gets (`simbot.sim.registry`); all get the
-same context, a sensor's with its link and sensor filled in. Each gets its own random stream from
+same context, a sensor's with its link and sensor filled in. A `<plugin>` inside a `<visual>` (or
+on a nested model, which simbot flattens: it goes to the nested model's visuals) runs only where its
+class says `runs_on_visuals = True` (Label, Thermal), with its link and visual filled in. Each gets its own random stream from
 the seed and its scoped name (`simbot.sim.naming.scoped_rng`). Bus callbacks only queue
 (`simbot.sim.bus_view.Input`); systems act in the loop, so everything a system does happens at a
 definite sim time.
@@ -38,7 +40,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from simbot.description.model import Link, Model, Plugin, Sensor, World
+from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
 from simbot.sim.bus_view import SimBus
 from simbot.sim.naming import model_topic, scoped_key
 from simbot.sim.physics.protocols import WorldAccess
@@ -161,6 +163,8 @@ class SystemContext:
     link: Link | None = None
     sensor: Sensor | None = None
     options: RunOptions = field(default_factory=RunOptions)
+    visual: Visual | None = None
+    """The `<visual>` a visual's plugin sits in (its `link` filled in too)."""
 
     def require_model(self, system: str) -> tuple[Model, str]:
         """The model a model-level system belongs to."""

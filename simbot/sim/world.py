@@ -20,7 +20,7 @@ from functools import partial
 from pathlib import Path
 
 from simbot.description import DescriptionError, load_description
-from simbot.description.model import Link, Model, Plugin, Sensor, World
+from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
 from simbot.description.poses import Pose
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import CreateRequest
@@ -114,6 +114,7 @@ class SimWorld:
         self.bus = sim_bus
         self._seed = seed
         self._options = options or RunOptions()
+        self._skipped_plugins: set[Plugin] = set()
         self.models: dict[str, Placed] = {}
         self._world_systems: list[Scheduled] = []
         try:
@@ -256,12 +257,27 @@ class SimWorld:
         plugin: Plugin | None = None,
         sensor: tuple[Link, Sensor] | None = None,
         bus: SimBus | None = None,
+        visual: tuple[Link, Visual] | None = None,
     ) -> SystemContext:
         link, sdf_sensor = sensor if sensor else (None, None)
+        if visual is not None:
+            link = visual[0]
         leaf = (link.name, sdf_sensor.name) if link and sdf_sensor else (plugin.name,) if plugin else ()
+        if visual is not None:
+            leaf = (visual[0].name, visual[1].name, *leaf)
         rng = scoped_rng(self._seed, name or "world", *leaf)
         return SystemContext(
-            self.physics, bus or self.bus, self.description, rng, model, name, plugin, link, sdf_sensor, self._options
+            self.physics,
+            bus or self.bus,
+            self.description,
+            rng,
+            model,
+            name,
+            plugin,
+            link,
+            sdf_sensor,
+            self._options,
+            visual[1] if visual else None,
         )
 
     def _scheduled(self, systems: list[tuple[System, int | None]]) -> list[Scheduled]:
@@ -273,20 +289,45 @@ class SimWorld:
         return _started([partial(_make, factory, ctx, None) for factory in builtin(group)])
 
     def _plugins(self, placed: Placed | None) -> list[tuple[System, int | None]]:
-        """A system for each plugin of the world (`placed` None) or of each body of a placed model,
-        with the priority its SDF states."""
-        if placed is None:
-            found: list[tuple[Model | None, str | None, Plugin]] = [(None, None, p) for p in self.description.plugins]
-        else:
-            bodies = [(self.physics.model_of(name), name) for name in placed.bodies]
-            found = [(model, name, p) for model, name in bodies for p in model.plugins]
+        """A system for each plugin of the world (`placed` None) or of each body of a placed model
+        and of its visuals, with the priority its SDF states."""
         makers = []
-        for model, name, plugin in found:
-            factory = lookup(plugin)
-            if factory is not None:
-                ctx = self._context(model, name, plugin, bus=placed.bus if placed else None)
-                makers.append(partial(_make, factory, ctx, plugin_priority(plugin)))
+        for ctx in self._plugin_contexts(placed):
+            assert ctx.plugin is not None
+            factory = lookup(ctx.plugin)
+            if factory is None:
+                continue
+            if ctx.visual is not None and not getattr(factory, "runs_on_visuals", False):
+                self._skip_visual_plugin(ctx.plugin, ctx.visual)
+                continue
+            makers.append(partial(_make, factory, ctx, plugin_priority(ctx.plugin)))
         return _started(makers)
+
+    def _plugin_contexts(self, placed: Placed | None) -> list[SystemContext]:
+        if placed is None:
+            return [self._context(plugin=p) for p in self.description.plugins]
+        contexts = []
+        for name in placed.bodies:
+            model = self.physics.model_of(name)
+            contexts += [self._context(model, name, p, bus=placed.bus) for p in model.plugins]
+            contexts += [
+                self._context(model, name, p, bus=placed.bus, visual=(link, visual))
+                for link in model.links
+                for visual in link.visuals
+                for p in visual.plugins
+            ]
+        return contexts
+
+    def _skip_visual_plugin(self, plugin: Plugin, visual: Visual) -> None:
+        """Once per plugin (a nested model's goes to each of its visuals)."""
+        if plugin not in self._skipped_plugins:
+            self._skipped_plugins.add(plugin)
+            log.warning(
+                "plugin %s on visual %r (or its nested model) is not run: only a visual's systems "
+                "(Label, Thermal) run there, as simbot flattens nested models",
+                plugin.name,
+                visual.name,
+            )
 
     def _sensors(self, placed: Placed) -> dict[str, System]:
         """A system for each `<sensor>` of each body of a placed model, by scoped name `model/link/sensor`

@@ -2,7 +2,9 @@
 
 A sensor that renders implements `RenderedSensor`; the world's rendering system
 (simbot/sim/systems/rendering.py) finds such sensors among the systems of each model that enters
-the world, schedules them, and tells them how rendering goes through their `status`.
+the world, schedules them, and tells them how rendering goes through their `status`. A system
+that says what cameras see of a model's visuals (Label, Thermal) implements `Annotating`: the
+rendering system hands its annotation to the render workers with the model's bodies.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from simbot.description.poses import Pose
-from simbot.sim.render.specs import CameraSpec, Frame
+from simbot.sim.render.specs import Annotation, CameraSpec, Frame
 from simbot.sim.system import UpdateInfo
 
 
@@ -49,3 +51,10 @@ class RenderedSensor(Protocol):
     def publish(self, frame: Frame) -> None:
         """The frame's messages and its camera_info, under the frame's stamp."""
         ...
+
+
+@runtime_checkable
+class Annotating(Protocol):
+    """A system that labels a model's visuals or gives them a temperature."""
+
+    annotation: Annotation

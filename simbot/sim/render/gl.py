@@ -47,8 +47,11 @@ from simbot.transform import Transform
 log = logging.getLogger(__name__)
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
-ROW = "3f 3f 2f"
-"""A vertex: position, normal, texture coordinates (float32, 32 bytes)."""
+ROW = "3f 3f 2f 1u 1f"
+"""A vertex: position, normal, texture coordinates (float32), its visual's packed label (uint32,
+`labels.py`) and temperature (float32, K; below zero: none): 40 bytes."""
+SHADED_ROW, DEPTH_ROW, ANNOTATION_ROW = "3f 3f 2f 8x", "3f 28x", "3f 20x 1u 1f"
+"""What each program reads of a vertex."""
 ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 
 Rows = npt.NDArray[np.float32]
@@ -63,6 +66,8 @@ class _Part:
     vao: Any
     depth_vao: Any
     """For the depth-only program: the sun's shadow maps."""
+    annotation_vao: Any
+    """For the annotation program: labels and temperatures."""
     body: str | None
     """None for the static world (identity transform)."""
     link: int
@@ -72,17 +77,20 @@ class _Part:
     program: shaders.Program
 
     def release(self) -> None:
-        for item in (self.vao, self.depth_vao, self.buffer):
+        for item in (self.vao, self.depth_vao, self.annotation_vao, self.buffer):
             item.release()
 
 
 @dataclass
 class _Target:
     spec: CameraSpec
-    fbo: Any
+    fbo: Any | None
+    """Colour and depth; None for a camera that draws neither."""
     projection: Matrix
     mono: bool
     """The colour buffer holds luminance (drawn so by the shader)."""
+    annotations: Any | None
+    """Labels and temperatures; None for a camera that draws neither."""
 
 
 class GlRenderer:
@@ -120,6 +128,11 @@ class GlRenderer:
         self.shadow = (
             None if caster is None else ShadowMap(self.ctx, self.depth_program, light.sources[caster].direction)
         )
+        self.annotation_program: Any = self.ctx.program(
+            vertex_shader=shaders.ANNOTATION_VERTEX, fragment_shader=shaders.ANNOTATION_FRAGMENT
+        )
+        self.annotation_program["ambient_temperature"].value = light.ambient_temperature  # type: ignore[union-attr]
+        self.annotation_program["temperature_gradient"].value = light.temperature_gradient  # type: ignore[union-attr]
         self.parts: list[_Part] = []
         """The static world first, then each moving link's surfaces, in the order the bodies came."""
         self._static: dict[str, list[tuple[Surface, Rows]]] = {}
@@ -218,11 +231,13 @@ class GlRenderer:
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
         normal_map = self._textures.get(surface.normal_map) if surface.normal_map else None
         program = self._program(shaders.Kind.of(surface, texture is not None, normal_map is not None))
-        attributes = [(buffer, ROW, "in_position", "in_normal", "in_uv")]
+        attributes = [(buffer, SHADED_ROW, "in_position", "in_normal", "in_uv")]
         # attributes the kind does not read (a world with no light reads no normal) are skipped
         vao = self.ctx.vertex_array(program.program, attributes, skip_errors=True)
-        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, "3f 20x", "in_position")])
-        return _Part(buffer, vao, depth_vao, body, link, surface, texture, normal_map, program)
+        depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, DEPTH_ROW, "in_position")])
+        annotated = [(buffer, ANNOTATION_ROW, "in_position", "in_label", "in_temperature")]
+        annotation_vao = self.ctx.vertex_array(self.annotation_program, annotated)
+        return _Part(buffer, vao, depth_vao, annotation_vao, body, link, surface, texture, normal_map, program)
 
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
@@ -248,11 +263,19 @@ class GlRenderer:
     def _target(self, spec: CameraSpec) -> _Target:
         size, drawn = (spec.width, spec.height), spec.drawn()
         mono = len(drawn.get("color", ())) == 2  # an H×W colour buffer: luminance
-        color = self.ctx.renderbuffer(size, components=1 if mono else 3)
-        depth = self.ctx.depth_texture(size) if "depth" in drawn else self.ctx.depth_renderbuffer(size)
         projection = FLIP_Y @ projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
-        fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
-        return _Target(spec, fbo, projection, mono)
+        fbo = annotations = None
+        if "color" in drawn or "depth" in drawn:
+            color = self.ctx.renderbuffer(size, components=1 if mono else 3)
+            depth = self.ctx.depth_texture(size) if "depth" in drawn else self.ctx.depth_renderbuffer(size)
+            fbo = self.ctx.framebuffer(color_attachments=[color], depth_attachment=depth)
+        if "labels" in drawn or "temperature" in drawn:
+            # both: the annotation program writes both (the temperature at location 1)
+            buffers = [self.ctx.renderbuffer(size, components=1, dtype=dtype) for dtype in ("u4", "f4")]
+            annotations = self.ctx.framebuffer(
+                color_attachments=buffers, depth_attachment=self.ctx.depth_renderbuffer(size)
+            )
+        return _Target(spec, fbo, projection, mono, annotations)
 
     # --- a frame
 
@@ -261,20 +284,49 @@ class GlRenderer:
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
         transforms = self._transforms()
-        view = view_matrix(pose)
-        view_projection = shaders.gl_matrix(target.projection @ view)
+        view_projection = shaders.gl_matrix(target.projection @ view_matrix(pose))
+        if target.fbo is not None:
+            self._shade(target, target.fbo, pose, view_projection, transforms, drawn)
+        if target.annotations is not None:
+            self._annotate(target.annotations, view_projection, transforms, drawn)
+
+    def _shade(
+        self,
+        target: _Target,
+        fbo: Any,
+        pose: Transform,
+        view_projection: bytes,
+        transforms: list[bytes],
+        drawn: Mapping[Raw, Array],
+    ) -> None:
+        """What the camera sees in the world's light: colour, and window depth."""
         for program in self.programs.values():
             program.write("view_projection", view_projection)
             program.set("eye", tuple(float(v) for v in pose[0]))
             program.set("mono", target.mono)
-        target.fbo.use()
+        fbo.use()
         sky = self.light.background
-        target.fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
-        self._draw(transforms, target.fbo)
+        fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
+        self._draw(transforms, fbo)
         if (color := drawn.get("color")) is not None:
-            target.fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
+            fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
         if (depth := drawn.get("depth")) is not None:
-            target.fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
+            fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
+
+    def _annotate(self, fbo: Any, view_projection: bytes, transforms: list[bytes], drawn: Mapping[Raw, Array]) -> None:
+        """Each pixel's label and temperature, every surface drawn opaque and unshaded; 0 where
+        nothing is (the sky)."""
+        program = self.annotation_program
+        program["view_projection"].write(view_projection)
+        fbo.use()
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        for part, transform in zip(self.parts, transforms, strict=True):
+            program["model"].write(transform)
+            part.annotation_vao.render()
+        if (labels := drawn.get("labels")) is not None:
+            fbo.read_into(labels, components=1, attachment=0, dtype="u4", alignment=1)
+        if (temperature := drawn.get("temperature")) is not None:
+            fbo.read_into(temperature, components=1, attachment=1, dtype="f4", alignment=1)
 
     def _draw(self, transforms: list[bytes], fbo: Any) -> None:
         """The opaque parts, then the translucent ones blended over them without writing depth.
@@ -355,12 +407,18 @@ _SAMPLERS = {
 
 def _stack(arrays: list[Rows]) -> Rows:
     """Vertex rows one after the other; no rows for no arrays."""
-    return np.concatenate(arrays) if arrays else np.empty((0, 8), dtype=np.float32)
+    return np.concatenate(arrays) if arrays else np.empty((0, 10), dtype=np.float32)
 
 
 def _rows(piece: Piece, link_to_world: Matrix) -> Rows:
-    """Interleaved position, normal, uv rows of the piece, transformed by `link_to_world`."""
+    """Interleaved rows of the piece (`ROW`), transformed by `link_to_world`; the label's uint32
+    bits ride in a float32 column (copied, never computed on)."""
     rotation = link_to_world[:3, :3]
     positions = piece.positions @ rotation.T + link_to_world[:3, 3]
     normals = piece.normals @ rotation.T
-    return np.hstack([positions, normals, piece.uvs]).astype(np.float32)
+    count = len(piece.positions)
+    label = np.full((count, 1), piece.label, dtype=np.uint32).view(np.float32)
+    temperature = np.full((count, 1), -1.0 if np.isnan(piece.temperature) else piece.temperature, dtype=np.float32)
+    return np.hstack(
+        [positions.astype(np.float32), normals.astype(np.float32), piece.uvs.astype(np.float32), label, temperature]
+    )

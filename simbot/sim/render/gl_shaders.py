@@ -268,6 +268,42 @@ DEPTH_FRAGMENT = """
 void main() {}
 """
 
+ANNOTATION_VERTEX = """
+#version 330
+uniform mat4 view_projection;
+uniform mat4 model;
+in vec3 in_position;
+in uint in_label;
+in float in_temperature;
+flat out uint label;
+flat out float temperature;
+out float height;
+void main() {
+    vec4 placed = model * vec4(in_position, 1.0);
+    gl_Position = view_projection * placed;
+    label = in_label;
+    temperature = in_temperature;
+    height = placed.z;
+}
+"""
+"""What annotated cameras see: each fragment's label (`labels.py`) and temperature."""
+
+ANNOTATION_FRAGMENT = """
+#version 330
+uniform float ambient_temperature;
+uniform float temperature_gradient;
+flat in uint label;
+flat in float temperature;
+in float height;
+layout(location = 0) out uint out_label;
+layout(location = 1) out float out_temperature;
+void main() {
+    out_label = label;
+    // below zero: no Thermal system says; the atmosphere's temperature at this height
+    out_temperature = temperature >= 0.0 ? temperature : ambient_temperature + temperature_gradient * height;
+}
+"""
+
 
 def gl_matrix(m: npt.NDArray[np.float64]) -> bytes:
     """A 4×4 matrix as GLSL's column-major float32 bytes."""

@@ -32,6 +32,8 @@ class BulletScene:
         """The states last applied."""
         self.version = 0
         """Counts the changes of pose and of bodies: what a renderer caches per pose is valid while it holds."""
+        self.body_version = 0
+        """Counts the changes of bodies (added, removed)."""
         for body in bodies:
             self.add(body)
 
@@ -69,6 +71,7 @@ class BulletScene:
         (a body re-created under an old name must not pass for the old one's pose)."""
         self.posed = None
         self.version += 1
+        self.body_version += 1
 
     def _place(self, name: str, root: Transform) -> None:
         """Puts the body's root link frame at `root` (PyBullet places a base by its centre of mass)."""

@@ -20,6 +20,18 @@ Points = npt.NDArray[np.float32]
 
 
 @dataclass(frozen=True)
+class Annotation:
+    """What Gazebo's Label and Thermal systems say of a body's visuals: a label (0..255) for
+    segmentation and bounding-box cameras, a temperature (K) for thermal ones."""
+
+    link: str | None = None
+    """The URDF link of the one visual it covers; None: every visual of the body."""
+    visual: str | None = None
+    label: int | None = None
+    temperature: float | None = None
+
+
+@dataclass(frozen=True)
 class SceneBody:
     """A body as the server loaded it, for the workers to load the same way."""
 
@@ -30,6 +42,20 @@ class SceneBody:
     """loadURDF(useFixedBase=static): a static body never moves, so GL bakes it into the world's buffer."""
     base: Transform
     """The root link's URDF frame in the world at start."""
+    annotations: tuple[Annotation, ...] = ()
+    """In the order they apply: a later one overrides an earlier one where both say something."""
+    instance: int = 0
+    """The body's instance number for segmentation (1..65535; the same in every worker)."""
+
+    def annotated(self, link: str, visual: str) -> tuple[int | None, float | None]:
+        """(label, temperature) of one visual: the body's annotations, then the visual's own."""
+        label, temperature = None, None
+        ordered = sorted(self.annotations, key=lambda a: a.visual is not None)  # stable: whole-body first
+        for annotation in ordered:
+            if annotation.visual is None or (annotation.link, annotation.visual) == (link, visual):
+                label = annotation.label if annotation.label is not None else label
+                temperature = annotation.temperature if annotation.temperature is not None else temperature
+        return label, temperature
 
 
 @dataclass(frozen=True)
@@ -178,6 +204,11 @@ class Light:
     background: RGB = (1.0, 1.0, 1.0)
     shadows: bool = True
     """SDF `<scene><shadows>`: the first directional light that casts shadows casts them."""
+    ambient_temperature: float = 288.15
+    """What a thermal camera sees where no Thermal system says (the light it sees is the heat):
+    the world's `<atmosphere>` temperature at z = 0, K ..."""
+    temperature_gradient: float = -0.0065
+    """... changing by this much a metre up (K/m)."""
 
     @property
     def sun(self) -> LightSource | None:

@@ -58,3 +58,7 @@ class Piece:
     """N×2 texture coordinates (OpenGL's: v up from the image's bottom row); zeros where the
     source has none."""
     surface: Surface
+    label: int = 0
+    """The label and instance of its visual, packed (`labels.py`)."""
+    temperature: float = float("nan")
+    """Its temperature (K) from the Thermal system; NaN: the atmosphere's where it is."""

@@ -7,7 +7,11 @@ of `<scene><ambient>`), no specular (TinyRenderer's highlight ignores the materi
 so simbot leaves it off). It has no sky colour (it clears to white whatever `<scene><background>`
 says), no point or spot lights, no emissive, unlit or translucent surfaces, no textures but those
 PyBullet reads itself, no shadows (PyBullet's own are not the sun's). Like OpenGL it cuts away
-geometry nearer than the near plane (a camera inside its housing sees out)."""
+geometry nearer than the near plane (a camera inside its housing sees out).
+
+Labels and temperatures come from PyBullet's segmentation mask, which tells bodies and links
+apart but not the visuals of one link: a link shows its first visual's label and temperature,
+and geometry without a temperature shows the atmosphere's at z = 0 (OpenGL: at its height)."""
 
 from __future__ import annotations
 
@@ -15,11 +19,13 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import luminance
 from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
 from simbot.sim.render.specs import CameraSpec, Light
+from simbot.sim.render.visuals import body_pieces
 from simbot.transform import Transform
 
 CLEARED_DEPTH = 1.0 - 1e-6
@@ -35,7 +41,10 @@ class TinyRenderer:
 
     def __init__(self, scene: BulletScene, light: Light, cameras: Mapping[int, CameraSpec]) -> None:
         self.scene = scene
+        self.light = light
         self.lighting = tiny_lighting(light)
+        self._annotations: tuple[int, dict[int, tuple[int, float]]] = (-1, {})
+        """(the scene's version, each (body, link)'s packed label and temperature by mask value)"""
         self.cameras: dict[int, CameraSpec] = {}
         self.projections: dict[int, Sequence[float]] = {}
         for index, spec in cameras.items():
@@ -56,13 +65,15 @@ class TinyRenderer:
     def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
         spec = self.cameras[camera]
         pb = self.scene.pb
+        annotated = "labels" in drawn or "temperature" in drawn
+        flags = pb.ER_SEGMENTATION_MASK_OBJECT_AND_LINKINDEX if annotated else pb.ER_NO_SEGMENTATION_MASK
         image = pb.getCameraImage(
             spec.width,
             spec.height,
             _flat(view_matrix(pose)),
             self.projections[camera],
             renderer=pb.ER_TINY_RENDERER,
-            flags=pb.ER_NO_SEGMENTATION_MASK,
+            flags=flags,
             shadow=0,
             physicsClientId=self.scene.client,
             **self.lighting,
@@ -73,6 +84,32 @@ class TinyRenderer:
         if (depth := drawn.get("depth")) is not None:
             depth[...] = np.asarray(image[3], dtype=np.float32).reshape(spec.height, spec.width)
             depth[depth >= CLEARED_DEPTH] = 1.0
+        if annotated:
+            self._annotate(np.asarray(image[4], dtype=np.int64).reshape(spec.height, spec.width), drawn)
+
+    def _annotate(self, mask: npt.NDArray[np.int64], drawn: Mapping[Raw, Array]) -> None:
+        """Labels and temperatures by the body and link PyBullet drew in each pixel (0: the sky)."""
+        table = self._table()
+        values, inverse = np.unique(mask, return_inverse=True)
+        found = [table.get(int(v), (0, 0.0)) for v in values]
+        if (labels := drawn.get("labels")) is not None:
+            labels[...] = np.array([f[0] for f in found], dtype=np.uint32)[inverse].reshape(mask.shape)
+        if (temperature := drawn.get("temperature")) is not None:
+            temperature[...] = np.array([f[1] for f in found], dtype=np.float32)[inverse].reshape(mask.shape)
+
+    def _table(self) -> dict[int, tuple[int, float]]:
+        """Mask value (body id + (link + 1) << 24) → (packed label, temperature), rebuilt when bodies change."""
+        version, table = self._annotations
+        if version == self.scene.body_version:
+            return table
+        table = {}
+        ambient = self.light.ambient_temperature
+        for name, body_id in self.scene.ids.items():
+            for piece in body_pieces(self.scene, name):
+                temperature = ambient if np.isnan(piece.temperature) else piece.temperature
+                table.setdefault(body_id + ((piece.link + 1) << 24), (piece.label, temperature))
+        self._annotations = (self.scene.body_version, table)
+        return table
 
     def close(self) -> None:
         """Nothing of its own: the scene's client is the worker's to disconnect."""

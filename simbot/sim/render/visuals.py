@@ -10,12 +10,16 @@ warning and the visual keeps its colour.
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
 from simbot.description.kinematics import urdf_origin
 from simbot.description.resources import resolve
+from simbot.sim.render.labels import pack
 from simbot.sim.render.mesh_materials import pbr_specular, readable_image, scaled, submeshes
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.shapes import (
@@ -34,14 +38,22 @@ UNCOLOURED = Surface(diffuse=(1.0, 1.0, 1.0), ambient=(1.0, 1.0, 1.0))
 
 
 def body_pieces(scene: BulletScene, name: str) -> list[Piece]:
-    """The body's visuals in their URDF link frames, one piece per material."""
-    robot = ET.fromstring(scene.bodies[name].urdf)
+    """The body's visuals in their URDF link frames, one piece per material, each with its
+    visual's label and temperature (`SceneBody.annotated`)."""
+    body = scene.bodies[name]
+    robot = ET.fromstring(body.urdf)
     materials = {m.get("name", ""): m for m in robot.findall("material")}
     indices = link_indices(scene, name)
     pieces = []
     for link in robot.findall("link"):
+        link_name = link.get("name", "")
         for visual in link.findall("visual"):
-            pieces += _visual_pieces(indices[link.get("name", "")], visual, materials)
+            label, temperature = body.annotated(link_name, visual.get("name", ""))
+            annotated: dict[str, Any] = {
+                "label": pack(label, body.instance),
+                "temperature": math.nan if temperature is None else temperature,
+            }
+            pieces += [replace(p, **annotated) for p in _visual_pieces(indices[link_name], visual, materials)]
     return pieces
 
 

@@ -42,8 +42,9 @@ import logging
 import threading
 
 from simbot.description.model import SdfLight, World
-from simbot.sim.render import BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody, plan_pool
-from simbot.sim.render.contract import RenderedSensor, RenderStatus
+from simbot.sim.render import Annotation, BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody, plan_pool
+from simbot.sim.render.contract import Annotating, RenderedSensor, RenderStatus
+from simbot.sim.render.labels import MAX_INSTANCE
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)
@@ -61,6 +62,8 @@ def world_light(world: World) -> Light:
         ambient=scene.ambient[:3],
         background=scene.background[:3],
         shadows=scene.shadows,
+        ambient_temperature=world.atmosphere.temperature,
+        temperature_gradient=world.atmosphere.temperature_gradient,
     )
 
 
@@ -107,10 +110,16 @@ class Rendering:
         """Cameras of removed models, by index."""
         self._changes: list[SceneBody | str] = []
         """Since the pool's snapshot of the world, not yet sent to it: bodies added (a SceneBody) and removed (a name)."""
+        self._annotations: dict[str, tuple[Annotation, ...]] = {}
+        """Each body's labels and temperatures (`Annotating` systems of its model), in the order they came."""
+        self._instances: dict[str, int] = {}
+        """Each body's instance number for segmentation, counted up as bodies come (1..65535, then again)."""
+        self._counted = 0
 
     def model_added(self, event: ModelEvent) -> None:
         """Its bodies enter the render scenes, then its cameras take the next indices (a running pool
         takes them at once)."""
+        self._annotate(event)
         if self._following:
             self._changes += [self._scene_body(body) for body in event.bodies]
         for camera in event.systems:
@@ -122,6 +131,9 @@ class Rendering:
     def model_removed(self, event: ModelEvent) -> None:
         """Its cameras stop, its bodies leave the scenes (before the physics removes them)."""
         name, bodies = event.name, event.bodies
+        for body in bodies:
+            self._annotations.pop(body, None)
+            self._instances.pop(body, None)
         for index, camera in enumerate(self.cameras):
             if camera.where[0] in bodies:
                 self._gone.add(index)
@@ -160,10 +172,25 @@ class Rendering:
         except RuntimeError as exc:
             self.fail(str(exc))
 
+    def _annotate(self, event: ModelEvent) -> None:
+        """The model's labels and temperatures, and an instance number for each of its bodies."""
+        annotations = tuple(s.annotation for s in event.systems if isinstance(s, Annotating))
+        for body in event.bodies:
+            self._annotations[body] = annotations
+            self._instances[body] = self._counted % MAX_INSTANCE + 1
+            self._counted += 1
+
     def _scene_body(self, name: str) -> SceneBody:
-        """A body as the physics loaded it, where it is now."""
+        """A body as the physics loaded it, where it is now, with its annotations."""
         static = self.physics.model_of(name).static
-        return SceneBody(name, self.physics.urdf_of(name), static, self.physics.body_state(name)[0])
+        return SceneBody(
+            name,
+            self.physics.urdf_of(name),
+            static,
+            self.physics.body_state(name)[0],
+            self._annotations.get(name, ()),
+            self._instances.get(name, 0),
+        )
 
     # --- the update
 

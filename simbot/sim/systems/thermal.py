@@ -1,0 +1,53 @@
+"""Thermal (Gazebo's `gz::sim::systems::Thermal`): the temperature a thermal camera sees of a
+visual or a model.
+
+On a `<visual>`, that visual; on a `<model>` or an `<include>`, every visual of the model (a
+visual's own wins). Geometry no Thermal system covers shows the world's `<atmosphere>`
+temperature at its height (temperature + temperature_gradient × z). Like `Label` it does nothing in
+the loop: the Rendering system reads its `annotation` when the model enters.
+
+SDF parameters:
+
+| element | default | meaning |
+| --- | --- | --- |
+| `<temperature>` | required | kelvin, > 0 |
+| `<heat_signature>`, `<min_temp>`, `<max_temp>` | none | a texture of temperatures: not drawn; the visual shows `<max_temp>` (a warning says so) |
+"""
+
+from __future__ import annotations
+
+import logging
+
+from simbot.sim.plugin_params import number_param, param
+from simbot.sim.render import Annotation
+from simbot.sim.system import SystemConfigError, SystemContext
+from simbot.sim.systems.label import covered
+
+log = logging.getLogger(__name__)
+
+
+class Thermal:
+    """A temperature for the visuals it covers; see the module docstring."""
+
+    name = "Thermal"
+    runs_on_visuals = True
+
+    def __init__(self, ctx: SystemContext) -> None:
+        link, visual = covered(ctx, "Thermal")
+        self.annotation = Annotation(link, visual, temperature=_temperature(ctx))
+
+
+def _temperature(ctx: SystemContext) -> float:
+    plugin = ctx.plugin
+    assert plugin is not None
+    where = f"Thermal on {ctx.model_name}" + (f" visual {ctx.visual.name}" if ctx.visual else "")
+    if param(plugin, "heat_signature") is not None:
+        hottest = number_param(plugin, "max_temp", positive=True)
+        if hottest is None:
+            raise SystemConfigError(f"{where}: <heat_signature> needs <max_temp> (kelvin)")
+        log.warning("%s: <heat_signature> is not drawn; the visual shows <max_temp> %.2f K", where, hottest)
+        return hottest
+    temperature = number_param(plugin, "temperature", positive=True)
+    if temperature is None:
+        raise SystemConfigError(f"{where}: <temperature> is required (kelvin)")
+    return temperature
