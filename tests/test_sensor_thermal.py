@@ -107,7 +107,7 @@ def sim(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 
 def counts(msg: Any) -> np.ndarray:
     """The image's counts: uint16 of a mono16 image (little-endian), uint8 of a mono8 one."""
-    dtype = {"mono16": "<u2", "mono8": np.uint8}[msg.encoding]
+    dtype = np.dtype({"mono16": "<u2", "mono8": "u1"}[msg.encoding])
     return np.frombuffer(bytes(msg.data), dtype=dtype).reshape(msg.height, msg.width)
 
 
