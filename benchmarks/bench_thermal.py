@@ -71,7 +71,9 @@ def frame_costs(server: Server, names: tuple[str, ...], rounds: int) -> dict[str
         for name in names:
             cam, index = cameras[name], rendering.cameras.index(cameras[name])
             states = {body: BodyState(*physics.body_state(body)) for body in physics.moving_bodies()}
-            pool.request(index, server.sim.clock.now_ns + n * len(names) + index, physics.frame_pose(*cam.where), states)
+            pool.request(
+                index, server.sim.clock.now_ns + n * len(names) + index, physics.frame_pose(*cam.where), states
+            )
             (frame,) = pool.collect(wait_for=index, timeout=FIRST_FRAME_TIMEOUT_S)
             output = cam.outputs[0]
             start = time.perf_counter()
@@ -96,8 +98,12 @@ def main() -> None:
             used = renderer.pool.renderer_used if renderer.pool else "none"
     (eye_render, eye_build), (heat_render, heat_build) = costs["eye"], costs["heat"]
     print(f"thermal camera against a colour camera, {SIZE[0]}x{SIZE[1]}, renderer {used}, medians of {args.rounds}:")
-    print(f"  worker ms a frame:  colour {eye_render:7.2f}  thermal {heat_render:7.2f}  ratio {heat_render / eye_render:.2f}")
-    print(f"  server ms a build:  colour {eye_build:7.2f}  thermal {heat_build:7.2f}  ratio {heat_build / eye_build:.2f}")
+    print(
+        f"  worker ms a frame:  colour {eye_render:7.2f}  thermal {heat_render:7.2f}  ratio {heat_render / eye_render:.2f}"
+    )
+    print(
+        f"  server ms a build:  colour {eye_build:7.2f}  thermal {heat_build:7.2f}  ratio {heat_build / eye_build:.2f}"
+    )
 
 
 if __name__ == "__main__":
