@@ -134,6 +134,7 @@ THERMAL = (
     )
 )
 """A thermal camera (issue 26): L16 counts of 0.05 K between 250 and 400 K."""
+HOT = """<plugin name="gz::sim::systems::Thermal" filename="gz-sim-thermal-system"><temperature>310</temperature></plugin>"""
 
 DIFF_DRIVE = """<plugin name="gz::sim::systems::DiffDrive" filename="gz-sim-diff-drive-system">
   <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
@@ -311,6 +312,7 @@ CASES: dict[tuple[str, str], Case] = {
         (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points")
         for kind in ("rgbd", "rgbd_camera")
     },
+    (GROUP, "Thermal"): Case(plugins=HOT, sensors=THERMAL, key="eye"),
     **{
         (SENSOR_GROUP, kind): Case(sensors=THERMAL.replace('type="thermal"', f'type="{kind}"'), key="eye")
         for kind in ("thermal", "thermal_camera")
