@@ -9,6 +9,8 @@ is 290 K at z = 0, warming 1 K a metre up (steep, so that height shows in counts
 - `hot`: a 0.6 m box at (4, 1, 1) whose model has a Thermal of 350 K (near face 3.7 m away, left);
 - `marked`: a 0.6 m box at (4, −1, 1) whose visual has a Thermal of 310 K, and a second visual of
   the same link 0.6 m above it with none (the atmosphere's temperature at its height);
+- `signed`: a 0.6 m box at (4, 0, −0.4) whose model has a heat signature of 320..300 K (swapped, as
+  Gazebo swaps them; not drawn: it shows the hotter bound);
 - `wall`: 0.2 × 20 × 4 m, unannotated, near face 7.9 m away, from z 0 to 4; sky above and below.
 
 A pixel (u, v) of a plane square to the axis at depth d sees height z = 1 − (v − 59.5)·d/80. The
@@ -38,7 +40,7 @@ CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 W, H, FX = 160, 120, 80.0
 CX, CY = (W - 1) / 2, (H - 1) / 2
 EYE_Z, AMBIENT, GRADIENT, FAR = 1.0, 290.0, 1.0, 20.0
-HOT, MARKED = 350.0, 310.0
+HOT, MARKED, SIGNED = 350.0, 310.0, 320.0
 BOX_DEPTH, WALL_DEPTH = 3.7, 7.9
 SKY = AMBIENT - 40.0 / 2
 NO_ROBOT = ["--robot", "none"]
@@ -84,6 +86,10 @@ def world_text() -> str:
   <model name="marked"><static>true</static><pose>4 -1 1 0 0 0</pose><link name="link">
     <visual name="warm">{_box("0.6 0.6 0.6", _thermal(MARKED))}</visual>
     <visual name="plain"><pose>0 0 0.6 0 0 0</pose>{_box("0.6 0.6 0.6")}</visual></link></model>
+  <model name="signed"><static>true</static><pose>4 0 -0.4 0 0 0</pose>
+    <link name="link"><visual name="v">{_box("0.6 0.6 0.6")}</visual></link>
+    <plugin name="gz::sim::systems::Thermal" filename="gz-sim-thermal-system">
+      <heat_signature>signature.png</heat_signature><min_temp>{SIGNED}</min_temp><max_temp>300</max_temp></plugin></model>
   <model name="wall"><static>true</static><pose>8 0 2 0 0 0</pose>
     <link name="link"><visual name="v">{_box("0.2 20 4")}</visual></link></model>
 </world></sdf>"""
@@ -142,6 +148,13 @@ def test_l16_reads_each_thermal_temperature_in_hundredths_of_a_kelvin(sim: SimSe
     assert (patch(image, *pixel(1.0, 1.0, BOX_DEPTH)) == round(HOT * 100)).all(), "the hot box (Thermal on its model)"
     warm = patch(image, *pixel(-1.0, 1.0, BOX_DEPTH))
     assert (warm == round(MARKED * 100)).all(), "the marked box (Thermal on its visual)"
+
+
+def test_a_heat_signature_shows_its_hotter_bound_with_a_warning(sim: SimServer) -> None:
+    image = counts(frames(sim, "counts16")["counts16"])
+    assert (patch(image, *pixel(0.0, -0.4, BOX_DEPTH)) == round(SIGNED * 100)).all()
+    warned = [line for line in sim.stderr().splitlines() if "<heat_signature> is not drawn" in line]
+    assert len(warned) == 1 and "signed" in warned[0], warned
 
 
 def test_unannotated_geometry_reads_the_atmosphere_at_its_height(sim: SimServer) -> None:
