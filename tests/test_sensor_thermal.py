@@ -33,6 +33,8 @@ import pytest
 from gl_helpers import NO_EGL
 from server_helpers import SimServer, running_server
 
+from simbot.sim.render import CameraSpec
+from simbot.sim.render.thermal import ThermalScale, ThermalSpec, counts8, counts16
 from simbot.sim.systems.thermal_camera import ambient_band
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -212,6 +214,21 @@ def test_bad_parameters_are_one_line_each_and_the_world_runs(sim: SimServer) -> 
         assert element in sim.state()["sensors"][f"rig/mount/{name}"]["error"]
     assert "Traceback" not in sim.stderr()
     assert frames(sim, "counts16")["counts16"].width == W
+
+
+def test_counts_saturate_as_gazebos_unorm_target_does() -> None:
+    """Above 655.35 K at 0.01 K a count, L16 holds 65535 (and L8 255 above 765 K at 3 K); below
+    min_temp a reading is min_temp's count; nothing drawn reads the background."""
+    spec = ThermalSpec("c", 4, 1, 1.0, 0.1, 10.0, outputs=("thermal16", "thermal8"))
+    kelvin = np.array([[700.0, 800.0, 0.0, 100.0]], dtype=np.float32)
+    sixteen, eight = np.empty((1, 4), np.uint16), np.empty((1, 4), np.uint8)
+    counts16(spec)(sixteen, {"temperature": kelvin})
+    counts8(CameraSpec("plain", 4, 1, 1.0, 0.1, 10.0, outputs=("thermal8",)))(eight, {"temperature": kelvin})
+    assert sixteen.tolist() == [[65535, 65535, 28815, 10000]]
+    assert eight.tolist() == [[233, 255, 96, 33]]
+    ranged = ThermalSpec.of(spec, ThermalScale(0.5, min_temp=200.0, max_temp=750.0, background=250.0))
+    counts16(ranged)(sixteen, {"temperature": kelvin})
+    assert sixteen.tolist() == [[1400, 1500, 500, 400]]
 
 
 def _gz_sim_world(name: str, into: Path) -> Path:

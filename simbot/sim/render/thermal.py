@@ -65,8 +65,9 @@ class ThermalSpec(CameraSpec):
 
     @staticmethod
     def of(spec: CameraSpec, scale: ThermalScale) -> ThermalSpec:
+        """`spec` counting on `scale` (a ThermalSpec's own scale replaced)."""
         given = {f.name: getattr(spec, f.name) for f in fields(spec) if f.init}
-        return ThermalSpec(**given, scale=scale)
+        return ThermalSpec(**given | {"scale": scale})
 
 
 def _finisher(spec: Intrinsics, bits: int) -> Finish:
