@@ -125,6 +125,11 @@ CAMERA = """<sensor name="eye" type="camera"><pose>0.3 0 0.1 0 0 0</pose><update
   <camera><horizontal_fov>1.5</horizontal_fov><image><width>64</width><height>48</height><format>R8G8B8</format></image>
   <clip><near>0.05</near><far>20</far></clip><noise type="gaussian"><mean>0</mean><stddev>0.02</stddev></noise></camera></sensor>"""
 
+WIDE_ANGLE_CAMERA = CAMERA.replace(
+    "</clip>",
+    "</clip><lens><type>equisolid_angle</type><cutoff_angle>1.2</cutoff_angle><env_texture_size>32</env_texture_size></lens>",
+).replace("<horizontal_fov>1.5</horizontal_fov>", "<horizontal_fov>3.0</horizontal_fov>")
+
 DIFF_DRIVE = """<plugin name="gz::sim::systems::DiffDrive" filename="gz-sim-diff-drive-system">
   <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
   <wheel_separation>0.4</wheel_separation><wheel_radius>0.075</wheel_radius><odom_publish_frequency>50</odom_publish_frequency>
@@ -300,6 +305,10 @@ CASES: dict[tuple[str, str], Case] = {
     **{
         (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points")
         for kind in ("rgbd", "rgbd_camera")
+    },
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=WIDE_ANGLE_CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye")
+        for kind in ("wideanglecamera", "wide_angle_camera")
     },
     # the sensors of issue 15 item 7: each with noise on every channel it has
     (SENSOR_GROUP, "altimeter"): Case(sensors=ALTIMETER, key="altimeter"),

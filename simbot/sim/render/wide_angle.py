@@ -27,6 +27,7 @@ import math
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -119,8 +120,8 @@ class Plan:
 
     faces: tuple[int, ...]
     """Indices into FACES of the faces some pixel looks into, in the order they lie in the raw buffer."""
-    map1: npt.NDArray[np.int16]
-    map2: npt.NDArray[np.uint16]
+    map1: npt.NDArray[Any]
+    map2: npt.NDArray[Any]
     """cv2.remap tables (fixed point) from the stacked faces to the image."""
 
 
@@ -219,7 +220,9 @@ WIDE_COLOR = OutputKind("wide_color", np.uint8, 3, encoding="rgb8", needs=("wide
 WIDE_MONO = OutputKind("wide_mono", np.uint8, 1, encoding="mono8", needs=("wide_faces",), finisher=mono)
 
 
-def views(spec: CameraSpec, pose: Transform, drawn: Mapping[Raw, Array]) -> Iterator[tuple[Transform, dict[Raw, Array]]]:
+def views(
+    spec: CameraSpec, pose: Transform, drawn: Mapping[Raw, Array]
+) -> Iterator[tuple[Transform, dict[Raw, Array]]]:
     """What a renderer draws for a camera at `pose`: the pose and its buffers once for a pinhole
     camera; each face's pose and its slice of the raw faces for a wide-angle one (`spec.rendered`
     is the face's camera)."""
