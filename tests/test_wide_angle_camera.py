@@ -3,7 +3,8 @@ drawn as a remap of cube faces, published with camera_info; a bad lens is one li
 
 The test world (written here) has a rig 1 m up at the origin looking along +x with two 320 × 240
 equidistant cameras of 180° (scale_to_hfov: f = 160 px / (π/2) = 101.86 px a radian): `fisheye`
-(cut off at 90°) and `cut` (cut off at 1.0 rad), and a third whose lens type is not Gazebo's. Three
+(cut off at 90°) and `cut` (cut off at 1.0 rad), a third whose lens type is not Gazebo's and a
+fourth whose custom function is not. Three
 0.4 m boxes lie 3 m from the rig: red straight ahead, green 80° to the left, blue 40° up. An
 equidistant lens puts a direction θ off the axis at f·θ from the image centre, along its azimuth:
 the green box at 142 px left of centre, the blue one 71 px above it. A box spans about 8° (14 px),
@@ -70,6 +71,7 @@ def world_text() -> str:
         _sensor("fisheye", lens.format(math.pi / 2))
         + _sensor("cut", lens.format(1.0))
         + _sensor("broken", "<type>fishbowl</type>")
+        + _sensor("bent", "<type>custom</type><custom_function><fun>cos</fun></custom_function>")
     )
     boxes = "".join(_box(name, *box) for name, box in BOXES.items())
     return f"""<?xml version="1.0"?><sdf version="1.9"><world name="wide_boxes">
@@ -141,9 +143,14 @@ def test_beyond_the_cutoff_angle_the_image_is_black(sim: SimServer) -> None:
     assert (inside.max(axis=-1) > 0).all(), "black pixels inside the cut-off circle"
 
 
-def test_a_lens_type_that_is_not_gazebos_is_one_line_and_the_world_runs(sim: SimServer) -> None:
-    lines = [line for line in sim.stderr().splitlines() if "broken" in line]
-    assert len(lines) == 1 and "<lens><type>" in lines[0] and "fishbowl" in lines[0], lines
+@pytest.mark.parametrize(
+    ("sensor", "element", "value"), [("broken", "<lens><type>", "fishbowl"), ("bent", "<custom_function><fun>", "cos")]
+)
+def test_a_lens_that_is_not_gazebos_is_one_line_and_the_world_runs(
+    sim: SimServer, sensor: str, element: str, value: str
+) -> None:
+    lines = [line for line in sim.stderr().splitlines() if f"sensor {sensor}:" in line]
+    assert len(lines) == 1 and element in lines[0] and repr(value) in lines[0], lines
     assert "Traceback" not in sim.stderr()
     assert sim.latest({"fisheye": IMAGE}, chunk=100)["fisheye"].width == WIDTH
     assert sim.state()["sim_time"] > 0.0

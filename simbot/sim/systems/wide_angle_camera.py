@@ -77,7 +77,15 @@ def read_lens(sensor: Sensor) -> WideLens:
     if c1 == 0.0 or c2 == 0.0:
         raise lens.error("custom_function", f"c1 and c2 must be non-zero, got c1 {c1} c2 {c2}")
     cutoff = lens.number("cutoff_angle", math.pi / 2.0)
-    return WideLens(kind, c1, c2, c3, f, fun, scale in ("true", "1"), cutoff, face)
+    if not cutoff > 0.0:
+        raise lens.error("cutoff_angle", f"must be > 0 radians, got {cutoff}")
+    wide = WideLens(kind, c1, c2, c3, f, fun, scale in ("true", "1"), cutoff, face)
+    hfov = camera.number("horizontal_fov", 1.047)
+    focal = wide.focal(hfov)
+    if not (math.isfinite(focal) and focal > 0.0):
+        tag = "scale_to_hfov" if wide.scale_to_hfov else "custom_function"
+        raise lens.error(tag, f"gives no positive f for a {kind} lens of horizontal_fov {hfov} (f = {focal})")
+    return wide
 
 
 class WideAngleCamera(Camera):
