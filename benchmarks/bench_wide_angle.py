@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sensors import camera_mounts, in_process_server, systems_of
 
 from simbot.sim.render import CameraSpec, RenderPool, SceneBody
-from simbot.sim.render.wide_angle import WideLens
+from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.systems.rendering import Rendering
 
 log = logging.getLogger("bench_wide_angle")

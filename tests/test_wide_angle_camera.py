@@ -27,7 +27,7 @@ import pytest
 from gl_helpers import NO_EGL
 from server_helpers import SimServer, running_server
 
-from simbot.sim.render.wide_angle import LENS_TYPES, WideLens
+from simbot.sim.render.wide_lens import LENS_TYPES, WideLens
 from simbot.sim.systems.wide_angle_camera import info_model
 
 IMAGE = "sensor_msgs/msg/Image"

@@ -6,17 +6,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
 from simbot.sim.render.lens import Distortion, principal_point, render_focal
+from simbot.sim.render.wide_lens import WideLens
 from simbot.transform import Transform, Vec3
-
-if TYPE_CHECKING:
-    from simbot.sim.render.wide_angle import WideLens
 
 Pixels = npt.NDArray[np.uint8]
 Depths = npt.NDArray[np.float32]
@@ -69,7 +66,7 @@ class CameraSpec:
     distortion: Distortion = Distortion()
     """The lens (SDF `<distortion>`; `lens.py`); the default bends nothing."""
     wide: WideLens | None = None
-    """A wide-angle lens (`wide_angle.py`): the camera is drawn as cube faces (`rendered`) and remapped."""
+    """A wide-angle lens (`wide_lens.py`): the camera is drawn as cube faces (`rendered`) and remapped."""
     kinds: tuple[OutputKind, ...] = field(init=False, repr=False, compare=False)
     """The outputs' kinds, each after those it needs."""
 

@@ -54,7 +54,7 @@ from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.contract import RenderStatus
 from simbot.sim.render.lens import Distortion
-from simbot.sim.render.wide_angle import WideLens
+from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 

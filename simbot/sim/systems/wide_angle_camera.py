@@ -38,7 +38,7 @@ import numpy as np
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.render.wide_angle import FUNCTIONS, LENS_TYPES, WideLens
+from simbot.sim.render.wide_lens import FUNCTIONS, LENS_TYPES, WideLens
 from simbot.sim.sensor_params import SdfElement
 from simbot.sim.system import System, SystemConfigError, SystemContext
 from simbot.sim.systems.camera import Camera
