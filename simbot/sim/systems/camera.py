@@ -174,6 +174,7 @@ class Camera(Sampled):
         color = any(product.output == "color" for product in self.products)
         params = CameraParams.from_sdf(sensor, color, self.widest)
         width, height = ctx.override("camera.size") or (params.width, params.height)
+        wide = self.wide_lens(sensor)
         outputs = [self.formats[params.format] if p.output == "color" else p.output for p in self.products]
         self.spec = CameraSpec(
             sensor.name,
@@ -185,8 +186,8 @@ class Camera(Sampled):
             outputs=tuple(dict.fromkeys(outputs)),
             noise_stddev=params.noise_stddev,
             seed=int(ctx.rng.integers(2**31)),
-            distortion=params.distortion,
-            wide=self.wide_lens(sensor),
+            distortion=params.distortion if wide is None else Distortion(),  # the wide lens bends it alone
+            wide=wide,
         )
         super().__init__(sensor.name, ctx.override("camera.rate") or sensor_rate(sensor, DEFAULT_RATE_HZ))
         self.where = (model, link.name, sensor.pose)

@@ -4,8 +4,8 @@ gives the mapping and how it is drawn).
 
 It is the colour camera of `camera.py` (its image on `<topic>`, else Gazebo's
 `world/<w>/model/<m>/link/<l>/sensor/<s>/image`, camera_info beside it under the same stamp, the
-`<image>`, `<clip>`, `<noise>` and `<update_rate>` elements), with `<horizontal_fov>` up to 2π and
-a `<lens>`:
+`<image>`, `<clip>`, `<noise>` and `<update_rate>` elements; `<distortion>` is ignored, the lens
+bends the image), with `<horizontal_fov>` up to 2π and a `<lens>`:
 
 | element | default | meaning |
 | --- | --- | --- |
