@@ -136,6 +136,11 @@ THERMAL = (
 """A thermal camera (issue 26): L16 counts of 0.05 K between 250 and 400 K."""
 HOT = """<plugin name="gz::sim::systems::Thermal" filename="gz-sim-thermal-system"><temperature>310</temperature></plugin>"""
 
+WIDE_ANGLE_CAMERA = CAMERA.replace(
+    "</clip>",
+    "</clip><lens><type>equisolid_angle</type><cutoff_angle>1.2</cutoff_angle><env_texture_size>32</env_texture_size></lens>",
+).replace("<horizontal_fov>1.5</horizontal_fov>", "<horizontal_fov>3.0</horizontal_fov>")
+
 DIFF_DRIVE = """<plugin name="gz::sim::systems::DiffDrive" filename="gz-sim-diff-drive-system">
   <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
   <wheel_separation>0.4</wheel_separation><wheel_radius>0.075</wheel_radius><odom_publish_frequency>50</odom_publish_frequency>
@@ -316,6 +321,10 @@ CASES: dict[tuple[str, str], Case] = {
     **{
         (SENSOR_GROUP, kind): Case(sensors=THERMAL.replace('type="thermal"', f'type="{kind}"'), key="eye")
         for kind in ("thermal", "thermal_camera")
+    },
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=WIDE_ANGLE_CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye")
+        for kind in ("wideanglecamera", "wide_angle_camera")
     },
     # the sensors of issue 15 item 7: each with noise on every channel it has
     (SENSOR_GROUP, "altimeter"): Case(sensors=ALTIMETER, key="altimeter"),
