@@ -12,6 +12,7 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -39,19 +40,22 @@ def cpu_model() -> str:
 
 
 def provenance(today: datetime.date | None = None) -> str:
-    """The line above a table: the date it was measured, the CPU and how many cores this process may use."""
+    """The line above a table: the date it was measured, the CPU, how many cores this process may use, and
+    the load average when it finished (a shared machine's other work slows every absolute figure)."""
     date = (today or datetime.date.today()).isoformat()
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    return f"*Measured {date} on {cpu_model()}, {cores} cores, Python {platform.python_version()}.*"
+    load = f", load average {os.getloadavg()[0]:.1f}" if hasattr(os, "getloadavg") else ""
+    return f"*Measured {date} on {cpu_model()}, {cores} cores{load}, Python {platform.python_version()}.*"
 
 
 def replace_block(text: str, name: str, body: str) -> str:
-    """`text` with what lies between block `name`'s markers replaced by `body` (markers kept)."""
+    """`text` with what lies between block `name`'s markers replaced by `body` (markers kept); a marker
+    counts only on a line of its own, so prose that names one (in `code`) is never taken for it."""
     opening, closing = markers(name)
-    start, end = text.find(opening), text.find(closing)
-    if start < 0 or end < start:
+    block = re.compile(rf"^({re.escape(opening)}\n).*?^(?={re.escape(closing)}$)", re.MULTILINE | re.DOTALL)
+    if not block.search(text):
         raise MissingMarkers(f"no {opening} … {closing} block")
-    return text[: start + len(opening)] + "\n" + body.rstrip("\n") + "\n" + text[end:]
+    return block.sub(lambda match: match[1] + body.rstrip("\n") + "\n", text, count=1)
 
 
 def publish(name: str, lines: Sequence[str], page: Path = SPEED_PAGE) -> None:
