@@ -32,7 +32,7 @@ lint: $(STAMP)
 
 ## The documentation site (MkDocs, docs/ and mkdocs.yml) into build/site, strict: a broken link, a page missing from the nav or a docstring the API reference cannot read fails it.
 docs: $(STAMP)
-	$(BIN)/python -m mkdocs build --strict --site-dir build/site
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict --site-dir build/site
 
 ## Speed, as ratios against a baseline measured in the same run (each benchmark writes its own table into docs/speed.md, with the date and machine).
 bench: $(STAMP)
