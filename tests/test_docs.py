@@ -127,9 +127,10 @@ def test_every_table_on_the_speed_page_belongs_to_a_benchmark() -> None:
     names = re.findall(r"^<!-- bench:([\w-]+) -->$", text, re.MULTILINE)
     assert names, "docs/speed.md holds no benchmark block"
     assert len(names) == len(set(names)), f"a block appears twice: {names}"
+    benchmarks = sorted(path.stem.removeprefix("bench_") for path in (REPO / "benchmarks").glob("bench_*.py"))
+    assert sorted(names) == benchmarks, f"docs/speed.md's blocks {sorted(names)} are not one per benchmark {benchmarks}"
     for name in names:
         assert f"\n<!-- /bench:{name} -->\n" in text, f"docs/speed.md: block {name} is never closed"
-        assert (REPO / "benchmarks" / f"bench_{name}.py").is_file(), f"docs/speed.md: no benchmarks/bench_{name}.py"
     for table in re.findall(
         r"^\|.*\|$",
         re.sub(r"^<!-- bench:.*?^<!-- /bench:[\w-]+ -->$", "", text, flags=re.DOTALL | re.MULTILINE),
