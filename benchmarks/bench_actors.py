@@ -22,6 +22,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 from bench_server import free_port
+from tables import publish
 
 from simbot.bus import BusOptions, Node
 from simbot.description.resources import asset
@@ -84,12 +85,15 @@ def main() -> None:
             without.append(ms_per_step(bare, args.steps))
             with_actors.append(ms_per_step(crowded, args.steps))
     base, more = statistics.median(without), statistics.median(with_actors)
-    print("| measurement | figure |")
-    print("| --- | --- |")
-    print(f"| server step, warehouse and tug (lidars, IMU, odometry, tf, poses, clock) | {base:.3f} ms |")
-    print(f"| the same with {args.actors} walking actors | {more:.3f} ms |")
-    print(f"| with actors ÷ without | {more / base:.2f} |")
-    print(f"| cost of one actor per step | {(more - base) / args.actors * 1e3:.0f} µs |")
+    table = [
+        "| measurement | figure |",
+        "| --- | --- |",
+        f"| server step, warehouse and tug (lidars, IMU, odometry, tf, poses, clock) | {base:.3f} ms |",
+        f"| the same with {args.actors} walking actors | {more:.3f} ms |",
+        f"| with actors ÷ without | {more / base:.2f} |",
+        f"| cost of one actor per step | {(more - base) / args.actors * 1e3:.0f} µs |",
+    ]
+    publish("actors", table)
 
 
 if __name__ == "__main__":

@@ -338,6 +338,10 @@ CASES: dict[tuple[str, str], Case] = {
     },
     (SENSOR_GROUP, "force_torque"): Case(plugins=FORCE_TORQUE, key="wrench"),
     (SENSOR_GROUP, "contact"): Case(sensors=CONTACT, key="bump"),
+    # a third party's: the example plug-in (examples/simbot-example-sensor), which the Makefile installs
+    (SENSOR_GROUP, "proximity"): Case(
+        sensors=_sensor("proximity", f"<proximity>{_noise(0.01)}</proximity>"), key="proximity"
+    ),
     (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
     (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),
