@@ -91,7 +91,6 @@ publishes it: Detection2DArray and Detection3DArray, as ros_gz_bridge maps Gazeb
 boxes. Field for field as the package defines them; ROS 2 Humble's typestore lacks the package."""
 
 
-
 def _typestore() -> Any:
     """ROS 2 Humble's message types, ros_gz_interfaces' and vision_msgs' (the one place types are registered)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
