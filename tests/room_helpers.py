@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 import pytest
 from gl_helpers import NO_EGL
@@ -64,3 +65,12 @@ def gazebo_example(name: str, folder: Path) -> Path:
     target = folder / name
     target.write_text(text)
     return target
+
+
+def runs_without(world: Path, keys: Mapping[str, str]) -> tuple[list[str], dict[str, Any]]:
+    """A variant of the room with a bad parameter: the errors its server logs, and a message of each
+    of `keys` (the rest of the world runs)."""
+    with running_server(str(world), "lockstep", world_name="labelled_room", extra=["--robot", "none"]) as sim:
+        got = sim.latest(keys, chunk=34)
+        errors = sim.errors()
+    return errors, got

@@ -17,9 +17,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from bus_helpers import endpoint, free_port
-from room_helpers import CX, CY, FX, ROOM, H, W, gazebo_example, pixel, room
-from server_helpers import refused, running_server, stamp_ns
+from room_helpers import CX, CY, FX, ROOM, H, W, gazebo_example, pixel, room, runs_without
+from server_helpers import running_server, stamp_ns
 
 from simbot.bus import messages
 from simbot.sim.render.segmentation import colour_of
@@ -125,23 +124,29 @@ def test_camera_info_beside_the_maps_under_their_stamp(maps: dict[str, Any]) -> 
     assert info.header.frame_id == labels.header.frame_id == "semantic_eye_optical_frame"
 
 
-def test_bad_segmentation_type_is_one_line_naming_sensor_and_element(tmp_path: Path) -> None:
+def test_bad_segmentation_type_leaves_that_camera_out_and_the_rest_runs(tmp_path: Path) -> None:
     world = tmp_path / "bad.sdf"
     world.write_text(Path(ROOM).read_text().replace("<segmentation_type>semantic<", "<segmentation_type>stereo<"))
-    line = refused("--world", str(world), "--robot", "none", "--listen", endpoint(free_port()))
+    errors, got = runs_without(world, {"panoptic/labels_map": IMAGE})
     expected = "sensor semantic_eye: <camera><segmentation_type> must be semantic, instance or panoptic, got 'stereo'"
-    assert expected in line, line
+    assert len(errors) == 1 and expected in errors[0], errors
+    assert _at(messages.image_pixels(got["panoptic/labels_map"]), pixel(4.5, 1.2))[2] == 10
 
 
 @pytest.mark.parametrize(
     ("label", "message"),
     [("300", "<label> must be 0..255, got 300"), ("ten", "<label> must be an integer 0..255, got 'ten'")],
 )
-def test_bad_label_is_one_line_naming_plugin_and_element(tmp_path: Path, label: str, message: str) -> None:
+def test_bad_label_is_one_line_naming_plugin_and_element_and_the_rest_runs(
+    tmp_path: Path, label: str, message: str
+) -> None:
+    """The pillar's Label is left out (the pillar is unlabelled: background); the crates keep theirs."""
     world = tmp_path / "bad.sdf"
     world.write_text(Path(ROOM).read_text().replace("<label>30</label>", f"<label>{label}</label>"))
-    line = refused("--world", str(world), "--robot", "none", "--listen", endpoint(free_port()))
-    assert f"Label on pillar visual visual: {message}" in line, line
+    errors, got = runs_without(world, {"semantic/labels_map": IMAGE})
+    assert len(errors) == 1 and f"Label on pillar visual visual: {message}" in errors[0], errors
+    labels = messages.image_pixels(got["semantic/labels_map"])
+    assert _at(labels, pixel(6.8, 0.25))[0] == 0 and _at(labels, pixel(4.5, 1.2))[0] == 10
 
 
 def test_gazebo_segmentation_example_publishes_on_its_keys(tmp_path: Path) -> None:
