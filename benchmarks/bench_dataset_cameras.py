@@ -5,11 +5,10 @@ One world (written to a temporary folder): a row of labelled crates (Gazebo's La
 a static model that carries one camera per row of `ROWS`, each with its own `<topic>`, all at one
 size. A server is built in this process as `simbot-server` builds it (lockstep, so that the step
 that takes a frame waits for it). For each row in turn its keys are subscribed (so that camera
-alone renders), the world steps `--frames` of its frames, and the wall time, less the same steps
-with nothing subscribed, divided by the frames published, is its cost per frame: the worker's
-render and finishing steps, the pipe and the server's messages (for boxes: their geometry, the
-drawn image). Rounds interleave the rows, and the median of the rounds is kept, so a busy machine
-moves every row alike.
+alone renders) and the world steps `--frames` of its frames; a frame's cost is the worker's time on
+it (scene update, render, the outputs' finishing steps, the copy: `Frame.render_s`) and the
+server's in the camera's `publish` (messages; for boxes their geometry and the drawn image).
+Rounds interleave the rows and the median frame is kept, so a busy machine moves every row alike.
 
 A new kind of dataset camera adds a `Row` (its SDF sensor type, what it needs inside `<camera>`,
 the keys it publishes under its topic); the colour camera stays the first row, the baseline.
@@ -33,8 +32,10 @@ from bench_sensors import count_topics
 from bench_server import free_port
 
 from simbot.bus import BusOptions, Node
+from simbot.sim.render import Frame
 from simbot.sim.server import Server, ServerConfig
 from simbot.sim.simulation import Mode
+from simbot.sim.systems.camera import Camera
 
 RATE_HZ = 30
 STEPS_PER_FRAME = 34
@@ -129,39 +130,45 @@ def server(rows: tuple[Row, ...], size: tuple[int, int], renderer: str) -> Itera
                 built.close()
 
 
-def step_seconds(built: Server, frames: int) -> float:
-    """Wall seconds of `frames` camera ticks of steps."""
-    start = time.perf_counter()
+def step_frames(built: Server, frames: int) -> None:
     for _ in range(frames * STEPS_PER_FRAME):
         built.sim.step()
-    return time.perf_counter() - start
 
 
-def frame_ms(built: Server, client: Node, row: Row, frames: int, idle_s: float) -> float:
-    """Milliseconds per frame of `row`'s camera: stepping with its keys subscribed, less `idle_s`."""
+def frame_ms(built: Server, client: Node, row: Row, frames: int) -> list[float]:
+    """Milliseconds of each of `frames` frames of `row`'s camera, its keys subscribed: the worker's
+    time on it (`Frame.render_s`) and the server's in the camera's `publish`."""
+    camera = next(s for s in built.sim.systems if isinstance(s, Camera) and s.spec.name == row.topic)
+    costs: list[float] = []
+    publish = camera.publish
+
+    def timed(frame: Frame) -> None:
+        start = time.perf_counter()
+        publish(frame)
+        costs.append((frame.render_s + time.perf_counter() - start) * 1e3)
+
+    setattr(camera, "publish", timed)  # noqa: B010 - an instance's method, timed for this row only
     counters = count_topics(client, [row.topic + key for key in row.keys])
-    first = counters[row.topic + row.keys[0]]
     deadline = time.monotonic() + FIRST_FRAME_TIMEOUT_S
-    while first.value() < 2:  # the subscription is seen, the pool runs, frames come out
+    while len(costs) < 2:  # the subscription is seen, the pool runs, frames come out
         if time.monotonic() > deadline:
             raise SystemExit(f"{row.name}: no frames within {FIRST_FRAME_TIMEOUT_S} s of subscribing")
-        step_seconds(built, 1)
-    before = first.value()
-    seconds = step_seconds(built, frames)
-    published = first.value() - before
+        step_frames(built, 1)
+    del costs[:]
+    step_frames(built, frames)
     for counter in counters.values():
         counter.subscriber.undeclare()  # type: ignore[attr-defined]
-    return (seconds - idle_s) * 1e3 / max(published, 1)
+    del camera.publish
+    return costs
 
 
 def measure(rows: tuple[Row, ...], size: tuple[int, int], frames: int, rounds: int, renderer: str) -> dict[str, float]:
-    """Median milliseconds per frame of each row."""
+    """Median milliseconds per frame of each row, over every frame of every round."""
     costs: dict[str, list[float]] = {row.name: [] for row in rows}
     with server(rows, size, renderer) as (built, client):
         for _ in range(rounds):
-            idle_s = step_seconds(built, frames)
             for row in rows:
-                costs[row.name].append(frame_ms(built, client, row, frames, idle_s))
+                costs[row.name] += frame_ms(built, client, row, frames)
     return {name: statistics.median(values) for name, values in costs.items()}
 
 

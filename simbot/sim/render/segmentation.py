@@ -23,71 +23,83 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
-from simbot.sim.render.labels import label_of, labelled
 
 SEMANTIC = "semantic"
 PANOPTIC = "panoptic"
 MIN_CHANNEL = 32
 """Every channel of a colour lies in 32..255, so no object is drawn in the background's black."""
+SCALE = (MIN_CHANNEL + np.arange(256) * (255 - MIN_CHANNEL) // 255).astype(np.uint8)
+"""A hash byte → a channel in 32..255."""
+LABEL_BYTE = 2
+"""Of a packed pixel's four bytes in memory (little-endian: instance low, instance high, label,
+flags), the label's: the layout of `labels.py` is nearly the panoptic labels map already."""
 
 Keys = npt.NDArray[np.uint32]
 
 
-def _foreground(packed: Array) -> npt.NDArray[np.bool_]:
-    """Pixels of a labelled visual with a label other than the background's 0."""
-    return labelled(packed) & (((packed >> 16) & 0xFF) != 0)
+def _bytes(packed: Array) -> npt.NDArray[np.uint8]:
+    """The packed buffer's bytes, H×W×4 (a view)."""
+    out: npt.NDArray[np.uint8] = packed.view(np.uint8).reshape(*packed.shape, 4)
+    return out
 
 
 def colour_of(keys: Keys) -> npt.NDArray[np.uint8]:
-    """H×W×3 colours of keys (a label, or label << 16 | instance): MurmurHash3's 32-bit finaliser of
-    the key, its low three bytes as red, green and blue, each scaled into 32..255."""
+    """Colours (…×3) of keys (a label << 16, or label << 16 | instance): MurmurHash3's 32-bit
+    finaliser of the key, its bytes 0, 1, 2 (least significant first) as red, green and blue, each
+    scaled into 32..255 (`SCALE`)."""
     h = keys.astype(np.uint32)
     h ^= h >> np.uint32(16)
     h *= np.uint32(0x85EBCA6B)
     h ^= h >> np.uint32(13)
     h *= np.uint32(0xC2B2AE35)
     h ^= h >> np.uint32(16)
-    channels = np.stack([(h >> np.uint32(shift)) & np.uint32(0xFF) for shift in (16, 8, 0)], axis=-1)
-    return (MIN_CHANNEL + channels * (255 - MIN_CHANNEL) // 255).astype(np.uint8)
+    out: npt.NDArray[np.uint8] = SCALE[h.view(np.uint8).reshape(*h.shape, 4)[..., :3]]
+    return out
+
+
+SEMANTIC_COLOURS = colour_of(np.arange(256, dtype=np.uint32) << np.uint32(16))
+SEMANTIC_COLOURS[0] = 0
+"""Each label's colour; label 0 (background) black."""
+
+
+def _foreground(packed: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    """H×W×1: 1 where a pixel shows a label other than background's 0, else 0."""
+    out: npt.NDArray[np.uint8] = (packed[..., LABEL_BYTE, np.newaxis] != 0).view(np.uint8)
+    return out
 
 
 def _semantic_labels(_: Intrinsics) -> Finish:
+    """The label byte in all three channels (0 for the sky and unlabelled geometry, whose label bits are 0)."""
+
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
-        packed = arrays["labels"]
-        label = np.where(_foreground(packed), label_of(packed), np.uint8(0))
-        out[...] = label[..., np.newaxis]
+        out[...] = _bytes(arrays["labels"])[..., LABEL_BYTE, np.newaxis]
 
     return finish
 
 
 def _panoptic_labels(_: Intrinsics) -> Finish:
-    def finish(out: Array, arrays: Mapping[str, Array]) -> None:
-        packed = arrays["labels"]
-        shown = np.where(_foreground(packed), packed, np.uint32(0))
-        out[..., 0] = shown & 0xFF
-        out[..., 1] = (shown >> 8) & 0xFF
-        out[..., 2] = (shown >> 16) & 0xFF
-
-    return finish
-
-
-def _colored(key_mask: int) -> Finish:
-    """Colours of the packed value's bits under `key_mask` (label, or label and instance)."""
+    """The packed pixel's first three bytes, [count & 0xFF, count >> 8, label]; background zeroed."""
 
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
-        packed = arrays["labels"]
-        foreground = _foreground(packed)
-        out[...] = np.where(foreground[..., np.newaxis], colour_of(packed & np.uint32(key_mask)), np.uint8(0))
+        packed = _bytes(arrays["labels"])
+        np.multiply(packed[..., :3], _foreground(packed), out=out)
 
     return finish
 
 
 def _semantic_colors(_: Intrinsics) -> Finish:
-    return _colored(0xFF0000)
+    def finish(out: Array, arrays: Mapping[str, Array]) -> None:
+        out[...] = SEMANTIC_COLOURS[_bytes(arrays["labels"])[..., LABEL_BYTE]]
+
+    return finish
 
 
 def _panoptic_colors(_: Intrinsics) -> Finish:
-    return _colored(0xFFFFFF)
+    def finish(out: Array, arrays: Mapping[str, Array]) -> None:
+        packed = arrays["labels"]
+        np.multiply(colour_of(packed & np.uint32(0xFFFFFF)), _foreground(_bytes(packed)), out=out)
+
+    return finish
 
 
 SEMANTIC_LABELS = OutputKind("semantic_labels", np.uint8, 3, "rgb8", needs=("labels",), finisher=_semantic_labels)
