@@ -29,7 +29,9 @@ sees simbot with nothing more than rclpy:
   again for the new server's; a route a restart did not close carries the new server's data as
   it comes, latched keys too (the advanced subscriber takes a late publisher's latest).
 - A type whose generated type support is not importable (with the pip wheels: `tf2_msgs`, so
-  `/tf` and `/tf_static`) is one warning naming the topic and the type; the rest carries on.
+  `/tf` and `/tf_static`; `vision_msgs`, so the bounding-box cameras' boxes: the package index has
+  no wheel of either) is one warning naming the topic and the type; the rest carries on. With a
+  sourced ROS 2 install that has them, they are carried like the others.
 
 The bridge's Zenoh entities are not announced on simbot's graph: announcing them would make the
 bridge see its own `cmd_vel` publisher and carry it back out.

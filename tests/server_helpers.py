@@ -15,6 +15,7 @@ travel at different priorities.)
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import signal
@@ -218,6 +219,11 @@ def refused(*args: str) -> str:
     return lines[0]
 
 
+def dropped(caplog: pytest.LogCaptureFixture) -> list[str]:
+    """The lines a world logged for the systems it left out for bad parameters (in this process)."""
+    return [r.getMessage() for r in caplog.records if r.name == "simbot.sim.world" and r.levelno == logging.ERROR]
+
+
 def server_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "simbot.sim.server", *args]
 
@@ -353,6 +359,10 @@ class SimServer:
     def stderr(self) -> str:
         return self.stderr_path.read_text(errors="replace")
 
+    def errors(self) -> list[str]:
+        """The ERROR lines it logged (a system it left out for bad parameters, say)."""
+        return [line for line in self.stderr().splitlines() if line.startswith("ERROR")]
+
     def stop(self, sig: int = signal.SIGTERM, timeout: float = EXIT_TIMEOUT_S) -> float:
         """Sends `sig` and asserts a clean exit (code 0) within `timeout` seconds; returns the seconds it took."""
         self.node.close()
@@ -484,6 +494,16 @@ def restarted(server: SimServer) -> Iterator[SimServer]:
     stderr_path = server.stderr_path.with_name(f"restarted-{server.stderr_path.name}")
     with _serving(server.args, server.port, server.namespace, server.world, server.mode, stderr_path) as again:
         yield again
+
+
+def left_out(world: str, world_name: str, *extra: str) -> list[str]:
+    """The lines a server of `world` logs for the systems it leaves out for bad parameters (one
+    each), once its world control answers and it steps (the rest of the world runs)."""
+    with running_server(world, "lockstep", extra=extra, world_name=world_name) as sim:
+        sim.step(10)
+        errors = sim.errors()
+    assert errors, "no system was left out"
+    return errors
 
 
 def module_server(world: str, mode: str = "lockstep", extra: Sequence[str] = ()) -> Any:

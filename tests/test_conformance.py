@@ -141,6 +141,14 @@ WIDE_ANGLE_CAMERA = CAMERA.replace(
     "</clip><lens><type>equisolid_angle</type><cutoff_angle>1.2</cutoff_angle><env_texture_size>32</env_texture_size></lens>",
 ).replace("<horizontal_fov>1.5</horizontal_fov>", "<horizontal_fov>3.0</horizontal_fov>")
 
+SEGMENTATION = CAMERA.replace('type="camera"', 'type="segmentation"').replace(
+    "<camera>", "<camera><segmentation_type>panoptic</segmentation_type>"
+)
+BOUNDING_BOXES = CAMERA.replace('type="camera"', 'type="boundingbox_camera"').replace(
+    "<camera>", "<camera><box_type>full_2d</box_type>"
+)
+LABEL = """<plugin name="gz::sim::systems::Label" filename="gz-sim-label-system"><label>9</label></plugin>"""
+
 DIFF_DRIVE = """<plugin name="gz::sim::systems::DiffDrive" filename="gz-sim-diff-drive-system">
   <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
   <wheel_separation>0.4</wheel_separation><wheel_radius>0.075</wheel_radius><odom_publish_frequency>50</odom_publish_frequency>
@@ -338,6 +346,10 @@ CASES: dict[tuple[str, str], Case] = {
     },
     (SENSOR_GROUP, "force_torque"): Case(plugins=FORCE_TORQUE, key="wrench"),
     (SENSOR_GROUP, "contact"): Case(sensors=CONTACT, key="bump"),
+    # the dataset cameras of issue 26, and the Label they read (on the robot: its camera sees its own base)
+    (SENSOR_GROUP, "segmentation"): Case(sensors=SEGMENTATION, key="eye/labels_map"),
+    (SENSOR_GROUP, "boundingbox_camera"): Case(sensors=BOUNDING_BOXES, key="eye"),
+    (GROUP, "Label"): Case(plugins=LABEL, sensors=SEGMENTATION, key="eye/labels_map"),
     (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
     (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),

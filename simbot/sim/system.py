@@ -47,7 +47,8 @@ from simbot.sim.physics.protocols import WorldAccess
 
 
 class SystemConfigError(ValueError):
-    """A system's SDF parameters are unusable; the message names the plugin and the parameter."""
+    """A system's SDF parameters are unusable; the message names the plugin and the parameter. The
+    world leaves that system out with the message as one error line, and runs (simbot/sim/world.py)."""
 
 
 DEFAULT_PRIORITY = 0

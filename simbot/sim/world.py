@@ -341,7 +341,10 @@ class SimWorld:
                     if factory is not None:
                         scoped = "/".join(map(scoped_key, (body_name, link.name, sensor.name)))
                         context = self._context(model, body_name, sensor=(link, sensor), bus=placed.bus)
-                        sensors[scoped] = factory(context)
+                        try:
+                            sensors[scoped] = factory(context)
+                        except SystemConfigError as exc:
+                            _drop(exc)
         except BaseException:
             Simulation.close_all(list(sensors.values()))
             raise
@@ -356,12 +359,22 @@ def _make(factory: SystemFactory, ctx: SystemContext, stated: int | None) -> tup
     return factory(ctx), stated
 
 
+def _drop(error: SystemConfigError) -> None:
+    """A system whose SDF parameters are bad is left out, with one line naming it and the element:
+    the rest of the world runs (as Gazebo runs a world with a sensor that failed to load)."""
+    log.error("%s; the world runs without it", " ".join(str(error).split()))
+
+
 def _started(makers: Sequence[Maker]) -> list[tuple[System, int | None]]:
-    """Builds each system in turn; if one fails, those already built close."""
+    """Builds each system in turn, leaving out one with bad parameters (`_drop`); if one fails
+    otherwise, those already built close."""
     built: list[tuple[System, int | None]] = []
     try:
         for make in makers:
-            built.append(make())
+            try:
+                built.append(make())
+            except SystemConfigError as exc:
+                _drop(exc)
     except BaseException:
         Simulation.close_all([system for system, _ in built])
         raise

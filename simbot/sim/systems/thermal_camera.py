@@ -49,7 +49,7 @@ from simbot.sim.render.lens import Distortion
 from simbot.sim.render.specs import CameraSpec
 from simbot.sim.render.thermal import DEFAULT_RESOLUTION, ThermalScale, ThermalSpec
 from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import System, SystemConfigError, SystemContext
+from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Message, Product
 
 log = logging.getLogger(__name__)
@@ -140,24 +140,3 @@ class ThermalCamera(Camera):
         super().__init__(ctx)
         pinhole = dataclasses.replace(self.spec, distortion=Distortion(), noise_stddev=0.0)
         self.spec = ThermalSpec.of(pinhole, params.scale(pinhole, ctx.world.atmosphere))
-
-
-class SensorOff:
-    """A sensor whose SDF is unusable: nothing published, its error in the world's report."""
-
-    def __init__(self, name: str, error: str) -> None:
-        self.name = name
-        self.error = error
-
-    def report(self) -> dict[str, Any]:
-        return {"error": self.error}
-
-
-def thermal_camera(ctx: SystemContext) -> System:
-    """The sensor's entry point: a `ThermalCamera`, or one error line and a sensor that is off."""
-    try:
-        return ThermalCamera(ctx)
-    except SystemConfigError as exc:
-        log.error("%s; the sensor is off", exc)
-        _, _, sensor = ctx.require_sensor()
-        return SensorOff(sensor.name, str(exc))

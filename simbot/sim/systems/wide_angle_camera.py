@@ -31,7 +31,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -40,7 +39,6 @@ from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.sim.render.wide_lens import FUNCTIONS, LENS_TYPES, WideLens
 from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import System, SystemConfigError, SystemContext
 from simbot.sim.systems.camera import Camera
 
 log = logging.getLogger(__name__)
@@ -127,24 +125,3 @@ def info_model(lens: WideLens, width: int, height: int, hfov: float) -> tuple[st
     powers = np.stack([theta ** (2 * i + 3) for i in range(4)], axis=-1)
     k, *_ = np.linalg.lstsq(powers, lens.radius(theta, focal) / fx - theta, rcond=None)
     return "equidistant", fx, tuple(float(v) for v in k)
-
-
-@dataclass
-class SensorOff:
-    """A sensor whose SDF is unusable: nothing published, its error in the world's report."""
-
-    name: str
-    error: str
-
-    def report(self) -> dict[str, Any]:
-        return {"error": self.error}
-
-
-def wide_angle_camera(ctx: SystemContext) -> System:
-    """The sensor's entry point: a `WideAngleCamera`, or one error line and a sensor that is off."""
-    try:
-        return WideAngleCamera(ctx)
-    except SystemConfigError as exc:
-        log.error("%s; the sensor is off", exc)
-        _, _, sensor = ctx.require_sensor()
-        return SensorOff(sensor.name, str(exc))
