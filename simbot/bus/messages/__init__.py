@@ -5,7 +5,7 @@ write `odometry(ns, "odom", "base_footprint", xyz, quat, ...)`, and they convert
 the CDR serializer expects: Python floats, float64 numpy arrays for covariances and joint values.
 Times are integer nanoseconds throughout, as the sim clock keeps them: no float rounding.
 
-One module per message family (std, geometry, nav, sensors, images, clouds, gazebo), the classes
+One module per message family (std, geometry, nav, sensors, images, clouds, gazebo, markers), the classes
 in typestore.py; every name is exported here, so callers write `messages.image(...)` whichever
 module holds it.
 """
@@ -40,6 +40,7 @@ from simbot.bus.messages.images import (
     image,
     image_pixels,
 )
+from simbot.bus.messages.markers import NO_COLOUR, delete_all, marker, marker_array
 from simbot.bus.messages.nav import COVARIANCE_SIZE, odometry
 from simbot.bus.messages.sensors import fluid_pressure, imu, joint_state, laser_scan, magnetic_field, nav_sat_fix
 from simbot.bus.messages.std import NS_PER_S, clock, empty, float64, header, stamp_ns, string, time_msg
@@ -47,6 +48,7 @@ from simbot.bus.messages.typestore import (
     Altimeter,
     CameraInfo,
     Clock,
+    ColorRGBA,
     Contact,
     Contacts,
     Empty,
@@ -60,6 +62,8 @@ from simbot.bus.messages.typestore import (
     JointWrench,
     LaserScan,
     MagneticField,
+    Marker,
+    MarkerArray,
     NavSatFix,
     NavSatStatus,
     Odometry,
@@ -91,11 +95,13 @@ __all__ = [
     "IMAGE_ENCODINGS",
     "LIDAR_POINT_DTYPE",
     "LIDAR_POINT_FIELDS",
+    "NO_COLOUR",
     "NS_PER_S",
     "POINT_FIELDS",
     "Altimeter",
     "CameraInfo",
     "Clock",
+    "ColorRGBA",
     "Contact",
     "ContactPair",
     "Contacts",
@@ -111,6 +117,8 @@ __all__ = [
     "JointWrench",
     "LaserScan",
     "MagneticField",
+    "Marker",
+    "MarkerArray",
     "NavSatFix",
     "NavSatStatus",
     "Odometry",
@@ -138,6 +146,7 @@ __all__ = [
     "clock",
     "contacts",
     "depth_image",
+    "delete_all",
     "depth_pixels",
     "empty",
     "float64",
@@ -151,6 +160,8 @@ __all__ = [
     "lidar_points",
     "lidar_points_array",
     "magnetic_field",
+    "marker",
+    "marker_array",
     "nav_sat_fix",
     "odometry",
     "point_cloud",

@@ -53,3 +53,10 @@ Contact = TYPESTORE.types["ros_gz_interfaces/msg/Contact"]
 Contacts = TYPESTORE.types["ros_gz_interfaces/msg/Contacts"]
 Entity = TYPESTORE.types["ros_gz_interfaces/msg/Entity"]
 JointWrench = TYPESTORE.types["ros_gz_interfaces/msg/JointWrench"]
+# visualization_msgs (the scene for viewers)
+ColorRGBA = _ros.std_msgs__msg__ColorRGBA
+Marker = _ros.visualization_msgs__msg__Marker
+MarkerArray = _ros.visualization_msgs__msg__MarkerArray
+MeshFile = _ros.visualization_msgs__msg__MeshFile
+CompressedImage = _ros.sensor_msgs__msg__CompressedImage
+Duration = _ros.builtin_interfaces__msg__Duration
