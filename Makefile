@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: run test lint bench urdf meshes textures layout image clean
+.PHONY: run test test-browser lint bench urdf meshes textures layout image clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -18,6 +18,12 @@ run: $(STAMP)
 ## The lint first (seconds), then every test.
 test: $(STAMP) lint
 	$(BIN)/python -m pytest
+
+## simbot's live view in a real browser: Foxglove Studio 1.48 (from npm) in headless Chromium (Debian's, installed with apt where missing; Playwright drives it) on `simbot foxglove`; the screenshot goes to build/browser/. Skips, saying so, where Chromium, npm or Playwright cannot be had.
+test-browser: $(STAMP)
+	command -v chromium >/dev/null || { command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq chromium >/dev/null; } || echo "test-browser: Chromium could not be installed; the test will skip"
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check playwright || echo "test-browser: Playwright could not be installed; the test will skip"
+	$(BIN)/python -m pytest tests/browser -m browser
 
 ## ruff's checks and its format check over the tree, mypy over simbot/, clients/ and benchmarks/ (rules and strictness in pyproject.toml).
 lint: $(STAMP)

@@ -71,8 +71,10 @@ def scan_panel() -> fl.ThreeDeePanel:
         fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
         layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
         topics={
+            # a colour field named, though the colour is flat: without one, Studio 1.48 (the browser
+            # test's) colours by intensity, which the merged scan leaves empty, and draws nothing
             SCAN: fl.BaseRendererLaserScanTopicSettings(
-                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"
+                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30", color_field="range"
             ),
             ROBOT_DESCRIPTION: robot_model(opacity=0.8),
             SCENE: fl.BaseRendererRosMarkerTopicSettings(visible=True, show_outlines=False),

@@ -26,7 +26,7 @@ fresh_world = reset_before_each()
 # (model, id): frame, marker type, position, orientation (x, y, z, w), scale, colour; worked out from the SDF
 EXPECTED: dict[tuple[str, int], tuple[str, int, tuple[float, ...], tuple[float, ...], tuple[float, ...], Any]] = {
     ("ground_plane", 0): ("world", CUBE, (0, 0, 0), (0, 0, 0, 1), (40, 40, 0.001), (0.5, 0.5, 0.5, 1)),
-    ("north_wall", 0): ("world", CUBE, (0, 5, 1), (0, 0, 0, 1), (10, 0.2, 2), (0.8, 0.1, 0.1, 1)),
+    ("north_wall", 0): ("world", CUBE, (0, 5, 1), (0, 0, 0, 1), (10, 0.2, 2), (0.9, 0.8, 0.1, 1)),
     # the link 0.5 m along the model's x, which the model's yaw of 90 deg turns onto world y
     ("east_wall", 0): ("world", CUBE, (5, 0.5, 0.5), YAW_90, (8, 0.2, 1), (0.1, 0.7, 0.2, 1)),
     # 1 m along the link's x (world y) and 0.5 up; ambient alone gives the colour, transparency 0.5 the alpha
