@@ -49,7 +49,7 @@ EXPECTED: dict[tuple[str, int], tuple[str, int, tuple[float, ...], tuple[float, 
     ),
     # a dynamic model: in its link's frame, which tf places
     ("crate", 0): (
-        "scene/crate/link",
+        "scene/crate",
         CUBE,
         (0, 0, 0.1),
         (0, 0, math.sin(0.15), math.cos(0.15)),
@@ -126,7 +126,7 @@ def _crate_places(msgs: list[Any]) -> list[Any]:
         t.transform.translation
         for msg in msgs
         for t in msg.transforms
-        if t.child_frame_id == "scene/crate/link" and t.header.frame_id == "world"
+        if t.child_frame_id == "scene/crate" and t.header.frame_id == "world"
     ]
 
 

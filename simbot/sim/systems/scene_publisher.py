@@ -14,18 +14,22 @@ have no marker type and are left out (logged once).
 Each marker's namespace is its model, its id the visual's place in the model; the array starts
 with DELETEALL, so each message is the whole scene and a removed model's markers leave with it.
 
-Moving models (the trolley, created tugs, actors): their markers are in frames of their own,
-`scene/<model>/<link>`, and those frames go on `tf` (`world` → frame) at SCENE_TF_RATE. The other
-way, markers re-published for them, would re-send whole markers (a MarkerArray is the whole scene
-for a late joiner, so all of it) many times a second; a transform is 60 bytes, the viewers already
-interpolate tf, and the scene message changes only when a model comes or goes. For each drive's
-odometry frame (`odom`), tf also carries `world` → `odom`: where the model stood when dead
-reckoning began (its entry, or the last reset), so a scan drawn in `odom` lies over the walls of
-`world`, drifting off them as odometry drifts, as RViz shows it without a localiser.
+Moving models (the trolley, created tugs, actors): their markers are in a frame of their own,
+`scene/<model>` (the model frame), which goes on `tf` (`world` → `scene/<model>`) at
+SCENE_TF_RATE. The other way, markers re-published for them, would re-send whole markers (a
+MarkerArray is the whole scene for a late joiner, so all of it) many times a second; a transform
+is 60 bytes, the viewers already interpolate tf, and the scene message changes only when a model
+comes or goes. A visual is placed in its model's frame by the description (its link's pose, then
+its own), so a moving model's jointed parts (a tug's wheels) are drawn where they are at zero
+joint positions: the robot's own moving joints are on tf already, for its robot_description. For
+each drive's odometry frame (`odom`), tf also carries `world` → `odom`: where the model stood
+when dead reckoning began (its entry, or the last reset), so a scan drawn in `odom` lies over the
+walls of `world`, drifting off them as odometry drifts, as RViz shows it without a localiser.
 
-Cost: post_update reads poses only at SCENE_TF_RATE; the scene is rebuilt at most once per step
-in which models came or went, and its encoding (tens of ms for the warehouse's 220 visuals) and
-put happen on a sender thread, never in the physics loop.
+Cost: post_update reads model poses (the physics' base pose, no forward kinematics: reading
+never perturbs the simulation, which a seeded run's digests check) only at SCENE_TF_RATE; the
+scene is rebuilt at most once per step in which models came or went, and its encoding (tens of
+ms for the warehouse's 220 visuals) and put happen on a sender thread, never in the physics loop.
 """
 
 from __future__ import annotations
@@ -123,31 +127,30 @@ def quaternion_of(pose: Pose) -> tuple[float, float, float, float]:
     )
 
 
-def link_frame(body: str, link: str) -> str:
-    """The tf frame a moving body's link draws its markers in."""
-    return f"scene/{scoped_key(body)}/{scoped_key(link)}"
+def model_frame(body: str) -> str:
+    """The tf frame a moving body draws its markers in."""
+    return f"scene/{scoped_key(body)}"
 
 
-def body_parts(physics: WorldReader, body: str, skipped: set[str]) -> tuple[list[Part], list[tuple[str, str]]]:
-    """A body's visuals as parts, and the (frame, link) pairs tf must carry for a moving one."""
+def placed(pose: Pose) -> Transform:
+    return Transform(pose.xyz, quaternion_of(pose))
+
+
+def body_parts(physics: WorldReader, body: str, skipped: set[str]) -> list[Part]:
+    """A body's visuals as parts: in `world` for a static body, in its own frame for a moving one."""
     model = physics.model_of(body)
+    frame = WORLD_FRAME if model.static else model_frame(body)
+    origin = Pose.from_transform(physics.model_pose(body)) if model.static else Pose()
     parts: list[Part] = []
-    frames: list[tuple[str, str]] = []
     for link in model.links:
-        if not model.static and link.visuals:
-            frames.append((link_frame(body, link.name), link.name))
         for visual in link.visuals:
             shape = shape_of(visual.geometry)
             if shape is None:
                 _skip(skipped, type(visual.geometry).__name__)
                 continue
-            in_link = visual.pose @ plane_turn(visual.geometry)
-            if model.static:
-                frame, pose = WORLD_FRAME, physics.frame_pose(body, link.name, in_link)
-            else:
-                frame, pose = link_frame(body, link.name), Transform(in_link.xyz, quaternion_of(in_link))
+            pose = placed(origin @ link.pose @ visual.pose @ plane_turn(visual.geometry))
             parts.append(Part(scoped_key(body), len(parts), frame, shape, pose, colour_of(visual, shape)))
-    return parts, frames
+    return parts
 
 
 def _skip(skipped: set[str], kind: str) -> None:
@@ -212,8 +215,8 @@ class ScenePublisher:
         self._sender = LatestSender(ctx.bus.publisher(SCENE_TOPIC, messages.MarkerArray, latched=True))
         self._tf = ctx.bus.publisher("tf", messages.TFMessage)
         self._parts: dict[str, list[Part]] = {}
-        self._moving: dict[str, list[tuple[str, str]]] = {}
-        """Per body: (frame, link) of each link tf places."""
+        self._moving: list[str] = []
+        """The bodies whose frames tf places."""
         self._odometry: dict[str, list[tuple[str, str]]] = {}
         """Per model: (odometry frame, child frame) of each of its drives."""
         self._anchors: dict[str, Transform] = {}
@@ -224,9 +227,9 @@ class ScenePublisher:
 
     def model_added(self, event: ModelEvent) -> None:
         for body in event.bodies:
-            self._parts[body], frames = body_parts(self._physics, body, self._skipped)
-            if frames:
-                self._moving[body] = frames
+            self._parts[body] = body_parts(self._physics, body, self._skipped)
+            if not self._physics.model_of(body).static:
+                self._moving.append(body)
         if drives := odometry_frames(event):
             self._odometry[event.name] = drives
             self._anchor(event.name)
@@ -235,18 +238,18 @@ class ScenePublisher:
     def model_removed(self, event: ModelEvent) -> None:
         for body in event.bodies:
             self._parts.pop(body, None)
-            self._moving.pop(body, None)
+            if body in self._moving:
+                self._moving.remove(body)
         for frame, _ in self._odometry.pop(event.name, []):
             self._anchors.pop(frame, None)
         self._changed = True
 
     def _anchor(self, model: str) -> None:
         """Each odometry frame of `model` where its child frame is now (dead reckoning starts here)."""
-        links = {link.name for link in self._physics.model_of(model).links}
+        links = {link.name: link.pose for link in self._physics.model_of(model).links}
+        here = Pose.from_transform(self._physics.model_pose(model))
         for frame, child in self._odometry[model]:
-            link = child.rpartition("/")[2]
-            here = self._physics.frame_pose(model, link) if link in links else self._physics.model_pose(model)
-            self._anchors[frame] = here
+            self._anchors[frame] = placed(here @ links.get(child.rpartition("/")[2], Pose()))
 
     def post_update(self, info: UpdateInfo) -> None:
         if self._changed:
@@ -257,13 +260,9 @@ class ScenePublisher:
             self._tf.put(messages.tf_message(self._transforms(info.sim_time_ns)))
 
     def _transforms(self, now_ns: int) -> list[Any]:
-        placed = [
-            (frame, self._physics.frame_pose(body, link))
-            for body, frames in self._moving.items()
-            for frame, link in frames
-        ]
-        placed += list(self._anchors.items())
-        return [messages.transform_stamped(now_ns, WORLD_FRAME, frame, *pose) for frame, pose in placed]
+        poses = [(model_frame(body), self._physics.model_pose(body)) for body in self._moving]
+        poses += list(self._anchors.items())
+        return [messages.transform_stamped(now_ns, WORLD_FRAME, frame, *pose) for frame, pose in poses]
 
     def reset(self, info: UpdateInfo) -> None:
         """Odometry starts again where each model stands now."""
