@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 
 EXAMPLE := examples/simbot-example-sensor
 
-.PHONY: run test lint bench docs urdf meshes textures layout image clean
+.PHONY: run test test-browser lint bench docs urdf meshes textures layout image clean
 
 # The example plug-in goes in too: tests/test_example_plugin.py runs a server on its sensor, the
 # proof that a package outside simbot extends it through the entry points (docs/write-a-system.md).
@@ -23,6 +23,12 @@ run: $(STAMP)
 ## The lint first (seconds), then every test.
 test: $(STAMP) lint
 	$(BIN)/python -m pytest
+
+## simbot's live view in a real browser: Foxglove Studio 1.48 (from npm) in headless Chromium (Debian's, installed with apt where missing; Playwright drives it) on `simbot foxglove`; the screenshot goes to build/browser/. Skips, saying so, where Chromium, npm or Playwright cannot be had.
+test-browser: $(STAMP)
+	command -v chromium >/dev/null || { command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ] && apt-get update -qq && apt-get install -y -qq chromium >/dev/null; } || echo "test-browser: Chromium could not be installed; the test will skip"
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check playwright || echo "test-browser: Playwright could not be installed; the test will skip"
+	$(BIN)/python -m pytest tests/browser -m browser
 
 ## ruff's checks and its format check over the tree, mypy over simbot/, clients/ and benchmarks/ (rules and strictness in pyproject.toml).
 lint: $(STAMP)

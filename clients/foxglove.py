@@ -29,6 +29,11 @@ What foxglove_bridge does for a ROS 2 graph, for the simbot bus, on Foxglove's o
   and would put the message off the app's timeline. When the clock goes back (a world reset, a
   server restart), the jump is logged once and the session is cleared, so that the app drops
   what it holds of the old timeline.
+- The scene (`scene`, the world's markers) is tapped always, as the clock is: its mesh markers
+  name the files (`file://` URIs) the app may fetch through the protocol's asset fetch (the Assets
+  capability). Exactly those files are served, read when asked; any other URI is refused, so the
+  bridge never serves an arbitrary file, and a mesh the scene names but that is missing is an
+  error the app shows.
 - A server that goes away takes its keys off the graph, so their channels close; when it (or
   another) comes back on the same endpoint, the bridge's bus session reconnects by itself and the
   channels open again, which the app subscribes to again by topic.
@@ -48,10 +53,12 @@ import threading
 import time
 from collections.abc import Sequence
 from functools import cache
+from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple, cast
+from urllib.parse import unquote, urlparse
 
-from simbot.bus import Node, UnknownMessageType, message_type
-from simbot.bus.codec import TYPESTORE
+from simbot.bus import Node, UnknownMessageType, decode, message_type
+from simbot.bus.codec import TYPESTORE, DecodeError
 
 from .common import ClientError, Mailbox, SimTimeWatch, client_parser, run_client
 from .subprotocols import LOOPBACK, SubprotocolFront
@@ -68,6 +75,10 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765
 NEEDS_EXTRA = "needs the foxglove extra: pip install 'simbot[foxglove]'"
 CLOCK_TOPIC = "clock"
+SCENE_TOPIC = "scene"
+SCENE_TYPE = "visualization_msgs/msg/MarkerArray"
+ALWAYS_TAPPED = frozenset({CLOCK_TOPIC, SCENE_TOPIC})
+"""Keys the bridge reads whether anyone watches them: sim time, and the meshes it may serve."""
 GRAPH_PERIOD_S = 1.0
 WAIT_S = 0.05
 INBOX_SIZE = 512
@@ -103,14 +114,49 @@ def schema_text(typename: str) -> str:
     return TYPESTORE.generate_msgdef(typename, ros_version=2)[0]
 
 
+class SceneAssets:
+    """The mesh files the latest scene names, served to the app by URI (the SDK calls `fetch` on its threads).
+
+    The set is replaced whole (one assignment) from the loop, so a fetch sees one scene or the next."""
+
+    def __init__(self) -> None:
+        self._meshes: frozenset[str] = frozenset()
+
+    def update(self, data: bytes) -> None:
+        """Take the mesh URIs of a scene message (a malformed one changes nothing)."""
+        try:
+            scene = decode(data, SCENE_TYPE)
+        except DecodeError as exc:
+            logger.warning("/%s: %s", SCENE_TOPIC, exc)
+            return
+        self._meshes = frozenset(m.mesh_resource for m in scene.markers if m.mesh_resource)
+
+    def fetch(self, uri: str) -> bytes | None:
+        """The file a scene mesh URI names; None (refused) for any other URI, or a file that cannot be read."""
+        if uri not in self._meshes:
+            logger.warning("asset %s refused: not a mesh of the scene", uri)
+            return None
+        parsed = urlparse(uri)
+        if parsed.scheme != "file":
+            return None
+        try:
+            return Path(unquote(parsed.path)).read_bytes()
+        except OSError as exc:
+            logger.warning("asset %s: %s", uri, exc.strerror or exc)
+            return None
+
+
 class Bridge:
     """The channels of the live keys, the bus subscriptions their viewers need, and sim time.
 
     Everything here runs in the loop: the listener and the tap only queue.
     """
 
-    def __init__(self, node: Node, server: WebSocketServer, context: foxglove.Context, listener: Listener) -> None:
+    def __init__(
+        self, node: Node, server: WebSocketServer, context: foxglove.Context, listener: Listener, assets: SceneAssets
+    ) -> None:
         self._node = node
+        self._assets = assets
         self._server = server
         self._context = context
         self._changes = listener.changes
@@ -156,8 +202,8 @@ class Bridge:
         channel = Channel("/" + topic.name, schema=schema, message_encoding="cdr", context=self._context)
         self._channels[topic.name] = (topic, channel)
         self._names[channel.id()] = topic.name
-        if topic.name == CLOCK_TOPIC:
-            self._tap.listen(topic)  # sim time for the Time capability, watched or not
+        if topic.name in ALWAYS_TAPPED:
+            self._tap.listen(topic)  # sim time for the Time capability, the scene's meshes: watched or not
 
     def _close(self, name: str) -> None:
         _, channel = self._channels.pop(name)
@@ -187,7 +233,7 @@ class Bridge:
         watchers = self._watchers.setdefault(name, set())
         if client in watchers:
             return
-        if watchers:
+        if watchers or name in ALWAYS_TAPPED:
             self._tap.unlisten(name)  # tapped afresh below: a latched key's latest reaches the newcomer too
         watchers.add(client)
         self._tap.listen(self._channels[name][0])
@@ -198,7 +244,7 @@ class Bridge:
         if client not in watchers:
             return
         watchers.discard(client)
-        if not watchers and name != CLOCK_TOPIC:
+        if not watchers and name not in ALWAYS_TAPPED:
             self._tap.unlisten(name)
         logger.info("/%s: %d viewer%s", name, len(watchers), "" if len(watchers) == 1 else "s")
 
@@ -216,6 +262,8 @@ class Bridge:
     def _forward(self, sample: RawSample) -> None:
         if sample.topic == CLOCK_TOPIC:
             self._tick(sample)
+        elif sample.topic == SCENE_TOPIC:
+            self._assets.update(sample.data)
         entry = self._channels.get(sample.topic)
         if entry is None or not self._watchers.get(sample.topic):
             return  # the clock while nobody watches it, or a sample that was on its way when its key went
@@ -280,8 +328,10 @@ def _require_sdk() -> None:
         raise ClientError(NEEDS_EXTRA) from None
 
 
-def _start_server(args: argparse.Namespace, listener: Listener, context: foxglove.Context) -> WebSocketServer:
-    """Foxglove's WebSocket server with the Time capability, on a private loopback port behind the front."""
+def _start_server(
+    args: argparse.Namespace, listener: Listener, context: foxglove.Context, assets: SceneAssets
+) -> WebSocketServer:
+    """Foxglove's WebSocket server with the Time capability and asset fetch, on a private loopback port behind the front."""
     import foxglove
     from foxglove.websocket import Capability
 
@@ -290,8 +340,9 @@ def _start_server(args: argparse.Namespace, listener: Listener, context: foxglov
             name=f"simbot {args.namespace}" if args.namespace else "simbot",
             host=LOOPBACK,
             port=0,
-            capabilities=[Capability.Time],
+            capabilities=[Capability.Time],  # an asset handler adds the Assets capability
             server_listener=cast("ServerListener", listener),  # has the callbacks a server without ClientPublish calls
+            asset_handler=assets.fetch,
             context=context,
         )
     except RuntimeError as exc:
@@ -317,14 +368,15 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
     listener = Listener()
     context = foxglove.Context()
+    assets = SceneAssets()
     front = _bind_front(args)
     try:
-        server = _start_server(args, listener, context)
+        server = _start_server(args, listener, context, assets)
     except ClientError:
         front.stop()
         raise
     front.serve(server.port)
-    bridge = Bridge(node, server, context, listener)
+    bridge = Bridge(node, server, context, listener, assets)
     logger.info(
         "serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, front.port)
     )

@@ -4,7 +4,11 @@
                   [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
 
 Each child is a subprocess (`python -m simbot.sim.server`, `python -m simbot.clients.<name>`) whose
-stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). The
+stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). When
+the monitor is launched and launch's output is a terminal, the monitor gets the terminal for its
+full-screen table instead: every other child's output, the monitor's log lines and launch's own
+go to files, one per process (`server.log`, `merger.log`, `launch.log`), in a fresh folder under
+the system's temporary folder, which launch names before the table appears and again after it. The
 server listens where launch's `--listen` says (default `tcp/127.0.0.1:7447`) and the clients
 connect there, all with the same `--namespace` and `--zenoh-config`. The clients start only once
 the server's world control answers, so none of them waits out its connect timeout on a server
@@ -33,11 +37,13 @@ import shlex
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import IO
+from pathlib import Path
+from typing import IO, TextIO
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
 
@@ -68,6 +74,9 @@ GRACE_S: tuple[tuple[signal.Signals, float], ...] = ((signal.SIGINT, 3.0), (sign
 """How a child is ended: each signal in turn, waiting its grace period for the exit."""
 
 _output_lock = threading.Lock()
+_output: list[TextIO] = []
+"""Where launch's own lines go instead of stdout while the monitor holds the terminal (launch.log)."""
+MONITOR = "monitor"
 
 
 class LaunchError(Exception):
@@ -78,8 +87,9 @@ def emit(name: str, text: str) -> None:
     """One whole line `[name] text` on stdout, flushed (reader threads and the main loop share stdout)."""
     with _output_lock:
         try:
-            sys.stdout.write(f"[{name}] {text}\n")
-            sys.stdout.flush()
+            out = _output[-1] if _output else sys.stdout
+            out.write(f"[{name}] {text}\n")
+            out.flush()
         except (BrokenPipeError, ValueError):  # the reader of our output went away, or stdout is closed
             pass
 
@@ -165,21 +175,30 @@ def make_plan(args: argparse.Namespace) -> Plan:
 
 
 class Child:
-    """A child process whose merged stdout/stderr a reader thread prints, prefixed with its name."""
+    """A child process whose merged stdout/stderr a reader thread prints, prefixed with its name; or,
+    given `logs`, written to `<logs>/<name>.log` (all of it, or only stderr when `terminal` gives it stdout)."""
 
-    def __init__(self, name: str, command: Sequence[str]) -> None:
+    def __init__(self, name: str, command: Sequence[str], logs: Path | None = None, terminal: bool = False) -> None:
         self.name = name
         self.reported = False
         env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self.process = subprocess.Popen(
-            list(command), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env
-        )
+        self._reader: threading.Thread | None = None
+        if logs is None:
+            self.process = subprocess.Popen(
+                list(command), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=env
+            )
+            assert self.process.stdout is not None  # stdout=PIPE
+            self._reader = threading.Thread(
+                target=self._pump, args=(self.process.stdout,), name=f"launch-{name}", daemon=True
+            )
+            self._reader.start()
+        else:
+            with (logs / f"{name}.log").open("ab") as log:
+                stdout = None if terminal else log
+                self.process = subprocess.Popen(
+                    list(command), stdin=subprocess.DEVNULL, stdout=stdout, stderr=log, env=env
+                )
         emit("launch", f"started {name} (pid {self.process.pid})")
-        assert self.process.stdout is not None  # stdout=PIPE
-        self._reader = threading.Thread(
-            target=self._pump, args=(self.process.stdout,), name=f"launch-{name}", daemon=True
-        )
-        self._reader.start()
 
     def _pump(self, pipe: IO[bytes]) -> None:
         with pipe:
@@ -195,7 +214,8 @@ class Child:
         if self.reported or self.exited() is None:
             return
         self.reported = True
-        self._reader.join(timeout=1.0)
+        if self._reader is not None:
+            self._reader.join(timeout=1.0)
         code = self.process.returncode
         how = f"signal {signal.Signals(-code).name}" if code < 0 else f"code {code}"
         emit("launch", f"{self.name} exited with {how}")
@@ -240,21 +260,25 @@ def answers(node: Node, world: str) -> bool:
 class Launch:
     """The running children and the stop event the signal handlers set."""
 
-    def __init__(self, plan: Plan, stop: threading.Event) -> None:
+    def __init__(self, plan: Plan, stop: threading.Event, logs: Path | None = None) -> None:
         self.plan = plan
         self.stop = stop
+        self.logs = logs
+        """The folder of every process's log while the monitor holds the terminal; None: all on stdout."""
         self.server: Child | None = None
         self.clients: list[Child] = []
 
     def run(self) -> int:
         """Start, supervise, end everything; the exit code."""
         try:
-            self.server = Child("server", self.plan.server)
+            self.server = Child("server", self.plan.server, self.logs)
             world = self.wait_ready(self.server)
             if world is None:
                 return 0 if self.stop.is_set() else self.server_failed(self.server)
             emit("launch", f"server ready: world {world}")
-            self.clients = [Child(name, command) for name, command in self.plan.clients.items()]
+            self.clients = [
+                Child(name, command, self.logs, terminal=name == MONITOR) for name, command in self.plan.clients.items()
+            ]
             return self.supervise(self.server)
         except LaunchError as exc:
             emit("launch", f"error: {exc}")
@@ -320,7 +344,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    return Launch(plan, stop).run()
+    if MONITOR not in plan.clients or not sys.stdout.isatty():
+        return Launch(plan, stop).run()
+    logs = Path(tempfile.mkdtemp(prefix="simbot-launch-"))
+    print(f"[launch] the monitor takes the terminal; logs in {logs}: {log_names(plan)} (Ctrl-C ends all)", flush=True)
+    with (logs / "launch.log").open("a", encoding="utf-8") as own:
+        _output.append(own)
+        try:
+            code = Launch(plan, stop, logs).run()
+        finally:
+            _output.pop()
+    print(f"[launch] logs in {logs}: {log_names(plan)}", flush=True)
+    return code
+
+
+def log_names(plan: Plan) -> str:
+    """The log files of a launch whose monitor holds the terminal."""
+    return ", ".join(f"{name}.log" for name in ("launch", "server", *plan.clients))
 
 
 if __name__ == "__main__":

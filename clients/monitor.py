@@ -22,8 +22,9 @@ and the robot's ground truth (`/clock`, `/model/tug_2/pose`: absolute names, at 
 namespace), and the cameras of its model (`tug_2/...` in the world state); the other robots'
 keys and cameras are left out.
 
-Drawn in place with ANSI escapes on a terminal; elsewhere (a pipe, `simbot launch`) each refresh
-is a block of lines followed by a blank line. SIGINT / SIGTERM end it with code 0.
+On a terminal it is a full-screen view redrawn in place (`terminal.FullScreen`: the alternate
+screen, left on any exit, so Ctrl-C gives back the terminal as it was); elsewhere (a pipe, a file)
+each refresh is a block of lines followed by a blank line. SIGINT / SIGTERM end it with code 0.
 """
 
 from __future__ import annotations
@@ -41,13 +42,13 @@ from simbot.bus import Node, ServiceError, messages
 from simbot.bus.transforms import planar_pose
 
 from .common import ClockSubscriber, Mailbox, client_parser, followed_model, number, run_client
+from .terminal import FullScreen
 from .topics import Topic, Traffic, format_rate, latched, live_topics, world_names
 
 REFRESH_S = 1.0
 RATE_HORIZON_S = 3.0
 STATE_TIMEOUT_S = 0.5
 STRING_LIMIT = 40
-HOME_AND_CLEAR = "\x1b[H\x1b[J"
 COLUMNS = ("KEY", "RATE", "LATEST")
 
 
@@ -247,11 +248,15 @@ class Monitor:
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     monitor = Monitor(node, args.world)
     monitor.follow_graph()
-    tty = sys.stdout.isatty()
-    while not stop.wait(args.period):  # the first table after a period, when the subscriptions have data
-        text = monitor.frame()
-        sys.stdout.write(f"{HOME_AND_CLEAR}{text}\n" if tty else f"{text}\n\n")
-        sys.stdout.flush()
+    if not sys.stdout.isatty():
+        while not stop.wait(args.period):  # the first table after a period, when the subscriptions have data
+            sys.stdout.write(f"{monitor.frame()}\n\n")
+            sys.stdout.flush()
+        return 0
+    with FullScreen() as screen:
+        screen.draw(f"{state_line(monitor.world, None)}\n(the first table in {args.period:g} s)")
+        while not stop.wait(args.period):
+            screen.draw(monitor.frame())
     return 0
 
 

@@ -14,7 +14,7 @@ sees simbot with nothing more than rclpy:
   what is malformed, as it does for any input.
 - QoS: data reliable, volatile, keep-last 10 (default and sensor-data subscribers both match);
   latched keys (a plain Zenoh `get` answers them: `tf_static`, `robot_description`,
-  `detachable_joint/state`) reliable, transient-local, depth 1, so a late-joining node gets them.
+  `detachable_joint/state`, `scene`, which RViz's MarkerArray display shows) reliable, transient-local, depth 1, so a late-joining node gets them.
 - A data key is subscribed on Zenoh only while a DDS subscriber matches its publisher: cameras
   render only while a ROS node watches them, and an idle bridge costs the simulation nothing.
   Latched keys are always subscribed (the DDS publisher must hold the latest for late joiners).

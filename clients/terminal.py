@@ -1,4 +1,5 @@
-"""The terminal of the keyboard clients (teleop, dock): keys in, a screen out, the terminal always given back.
+"""The terminal of the keyboard clients (teleop, dock): keys in, a screen out, the terminal always given back;
+and the full screen of the monitor's live table (`FullScreen`).
 
 A keyboard client puts its terminal in cbreak mode: keys arrive one at a time and unechoed, yet
 Ctrl-C still raises SIGINT (which `run_client` turns into a clean stop) and output keeps its
@@ -31,6 +32,9 @@ if TYPE_CHECKING:
 
 CLEAR_LINE = "\r\x1b[K"
 HIDE_CURSOR, SHOW_CURSOR = "\x1b[?25l", "\x1b[?25h"
+ENTER_ALTERNATE, LEAVE_ALTERNATE = "\x1b[?1049h", "\x1b[?1049l"
+"""xterm's alternate screen: a full-screen view whose leaving gives back the screen as it was."""
+HOME_AND_CLEAR = "\x1b[H\x1b[J"
 ESCAPE_SEQUENCE = re.compile(r"\x1b(\[[0-9;?]*[ -/]*[@-~]|O.|.)?")
 """Arrow and function keys: dropped whole, so that their letters are not taken for commands."""
 
@@ -119,6 +123,32 @@ class Terminal:
         """A line above the status line, which is drawn again under it."""
         with self._lock:
             self._write(CLEAR_LINE + text + "\n" + self._status)
+
+    def _write(self, text: str) -> None:
+        self._out.write(text)
+        self._out.flush()
+
+
+class FullScreen:
+    """A view that fills the terminal (the alternate screen, the cursor hidden), redrawn whole in place;
+    leaving it, however the program ends, brings back the screen and the cursor as they were."""
+
+    def __init__(self, out: TextIO | None = None) -> None:
+        self._out = out or sys.stdout
+
+    def __enter__(self) -> Self:
+        self._write(ENTER_ALTERNATE + HIDE_CURSOR)
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self._write(SHOW_CURSOR + LEAVE_ALTERNATE)
+
+    def draw(self, text: str) -> None:
+        """The whole view: each line cut to the terminal's width and the rows it has (a wrapped or scrolled
+        line could not be redrawn in place)."""
+        size = shutil.get_terminal_size()
+        lines = [line[: max(size.columns - 1, 20)] for line in text.splitlines()][: max(size.lines - 1, 1)]
+        self._write(HOME_AND_CLEAR + "\n".join(lines))
 
     def _write(self, text: str) -> None:
         self._out.write(text)

@@ -4,9 +4,10 @@ Built in code so that every panel and setting is checked against the SDK's layou
 topic and frame names come from the clients that publish them. The layout shows:
 
 - the stitcher's panorama (an Image panel);
-- the merger's 360° scan from above, in a 3D panel whose fixed frame is `odom` (the scan stays
-  where the world is while the robot drives) and whose view follows `base_link`, with the robot's
-  collision shapes from `robot_description` (its visual meshes are files the app cannot fetch);
+- the merger's 360° scan from above over the world's scene (`/scene`, the walls, racks and
+  trolley as markers; the server places `world` in `odom`), in a 3D panel whose fixed frame is
+  `odom` (the scan stays where the world is while the robot drives) and whose view follows
+  `base_link`, with the robot's collision shapes from `robot_description`;
 - the robot's frames: a 3D panel with every tf frame, labelled, and the TransformTree panel.
 
 The app subscribes only to what the panels show, so the cameras render only for the stitcher.
@@ -31,6 +32,7 @@ FIXED_FRAME = "odom"
 PANORAMA = "/" + IMAGE_TOPIC
 SCAN = "/" + MERGED_TOPIC
 ROBOT_DESCRIPTION = "/robot_description"
+SCENE = "/scene"
 SCAN_VIEW_M = 14.0
 """How far the scan panel's camera is from base_link: the ±6 m a warehouse aisle shows, with a margin."""
 
@@ -62,17 +64,20 @@ def following_panel(
 
 
 def scan_panel() -> fl.ThreeDeePanel:
-    """The merged scan from above, accumulated in odom, the view following base_link's heading."""
+    """The merged scan from above over the scene, in odom, the view following base_link's heading."""
     return following_panel(
         "Merged scan",
         fl.ThreeDeeCameraState(perspective=False, distance=SCAN_VIEW_M, phi=0.0, theta_offset=0.0),
         fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
         layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
         topics={
+            # a colour field named, though the colour is flat: without one, Studio 1.48 (the browser
+            # test's) colours by intensity, which the merged scan leaves empty, and draws nothing
             SCAN: fl.BaseRendererLaserScanTopicSettings(
-                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30"
+                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30", color_field="range"
             ),
             ROBOT_DESCRIPTION: robot_model(opacity=0.8),
+            SCENE: fl.BaseRendererRosMarkerTopicSettings(visible=True, show_outlines=False),
         },
     )
 

@@ -46,7 +46,7 @@ SEED = 7
 STEPS_BEFORE = 50
 STEPS_DRIVEN = 600
 IMAGE = "sensor_msgs/msg/Image"
-LATCHED = ("robot_description", "tf_static")
+LATCHED = ("robot_description", "tf_static", "scene")
 IMAGE_ENCODINGS = {"rgb8", "mono8", "32FC1"}
 
 
@@ -64,7 +64,7 @@ class Run:
 
 RUNS = {
     "warehouse": Run("warehouse", ("--camera-size", "64x48", "--renderer", "gl"), "cmd_vel", LATCHED, cameras=6),
-    "diff_drive": Run(str(TWO_VEHICLES), ("--robot", "none"), "model/vehicle_blue/cmd_vel"),
+    "diff_drive": Run(str(TWO_VEHICLES), ("--robot", "none"), "model/vehicle_blue/cmd_vel", ("scene",)),
 }
 
 
@@ -85,7 +85,8 @@ def _record(run: Run) -> tuple[dict[str, str], set[str]]:
     hashes: dict[str, Any] = {}
     first: dict[str, bytes] = {}
     for key, payload in received:
-        hashes.setdefault(key.removeprefix(prefix), hashlib.sha256()).update(_placeless(payload))
+        name = key.removeprefix(prefix)
+        hashes.setdefault(name, hashlib.sha256()).update(_placeless(name, payload))
         first.setdefault(key.removeprefix(prefix), payload)
     return {key: digest.hexdigest() for key, digest in sorted(hashes.items())}, _drawn(first)
 
@@ -100,11 +101,14 @@ def _latched(session: zenoh.Session, prefix: str, keys: tuple[str, ...]) -> list
     return found
 
 
-def _placeless(payload: bytes) -> bytes:
+def _placeless(key: str, payload: bytes) -> bytes:
     """The payload with the checkout's path taken out: `robot_description` (a std_msgs/String)
-    names its meshes by absolute `file://` URIs, which differ from one clone to the next."""
+    names its meshes by absolute `file://` URIs, which differ from one clone to the next, and so do
+    the mesh markers of `scene` (their bytes are hashed with the path replaced, never decoded)."""
     if str(REPO).encode() not in payload:
         return payload
+    if key != "robot_description":
+        return payload.replace(str(REPO).encode(), b"<repo>")
     text = decode(payload, STRING).data.replace(str(REPO), "<repo>")
     return encode(messages.string(text))
 

@@ -54,7 +54,7 @@ from simbot.clients.tap import published
 SUBPROTOCOL = Subprotocol("foxglove.sdk.v1")
 LEGACY_SUBPROTOCOL = Subprotocol("foxglove.websocket.v1")  # Lichtblick, @foxglove/ws-protocol 0.8
 NODE_CLIENT = Path(__file__).resolve().parent / "node"
-MESSAGE_DATA, TIME = 0x01, 0x02
+MESSAGE_DATA, TIME, FETCH_ASSET_RESPONSE = 0x01, 0x02, 0x04
 CHEAP_CAMERAS = ("--camera-size", "160x120")
 CLOCK_PERIOD_NS = 10_000_000  # the server's clock, 100 Hz of sim time
 CLOCK_LAG_NS = (
@@ -63,7 +63,7 @@ CLOCK_LAG_NS = (
 WAIT_S = 30.0  # generous: two cores shared with other test runs
 SERVER_KEYS = {  # SPEC §4: what the server alone publishes in the empty world
     "clock", "odom", "tf", "tf_static", "robot_description", "joint_states", "imu_scan", "lidar_front", "lidar_back",
-    "detachable_joint/state", "model/flexley_tug/pose",
+    "detachable_joint/state", "model/flexley_tug/pose", "scene",
     *(f"camera_{name}{suffix}" for name in ("front", "back", "front_right", "front_left", "back_right", "back_left")
       for suffix in ("", "/camera_info")),
 }  # fmt: skip
@@ -90,6 +90,7 @@ class Viewer:
         self.ops: Collector[dict[str, Any]] = Collector()
         self.frames: Collector[Frame] = Collector()
         self.times: Collector[int] = Collector()
+        self.assets: Collector[tuple[int, int, str, bytes]] = Collector()
         self._ids = itertools.count(1)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -104,6 +105,10 @@ class Viewer:
                     self.frames(Frame(subscription, timestamp, bytes(message[13:])))
                 elif message[0] == TIME:
                     self.times(struct.unpack_from("<Q", message, 1)[0])
+                elif message[0] == FETCH_ASSET_RESPONSE:
+                    request, status, length = struct.unpack_from("<IBI", message, 1)
+                    error = bytes(message[10 : 10 + length]).decode()
+                    self.assets((request, status, error, bytes(message[10 + length :])))
         except ConnectionClosed:
             return
 
@@ -139,6 +144,13 @@ class Viewer:
 
     def unsubscribe(self, subscription: int) -> None:
         self.ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": [subscription]}))
+
+    def fetch_asset(self, uri: str) -> tuple[int, str, bytes]:
+        """fetchAsset as the app sends it for a mesh: (status, 0 ok, 1 error; the error; the bytes)."""
+        request = next(self._ids)
+        self.ws.send(json.dumps({"op": "fetchAsset", "uri": uri, "requestId": request}))
+        replies = self.assets.wait_for(lambda got: any(r[0] == request for r in got), WAIT_S, f"asset {uri}")
+        return next(r[1:] for r in replies if r[0] == request)
 
     def received(self, subscription: int, count: int, timeout: float = WAIT_S) -> list[Frame]:
         """The frames of a subscription, once there are `count` of them."""
@@ -501,3 +513,23 @@ def _panels(content: dict[str, Any]) -> Iterator[dict[str, Any]]:
         yield content
     for item in content.get("items", ()):
         yield from _panels(item["content"])
+
+
+def test_the_scene_is_offered_and_its_meshes_fetched_as_assets(sim: SimServer, app: Viewer) -> None:
+    """/scene is a channel like any key; a mesh its markers name comes back byte for byte through
+    fetchAsset; a file the scene does not name is refused, however it is spelled."""
+    scene = app.subscribe("/scene")
+    channel = app.channels()["/scene"]
+    markers = decode_with(channel, app.received(scene, 1)[0].payload).markers
+    meshes = sorted({m.mesh_resource for m in markers if m.mesh_resource})
+    assert "assets" in app.server_info()["capabilities"] and meshes, "no mesh in the empty world's scene"
+    status, error, data = app.fetch_asset(meshes[0])
+    assert (status, error) == (0, "") and data == Path(meshes[0].removeprefix("file://")).read_bytes()
+    for outside in (
+        (REPO / "pyproject.toml").as_uri(),
+        meshes[0].rsplit("/", 1)[0] + "/../../pyproject.toml",
+        "file:///etc/passwd",
+        "package://simbot/meshes/wheel.stl.missing",
+    ):
+        status, error, data = app.fetch_asset(outside)
+        assert status == 1 and error and not data, outside

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -21,9 +22,11 @@ from typing import Any
 
 import pytest
 from bus_helpers import endpoint, free_port, unique_namespace
-from server_helpers import REPO, Collector
+from client_helpers import pty_client
+from server_helpers import REPO, Collector, wait_until
 
 from simbot.bus import BusOptions, Node
+from simbot.clients.terminal import HOME_AND_CLEAR, LEAVE_ALTERNATE
 
 SERVER_ARGS = "--quiet --camera-size 160x120"
 START_TIMEOUT_S = 60.0
@@ -216,3 +219,27 @@ def test_server_args_may_not_take_launchs_own_options() -> None:
         result.stderr
         == "simbot launch: error: --server-args: --namespace is launch's own option; give it to launch itself\n"
     )
+
+
+def test_on_a_terminal_the_monitor_takes_it_and_the_others_log_to_files_launch_names() -> None:
+    """`make run`'s case: the monitor's full-screen table on launch's terminal; the server's and the
+    merger's output (and launch's own lines) in the log files launch names first; Ctrl-C (SIGINT)
+    ends everything, gives the terminal back and names the files again."""
+    port, namespace = free_port(), unique_namespace()
+    command = [*LAUNCH, "--listen", endpoint(port), "--namespace", namespace, "--world", "empty"]
+    command += ["--clients", "merger,monitor", f"--server-args={SERVER_ARGS}"]
+    with pty_client(command) as screen:
+        named = screen.wait_for(r"logs in (\S+): launch\.log, server\.log, merger\.log, monitor\.log", START_TIMEOUT_S)
+        logs = Path(named.group(1))
+        wait_until(
+            lambda: screen.raw_output().count(HOME_AND_CLEAR) >= 2, timeout=START_TIMEOUT_S, what="the monitor's table"
+        )
+        screen.wait_for(r"scan\s+[0-9.]+ Hz", START_TIMEOUT_S)  # the merger's output, on the monitor's table
+        assert "[server]" not in screen.screen() and "[launch] started" not in screen.screen()
+        wait_until(lambda: "world empty" in (logs / "server.log").read_text(), START_TIMEOUT_S, "the server's log")
+        assert "started merger" in (logs / "launch.log").read_text()
+        screen.process.send_signal(signal.SIGINT)
+        assert screen.wait_exit(EXIT_TIMEOUT_S) == 0
+        screen.wait_for(rf"logs in {re.escape(str(logs))}: launch\.log", since=named.end())
+        assert LEAVE_ALTERNATE in screen.raw_output() and screen.attributes() == screen.initial
+    shutil.rmtree(logs)

@@ -28,6 +28,8 @@ from client_helpers import bus_args, client_command, client_process, pty_client
 from conftest import CAMERAS
 from server_helpers import REPO, SimServer, running_server, wait_until
 
+from simbot.clients.terminal import ENTER_ALTERNATE, HIDE_CURSOR, HOME_AND_CLEAR, LEAVE_ALTERNATE, SHOW_CURSOR
+
 WORLD_EXTRA = ("--camera-size", "160x120", "--camera-rate", "5")
 LASER_SCAN, CAMERA_INFO = "sensor_msgs/msg/LaserScan", "sensor_msgs/msg/CameraInfo"
 TIMEOUT_S = 60.0
@@ -169,12 +171,20 @@ def test_the_panorama_size_is_its_camera_infos(table: tuple[str, Any, Any]) -> N
     assert table[1]["camera_360/camera_info"][1] == f"{info.width}x{info.height}"
 
 
-def test_on_a_terminal_it_redraws_in_place_and_sigterm_ends_it_with_0(sim: SimServer) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_on_a_terminal_it_is_a_full_screen_redrawn_in_place_and_a_signal_gives_the_terminal_back(
+    sim: SimServer, sig: signal.Signals
+) -> None:
+    """The alternate screen, redrawn whole each period; Ctrl-C (SIGINT) or SIGTERM leaves it (the user's
+    screen comes back), shows the cursor, leaves the terminal's attributes as they were, and exits 0."""
     with pty_client(client_command("monitor", *bus_args(sim), "--period", "0.5")) as screen:
-        wait_until(lambda: screen.raw_output().count("\x1b[H\x1b[J") >= 3, timeout=TIMEOUT_S, what="three redraws")
+        wait_until(lambda: screen.raw_output().count(HOME_AND_CLEAR) >= 3, timeout=TIMEOUT_S, what="three redraws")
+        assert screen.raw_output().startswith(ENTER_ALTERNATE + HIDE_CURSOR)
         screen.wait_for(r"imu_scan\s+[0-9.]+ Hz  accel")
-        screen.process.send_signal(signal.SIGTERM)
+        screen.process.send_signal(sig)
         assert screen.wait_exit() == 0
+        assert screen.raw_output().rstrip("\r\n").endswith(SHOW_CURSOR + LEAVE_ALTERNATE)
+        assert screen.attributes() == screen.initial
 
 
 def test_a_period_of_zero_is_one_line_and_exit_2(sim: SimServer) -> None:

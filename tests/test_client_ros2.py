@@ -288,6 +288,21 @@ def test_a_late_joiner_gets_the_robot_description(sim: SimServer, bridge: Client
 
 
 @dds
+def test_a_late_joiner_gets_the_scene_as_rviz_takes_it(sim: SimServer, bridge: ClientProcess, ros: RosUser) -> None:
+    """/scene reaches a late-joining node as a visualization_msgs/MarkerArray (RViz's MarkerArray display):
+    the empty world's ground plane in `world`, the tug's meshes as file:// URIs."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from visualization_msgs.msg import MarkerArray
+
+    wait_until(lambda: f"{topic(sim, 'scene')} → DDS" in bridge.stderr(), WAIT_S, "the bridge to publish /scene")
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    scenes, _ = ros.subscribe(MarkerArray, topic(sim, "scene"), latched)
+    markers = scenes.wait_count(1, WAIT_S, "scene")[0].markers
+    assert any(m.ns == "ground_plane" and m.header.frame_id == "world" for m in markers)
+    assert any(m.ns == "flexley_tug" and m.mesh_resource.startswith("file://") for m in markers)
+
+
+@dds
 def test_raw_payloads_are_byte_identical_to_the_zenoh_ones(sim: SimServer, ros: RosUser) -> None:
     """Each scan the ROS node gets raw is, byte for byte, the scan of its stamp that a Zenoh subscriber gets
     (a scan one of them misses under load, sensor data being sent with congestion control DROP, is not compared)."""

@@ -353,6 +353,8 @@ CASES: dict[tuple[str, str], Case] = {
     (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
     (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),
+    # the scene goes out once (latched, on change); the moving robot's frames go on tf every period
+    (WORLD_GROUP, "ScenePublisher"): Case(key="tf"),
     (GROUP, "FollowActor"): Case(world_plugins=FOLLOWER, key="model/follower/pose"),
     (GROUP, "TrajectoryFollower"): Case(plugins=TRAJECTORY_FOLLOWER, key="model/flexley_tug/pose"),
     (WORLD_GROUP, "Actors"): Case(world_plugins=ACTORS, sensors=_lidar("gpu_lidar"), key="model/runner/pose"),

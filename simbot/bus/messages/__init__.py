@@ -5,7 +5,7 @@ write `odometry(ns, "odom", "base_footprint", xyz, quat, ...)`, and they convert
 the CDR serializer expects: Python floats, float64 numpy arrays for covariances and joint values.
 Times are integer nanoseconds throughout, as the sim clock keeps them: no float rounding.
 
-One module per message family (std, geometry, nav, sensors, images, clouds, gazebo, vision), the classes
+One module per message family (std, geometry, nav, sensors, images, clouds, gazebo, vision, markers), the classes
 in typestore.py; every name is exported here, so callers write `messages.image(...)` whichever
 module holds it.
 """
@@ -40,6 +40,7 @@ from simbot.bus.messages.images import (
     image,
     image_pixels,
 )
+from simbot.bus.messages.markers import NO_COLOUR, delete_all, marker, marker_array
 from simbot.bus.messages.nav import COVARIANCE_SIZE, odometry
 from simbot.bus.messages.sensors import fluid_pressure, imu, joint_state, laser_scan, magnetic_field, nav_sat_fix
 from simbot.bus.messages.std import NS_PER_S, clock, empty, float64, header, stamp_ns, string, time_msg
@@ -47,6 +48,7 @@ from simbot.bus.messages.typestore import (
     Altimeter,
     CameraInfo,
     Clock,
+    ColorRGBA,
     Contact,
     Contacts,
     Detection2DArray,
@@ -62,6 +64,8 @@ from simbot.bus.messages.typestore import (
     JointWrench,
     LaserScan,
     MagneticField,
+    Marker,
+    MarkerArray,
     NavSatFix,
     NavSatStatus,
     Odometry,
@@ -94,6 +98,7 @@ __all__ = [
     "IMAGE_ENCODINGS",
     "LIDAR_POINT_DTYPE",
     "LIDAR_POINT_FIELDS",
+    "NO_COLOUR",
     "NS_PER_S",
     "POINT_FIELDS",
     "Altimeter",
@@ -101,6 +106,7 @@ __all__ = [
     "Box3D",
     "CameraInfo",
     "Clock",
+    "ColorRGBA",
     "Contact",
     "ContactPair",
     "Contacts",
@@ -118,6 +124,8 @@ __all__ = [
     "JointWrench",
     "LaserScan",
     "MagneticField",
+    "Marker",
+    "MarkerArray",
     "NavSatFix",
     "NavSatStatus",
     "Odometry",
@@ -145,6 +153,7 @@ __all__ = [
     "clock",
     "contacts",
     "depth_image",
+    "delete_all",
     "depth_pixels",
     "detection_2d_array",
     "detection_3d_array",
@@ -160,6 +169,8 @@ __all__ = [
     "lidar_points",
     "lidar_points_array",
     "magnetic_field",
+    "marker",
+    "marker_array",
     "nav_sat_fix",
     "odometry",
     "point_cloud",

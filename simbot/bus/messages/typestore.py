@@ -64,3 +64,10 @@ ObjectHypothesis = TYPESTORE.types["vision_msgs/msg/ObjectHypothesis"]
 ObjectHypothesisWithPose = TYPESTORE.types["vision_msgs/msg/ObjectHypothesisWithPose"]
 Point2D = TYPESTORE.types["vision_msgs/msg/Point2D"]
 Pose2D = TYPESTORE.types["vision_msgs/msg/Pose2D"]
+# visualization_msgs (the scene for viewers)
+ColorRGBA = _ros.std_msgs__msg__ColorRGBA
+Marker = _ros.visualization_msgs__msg__Marker
+MarkerArray = _ros.visualization_msgs__msg__MarkerArray
+MeshFile = _ros.visualization_msgs__msg__MeshFile
+CompressedImage = _ros.sensor_msgs__msg__CompressedImage
+Duration = _ros.builtin_interfaces__msg__Duration

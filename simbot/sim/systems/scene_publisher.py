@@ -1,0 +1,275 @@
+"""`scene`: the world's visuals for viewers, so that RViz and Foxglove draw the warehouse around the scans.
+
+A world system (built in, no `<plugin>`). Every visual of every model is one
+visualization_msgs/Marker of one latched MarkerArray on `scene` (late joiners get it, as they get
+`robot_description`): its pose, its size, its colour (the SDF material's diffuse, else ambient,
+else white as PyBullet draws it; alpha one minus the visual's transparency). Boxes are CUBEs,
+cylinders CYLINDERs, spheres and ellipsoids SPHEREs, capsules the CYLINDER that holds them, planes
+a CUBE 1 mm thick; meshes are MESH_RESOURCEs naming the file by its `file://` URI (as
+`robot_description` does: RViz on this machine loads it, `simbot foxglove` serves it to the app),
+drawn with their own materials and textures when the visual has no material. A mesh that did not
+resolve is named as written: loading it is the viewer's business. Cones, polylines and heightmaps
+have no marker type and are left out (logged once).
+
+Each marker's namespace is its model, its id the visual's place in the model; the array starts
+with DELETEALL, so each message is the whole scene and a removed model's markers leave with it.
+
+Moving models (the trolley, created tugs, actors): their markers are in a frame of their own,
+`scene/<model>` (the model frame), which goes on `tf` (`world` → `scene/<model>`) at
+SCENE_TF_RATE. The other way, markers re-published for them, would re-send whole markers (a
+MarkerArray is the whole scene for a late joiner, so all of it) many times a second; a transform
+is 60 bytes, the viewers already interpolate tf, and the scene message changes only when a model
+comes or goes. A visual is placed in its model's frame by the description (its link's pose, then
+its own), so a moving model's jointed parts (a tug's wheels) are drawn where they are at zero
+joint positions: the robot's own moving joints are on tf already, for its robot_description. For
+each drive's odometry frame (`odom`), tf also carries `world` → `odom`: where the model stood
+when dead reckoning began (its entry, or the last reset), so a scan drawn in `odom` lies over the
+walls of `world`, drifting off them as odometry drifts, as RViz shows it without a localiser.
+
+Cost: post_update reads model poses (the physics' base pose, no forward kinematics: reading
+never perturbs the simulation, which a seeded run's digests check) only at SCENE_TF_RATE; the
+scene is rebuilt at most once per step in which models came or went, and its encoding (tens of
+ms for the warehouse's 220 visuals) and put happen on a sender thread, never in the physics loop.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+from simbot.bus import Publisher, messages
+from simbot.description.model import Box, Capsule, Cylinder, Ellipsoid, Geometry, Mesh, Plane, Sphere, Visual
+from simbot.description.poses import Pose
+from simbot.sim.naming import scoped_key
+from simbot.sim.physics import WorldReader
+from simbot.sim.rates import Every
+from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
+from simbot.transform import Transform
+
+log = logging.getLogger(__name__)
+
+SCENE_TOPIC = "scene"
+WORLD_FRAME = "world"
+SCENE_TF_RATE = 10.0
+"""Hz of sim time: the moving models' frames; a viewer interpolates between them."""
+PLANE_THICKNESS = 0.001
+WHITE = (1.0, 1.0, 1.0, 1.0)
+Shape = tuple[int, tuple[float, float, float], str]
+"""A marker type, its scale and its mesh URI."""
+
+
+@dataclass(frozen=True)
+class Part:
+    """One visual as a marker: its shape, its pose in `frame`, its colour."""
+
+    model: str
+    index: int
+    frame: str
+    shape: Shape
+    pose: Transform
+    rgba: tuple[float, float, float, float]
+
+    def marker(self, now_ns: int) -> Any:
+        kind, scale, mesh = self.shape
+        return messages.marker(now_ns, self.frame, self.model, self.index, kind, *self.pose, scale, self.rgba, mesh)
+
+
+def shape_of(geometry: Geometry) -> Shape | None:
+    """The marker type and scale of an SDF geometry; None for shapes no marker type draws."""
+    match geometry:
+        case Box(size=size):
+            return messages.Marker.CUBE, size, ""
+        case Cylinder(radius=r, length=length):
+            return messages.Marker.CYLINDER, (2 * r, 2 * r, length), ""
+        case Capsule(radius=r, length=length):
+            return messages.Marker.CYLINDER, (2 * r, 2 * r, length + 2 * r), ""
+        case Sphere(radius=r):
+            return messages.Marker.SPHERE, (2 * r, 2 * r, 2 * r), ""
+        case Ellipsoid(radii=(a, b, c)):
+            return messages.Marker.SPHERE, (2 * a, 2 * b, 2 * c), ""
+        case Plane(size=(sx, sy)):
+            return messages.Marker.CUBE, (sx, sy, PLANE_THICKNESS), ""
+        case Mesh(uri=uri, scale=scale, path=path):
+            return messages.Marker.MESH_RESOURCE, scale, path.resolve().as_uri() if path is not None else uri
+    return None
+
+
+def plane_turn(geometry: Geometry) -> Pose:
+    """A plane's normal as the turn of the thin box that draws it (identity for every other shape)."""
+    if not isinstance(geometry, Plane):
+        return Pose()
+    nx, ny, nz = geometry.normal
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz) or 1.0
+    return Pose(rpy=(0.0, math.acos(max(-1.0, min(1.0, nz / norm))), math.atan2(ny, nx)))
+
+
+def colour_of(visual: Visual, shape: Shape) -> tuple[float, float, float, float]:
+    """The material's colour, white without one; a mesh without a material of its own draws its own."""
+    material = visual.material
+    colour = material.color() if material is not None else None
+    if colour is None:
+        return messages.NO_COLOUR if shape[0] == messages.Marker.MESH_RESOURCE else WHITE
+    r, g, b, a = colour
+    return (r, g, b, a * (1.0 - visual.transparency))
+
+
+def quaternion_of(pose: Pose) -> tuple[float, float, float, float]:
+    """An SDF pose's rotation (Rz·Ry·Rx of its roll, pitch, yaw) as x, y, z, w."""
+    (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a / 2), math.sin(a / 2)) for a in pose.rpy)
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+def model_frame(body: str) -> str:
+    """The tf frame a moving body draws its markers in."""
+    return f"scene/{scoped_key(body)}"
+
+
+def placed(pose: Pose) -> Transform:
+    return Transform(pose.xyz, quaternion_of(pose))
+
+
+def body_parts(physics: WorldReader, body: str, skipped: set[str]) -> list[Part]:
+    """A body's visuals as parts: in `world` for a static body, in its own frame for a moving one."""
+    model = physics.model_of(body)
+    frame = WORLD_FRAME if model.static else model_frame(body)
+    origin = Pose.from_transform(physics.model_pose(body)) if model.static else Pose()
+    parts: list[Part] = []
+    for link in model.links:
+        for visual in link.visuals:
+            shape = shape_of(visual.geometry)
+            if shape is None:
+                _skip(skipped, type(visual.geometry).__name__)
+                continue
+            pose = placed(origin @ link.pose @ visual.pose @ plane_turn(visual.geometry))
+            parts.append(Part(scoped_key(body), len(parts), frame, shape, pose, colour_of(visual, shape)))
+    return parts
+
+
+def _skip(skipped: set[str], kind: str) -> None:
+    if kind not in skipped:
+        skipped.add(kind)
+        log.info("scene: a %s visual has no marker type; left out", kind.lower())
+
+
+def odometry_frames(event: ModelEvent) -> list[tuple[str, str]]:
+    """(odometry frame, child frame) of each drive of the model: the systems whose `params` name a
+    `frame_id` and a `child_frame_id` (DiffDrive and the drives built like it)."""
+    found = []
+    for system in event.systems:
+        params = getattr(system, "params", None)
+        frame, child = getattr(params, "frame_id", None), getattr(params, "child_frame_id", None)
+        if isinstance(frame, str) and isinstance(child, str):
+            found.append((frame, child))
+    return found
+
+
+class LatestSender:
+    """Puts the newest message handed to it on a thread of its own: encoding a large scene never
+    holds up the loop, and a message superseded before it went is never sent."""
+
+    def __init__(self, publisher: Publisher) -> None:
+        self._publisher = publisher
+        self._pending: Any = None
+        self._wake = threading.Condition()
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name="scene-sender", daemon=True)
+        self._thread.start()
+
+    def send(self, msg: Any) -> None:
+        with self._wake:
+            self._pending = msg
+            self._wake.notify()
+
+    def _run(self) -> None:
+        while True:
+            with self._wake:
+                self._wake.wait_for(lambda: self._pending is not None or self._closed)
+                if self._closed:
+                    return
+                msg, self._pending = self._pending, None
+            self._publisher.put(msg)
+
+    def close(self) -> None:
+        with self._wake:
+            self._closed = True
+            self._wake.notify()
+        self._thread.join()
+        self._publisher.close()
+
+
+class ScenePublisher:
+    """Keeps `scene` and the moving models' frames current; see the module docstring."""
+
+    name = "ScenePublisher"
+
+    def __init__(self, ctx: SystemContext) -> None:
+        self._physics = ctx.physics
+        self._sender = LatestSender(ctx.bus.publisher(SCENE_TOPIC, messages.MarkerArray, latched=True))
+        self._tf = ctx.bus.publisher("tf", messages.TFMessage)
+        self._parts: dict[str, list[Part]] = {}
+        self._moving: list[str] = []
+        """The bodies whose frames tf places."""
+        self._odometry: dict[str, list[tuple[str, str]]] = {}
+        """Per model: (odometry frame, child frame) of each of its drives."""
+        self._anchors: dict[str, Transform] = {}
+        """world → odometry frame, by frame."""
+        self._skipped: set[str] = set()
+        self._changed = False
+        self._every = Every.hz(SCENE_TF_RATE)
+
+    def model_added(self, event: ModelEvent) -> None:
+        for body in event.bodies:
+            self._parts[body] = body_parts(self._physics, body, self._skipped)
+            if not self._physics.model_of(body).static:
+                self._moving.append(body)
+        if drives := odometry_frames(event):
+            self._odometry[event.name] = drives
+            self._anchor(event.name)
+        self._changed = True
+
+    def model_removed(self, event: ModelEvent) -> None:
+        for body in event.bodies:
+            self._parts.pop(body, None)
+            if body in self._moving:
+                self._moving.remove(body)
+        for frame, _ in self._odometry.pop(event.name, []):
+            self._anchors.pop(frame, None)
+        self._changed = True
+
+    def _anchor(self, model: str) -> None:
+        """Each odometry frame of `model` where its child frame is now (dead reckoning starts here)."""
+        links = {link.name: link.pose for link in self._physics.model_of(model).links}
+        here = Pose.from_transform(self._physics.model_pose(model))
+        for frame, child in self._odometry[model]:
+            self._anchors[frame] = placed(here @ links.get(child.rpartition("/")[2], Pose()))
+
+    def post_update(self, info: UpdateInfo) -> None:
+        if self._changed:
+            self._changed = False
+            markers = [part.marker(info.sim_time_ns) for parts in self._parts.values() for part in parts]
+            self._sender.send(messages.marker_array([messages.delete_all(info.sim_time_ns, WORLD_FRAME), *markers]))
+        if self._every.due(info.sim_time_ns) and (self._moving or self._anchors):
+            self._tf.put(messages.tf_message(self._transforms(info.sim_time_ns)))
+
+    def _transforms(self, now_ns: int) -> list[Any]:
+        poses = [(model_frame(body), self._physics.model_pose(body)) for body in self._moving]
+        poses += list(self._anchors.items())
+        return [messages.transform_stamped(now_ns, WORLD_FRAME, frame, *pose) for frame, pose in poses]
+
+    def reset(self, info: UpdateInfo) -> None:
+        """Odometry starts again where each model stands now."""
+        for model in self._odometry:
+            self._anchor(model)
+        self._every.restart()
+
+    def close(self) -> None:
+        self._sender.close()
+        self._tf.close()
