@@ -1,0 +1,80 @@
+"""Gazebo's `<save enabled="true"><path>P</path></save>` of a camera (under `<camera>`): every
+frame the camera renders is written to P in simbot's dataset layout (simbot/dataset.py, the same
+as `simbot dataset` writes), a relative P relative to the server's working directory, as Gazebo
+does. Cameras saving to one folder share its manifest, their frames grouped by stamp.
+
+A saving camera renders at its rate whether or not anyone subscribes. Its pose is the optical
+frame's in the world when the frame is published: exact in lockstep (a frame is published in the
+step it shows); in real time and fast mode up to one render later than the frame's stamp.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from simbot.bus.frames import OPTICAL_RPY
+from simbot.dataset import DatasetWriter, Intrinsics, Shot, open_shared, release
+from simbot.description.model import Param, Sensor
+from simbot.description.poses import Pose
+from simbot.sim.physics.protocols import WorldAccess
+from simbot.sim.render import CameraSpec, Frame
+from simbot.sim.render.labels import instance_of, label_of, labelled
+from simbot.sim.system import SystemConfigError
+
+log = logging.getLogger(__name__)
+
+OPTICAL = Pose((0.0, 0.0, 0.0), OPTICAL_RPY).matrix()
+ENABLED = ("true", "1")
+
+
+def save_path(sensor: Sensor) -> Path | None:
+    """The folder of an enabled `<save>`, or None; SystemConfigError when enabled without a `<path>`."""
+    save = _child(_child(sensor.params, "camera"), "save")
+    if save is None or dict(save.attrs).get("enabled", "false").strip().lower() not in ENABLED:
+        return None
+    path = next((p.text.strip() for p in save.children if p.tag == "path" and p.text.strip()), None)
+    if path is None:
+        raise SystemConfigError(f'sensor {sensor.name}: <camera><save enabled="true"> needs a <path>')
+    return Path(path)
+
+
+def _child(params: tuple[Param, ...] | Param | None, tag: str) -> Param | None:
+    children = params.children if isinstance(params, Param) else params or ()
+    return next((p for p in children if p.tag == tag), None)
+
+
+class FrameSaver:
+    """Writes a camera's frames with its intrinsics and ground-truth pose."""
+
+    def __init__(self, path: Path, name: str, spec: CameraSpec, physics: WorldAccess, where: tuple[str, str, Pose]):
+        try:
+            self.writer: DatasetWriter | None = open_shared(path)
+        except OSError as exc:
+            raise SystemConfigError(f"sensor {spec.name}: <camera><save><path> {path}: cannot write: {exc}") from None
+        log.info("camera %s saves its frames to %s", spec.name, self.writer.root)
+        self.name, self.physics, self.where = name, physics, where
+        cx, cy = spec.principal_point
+        self.intrinsics = Intrinsics(spec.width, spec.height, spec.fx, spec.fx, cx, cy, d=spec.distortion.d)
+
+    def save(self, frame: Frame) -> None:
+        """The frame's colour, depth and labels (each the camera renders), its camera's pose now."""
+        if self.writer is None:
+            return
+        shot = Shot(self.name, frame.stamp_ns, self.intrinsics, self.physics.frame_pose(*self.where).matrix() @ OPTICAL)
+        shot.color = frame.get("color", frame.get("mono"))
+        shot.depth = frame.get("depth")
+        if "labels" in frame:
+            packed = frame["labels"]
+            shot.instances = instance_of(packed) * labelled(packed)
+            shot.labels = label_of(packed)
+        try:
+            self.writer.write([shot])
+        except OSError as exc:
+            log.error("camera %s stops saving: %s", self.name, exc)
+            self.close()
+
+    def close(self) -> None:
+        if self.writer is not None:
+            release(self.writer)
+            self.writer = None
