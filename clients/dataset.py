@@ -39,9 +39,10 @@ from typing import Any, Literal
 import numpy as np
 
 from simbot.bus import Node, messages
+from simbot.bus.frames import OPTICAL_SUFFIX
 from simbot.bus.sync import StampSync
 from simbot.bus.transforms import Matrix
-from simbot.dataset import Box, DatasetWriter, Intrinsics, Shot
+from simbot.dataset import OPTICAL_IN_BODY, Box, DatasetWriter, Intrinsics, Shot
 from simbot.transform import Transform
 
 from .common import (
@@ -302,14 +303,23 @@ class Collector:
     def pose(self, frame: str, stamp: int) -> Matrix | None:
         """The optical frame's pose in the world at `stamp`, or None (said once) without ground truth."""
         model = self.poses.at(stamp)
-        rooted = self.tf.rooted(frame.lstrip("/"))
-        if model is not None and rooted is not None:
-            return model @ rooted[1]
+        placed = self.placed(frame.lstrip("/"))
+        if model is not None and placed is not None:
+            return model @ placed
         if not self._warned:
             self._warned = True
             what = f"no {self.poses.key}" if model is None else f"no {frame} in tf_static"
             logger.warning("poses left null: %s (is --robot the model that carries the cameras?)", what)
         return None
+
+    def placed(self, frame: str) -> Matrix | None:
+        """An optical frame in its robot's root link: from tf_static, else (the server names only a
+        `camera`'s optical frame there) its body frame turned as optical frames are."""
+        rooted = self.tf.rooted(frame)
+        if rooted is None and frame.endswith(OPTICAL_SUFFIX):
+            body = self.tf.rooted(frame.removesuffix(OPTICAL_SUFFIX))
+            return None if body is None else body[1] @ OPTICAL_IN_BODY
+        return None if rooted is None else rooted[1]
 
     def flush(self) -> None:
         """Write what still waits for its pose (the nearest sample serves), then the JSON files."""

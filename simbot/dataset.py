@@ -50,6 +50,9 @@ SAME_PLACE_M = 1e-6
 """How far apart two cameras may be and still count as one viewpoint (the colour image of a mask)."""
 
 Matrix = npt.NDArray[np.float64]
+OPTICAL_IN_BODY: Matrix = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0, 0, 0, 1.0]])
+"""A camera's optical frame (z forward, x right, y down) in its body frame (x forward, z up):
+simbot.bus.frames.OPTICAL_RPY as a matrix."""
 
 
 @dataclass(frozen=True)

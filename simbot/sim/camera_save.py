@@ -13,8 +13,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from simbot.bus.frames import OPTICAL_RPY
-from simbot.dataset import DatasetWriter, Intrinsics, Shot, open_shared, release
+from simbot.dataset import OPTICAL_IN_BODY, DatasetWriter, Intrinsics, Shot, open_shared, release
 from simbot.description.model import Param, Sensor
 from simbot.description.poses import Pose
 from simbot.sim.physics.protocols import WorldAccess
@@ -24,7 +23,6 @@ from simbot.sim.system import SystemConfigError
 
 log = logging.getLogger(__name__)
 
-OPTICAL = Pose((0.0, 0.0, 0.0), OPTICAL_RPY).matrix()
 ENABLED = ("true", "1")
 
 
@@ -61,7 +59,9 @@ class FrameSaver:
         """The frame's colour, depth and labels (each the camera renders), its camera's pose now."""
         if self.writer is None:
             return
-        shot = Shot(self.name, frame.stamp_ns, self.intrinsics, self.physics.frame_pose(*self.where).matrix() @ OPTICAL)
+        shot = Shot(
+            self.name, frame.stamp_ns, self.intrinsics, self.physics.frame_pose(*self.where).matrix() @ OPTICAL_IN_BODY
+        )
         shot.color = frame.get("color", frame.get("mono"))
         shot.depth = frame.get("depth")
         if "labels" in frame:
