@@ -125,6 +125,14 @@ CAMERA = """<sensor name="eye" type="camera"><pose>0.3 0 0.1 0 0 0</pose><update
   <camera><horizontal_fov>1.5</horizontal_fov><image><width>64</width><height>48</height><format>R8G8B8</format></image>
   <clip><near>0.05</near><far>20</far></clip><noise type="gaussian"><mean>0</mean><stddev>0.02</stddev></noise></camera></sensor>"""
 
+SEGMENTATION = CAMERA.replace('type="camera"', 'type="segmentation"').replace(
+    "<camera>", "<camera><segmentation_type>panoptic</segmentation_type>"
+)
+BOUNDING_BOXES = CAMERA.replace('type="camera"', 'type="boundingbox_camera"').replace(
+    "<camera>", "<camera><box_type>full_2d</box_type>"
+)
+LABEL = """<plugin name="gz::sim::systems::Label" filename="gz-sim-label-system"><label>9</label></plugin>"""
+
 DIFF_DRIVE = """<plugin name="gz::sim::systems::DiffDrive" filename="gz-sim-diff-drive-system">
   <left_joint>left_wheel_joint</left_joint><right_joint>right_wheel_joint</right_joint>
   <wheel_separation>0.4</wheel_separation><wheel_radius>0.075</wheel_radius><odom_publish_frequency>50</odom_publish_frequency>
@@ -313,6 +321,10 @@ CASES: dict[tuple[str, str], Case] = {
     },
     (SENSOR_GROUP, "force_torque"): Case(plugins=FORCE_TORQUE, key="wrench"),
     (SENSOR_GROUP, "contact"): Case(sensors=CONTACT, key="bump"),
+    # the dataset cameras of issue 26, and the Label they read (on the robot: its camera sees its own base)
+    (SENSOR_GROUP, "segmentation"): Case(sensors=SEGMENTATION, key="eye/labels_map"),
+    (SENSOR_GROUP, "boundingbox_camera"): Case(sensors=BOUNDING_BOXES, key="eye"),
+    (GROUP, "Label"): Case(plugins=LABEL, sensors=SEGMENTATION, key="eye/labels_map"),
     (WORLD_GROUP, "ClockPublisher"): Case(key="clock"),
     (WORLD_GROUP, "PosePublisher"): Case(key="model/cart/pose"),
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),

@@ -66,11 +66,35 @@ float64 vertical_reference
 the ROS 2 Humble typestore lacks: field for field as the package defines them, so ros_gz_bridge's
 subscribers read simbot's CDR unchanged."""
 
+VISION_MSGS = {
+    "vision_msgs/msg/Point2D": "float64 x\nfloat64 y\n",
+    "vision_msgs/msg/Pose2D": "vision_msgs/Point2D position\nfloat64 theta\n",
+    "vision_msgs/msg/BoundingBox2D": "vision_msgs/Pose2D center\nfloat64 size_x\nfloat64 size_y\n",
+    "vision_msgs/msg/BoundingBox3D": "geometry_msgs/Pose center\ngeometry_msgs/Vector3 size\n",
+    "vision_msgs/msg/ObjectHypothesis": "string class_id\nfloat64 score\n",
+    "vision_msgs/msg/ObjectHypothesisWithPose": (
+        "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n"
+    ),
+    "vision_msgs/msg/Detection2D": (
+        "std_msgs/Header header\nvision_msgs/ObjectHypothesisWithPose[] results\n"
+        "vision_msgs/BoundingBox2D bbox\nstring id\n"
+    ),
+    "vision_msgs/msg/Detection2DArray": "std_msgs/Header header\nvision_msgs/Detection2D[] detections\n",
+    "vision_msgs/msg/Detection3D": (
+        "std_msgs/Header header\nvision_msgs/ObjectHypothesisWithPose[] results\n"
+        "vision_msgs/BoundingBox3D bbox\nstring id\n"
+    ),
+    "vision_msgs/msg/Detection3DArray": "std_msgs/Header header\nvision_msgs/Detection3D[] detections\n",
+}
+"""vision_msgs 4.x (the ROS 2 package of Humble and later) as far as the bounding-box camera
+publishes it: Detection2DArray and Detection3DArray, as ros_gz_bridge maps Gazebo's annotated
+boxes. Field for field as the package defines them; ROS 2 Humble's typestore lacks the package."""
+
 
 def _typestore() -> Any:
-    """ROS 2 Humble's message types, and ros_gz_interfaces' (the one place types are registered)."""
+    """ROS 2 Humble's message types, ros_gz_interfaces' and vision_msgs' (the one place types are registered)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
-    for name, text in ROS_GZ_INTERFACES.items():
+    for name, text in (ROS_GZ_INTERFACES | VISION_MSGS).items():
         store.register(get_types_from_msg(text, name))
     return store
 

@@ -5,7 +5,7 @@ write `odometry(ns, "odom", "base_footprint", xyz, quat, ...)`, and they convert
 the CDR serializer expects: Python floats, float64 numpy arrays for covariances and joint values.
 Times are integer nanoseconds throughout, as the sim clock keeps them: no float rounding.
 
-One module per message family (std, geometry, nav, sensors, images, clouds, gazebo), the classes
+One module per message family (std, geometry, nav, sensors, images, clouds, gazebo, vision), the classes
 in typestore.py; every name is exported here, so callers write `messages.image(...)` whichever
 module holds it.
 """
@@ -49,6 +49,8 @@ from simbot.bus.messages.typestore import (
     Clock,
     Contact,
     Contacts,
+    Detection2DArray,
+    Detection3DArray,
     Empty,
     Entity,
     Float64,
@@ -84,6 +86,7 @@ from simbot.bus.messages.typestore import (
     WrenchStamped,
 )
 from simbot.bus.messages.values import Floats
+from simbot.bus.messages.vision import Box2D, Box3D, detection_2d_array, detection_3d_array
 
 __all__ = [
     "CHANNELS_OF",
@@ -94,11 +97,15 @@ __all__ = [
     "NS_PER_S",
     "POINT_FIELDS",
     "Altimeter",
+    "Box2D",
+    "Box3D",
     "CameraInfo",
     "Clock",
     "Contact",
     "ContactPair",
     "Contacts",
+    "Detection2DArray",
+    "Detection3DArray",
     "Empty",
     "Entity",
     "Float64",
@@ -139,6 +146,8 @@ __all__ = [
     "contacts",
     "depth_image",
     "depth_pixels",
+    "detection_2d_array",
+    "detection_3d_array",
     "empty",
     "float64",
     "fluid_pressure",

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 from multiprocessing.shared_memory import SharedMemory
-from types import TracebackType
+from types import MappingProxyType, TracebackType
 
 from simbot.sim.render.pipe import (
     AddBody,
@@ -123,7 +123,9 @@ class RenderPool:
     ) -> None:
         _check_config(bodies, cameras, workers, renderer)
         self.cameras = tuple(cameras)
-        self._body_names = {body.name for body in bodies}
+        self._bodies: Mapping[str, SceneBody] = MappingProxyType({body.name: body for body in bodies})
+        """Replaced, never changed, as bodies come and go: a frame keeps the scene it was requested in."""
+        self._requested: dict[int, tuple[Transform, Mapping[str, BodyState], Mapping[str, SceneBody]]] = {}
         self._closed = False
         self._workers: list[_Worker] = []
         self._outstanding: dict[int, int] = {}  # camera -> stamp, until its frame is handed over
@@ -156,23 +158,23 @@ class RenderPool:
     @property
     def body_names(self) -> frozenset[str]:
         """The bodies the workers' scenes hold (once they have read the changes sent)."""
-        return frozenset(self._body_names)
+        return frozenset(self._bodies)
 
     def add_body(self, body: SceneBody) -> None:
         """Every worker's scene loads `body` before any later request; see the module docstring."""
         self._check_open()
-        if body.name in self._body_names:
+        if body.name in self._bodies:
             raise ValueError(f"body {body.name!r} is in the scene already")
         self._broadcast(AddBody(body))
-        self._body_names.add(body.name)
+        self._bodies = MappingProxyType({**self._bodies, body.name: body})
 
     def remove_body(self, name: str) -> None:
         """Every worker's scene drops body `name` before any later request."""
         self._check_open()
-        if name not in self._body_names:
+        if name not in self._bodies:
             raise ValueError(f"no body {name!r} in the scene")
         self._broadcast(RemoveBody(name))
-        self._body_names.remove(name)
+        self._bodies = MappingProxyType({n: b for n, b in self._bodies.items() if n != name})
 
     def add_camera(self, spec: CameraSpec) -> int:
         """A camera for the running pool, on the worker with the fewest cameras; its index (the next one)."""
@@ -202,11 +204,13 @@ class RenderPool:
             raise RuntimeError(f"camera {camera} {spec.name!r}: {worker.death}")
         if camera in self._outstanding:
             raise RuntimeError(f"camera {camera} {spec.name!r} is busy: collect its frame before requesting another")
-        unknown = set(states) - self._body_names
+        unknown = set(states) - set(self._bodies)
         if unknown:
             raise ValueError(f"camera {spec.name!r}: no such bodies in the scene: {sorted(unknown)}")
-        self._send(worker, RenderRequest(camera, int(stamp_ns), Transform.of(*camera_pose), dict(states)))
+        pose, states = Transform.of(*camera_pose), dict(states)
+        self._send(worker, RenderRequest(camera, int(stamp_ns), pose, states))
         self._outstanding[camera] = int(stamp_ns)
+        self._requested[camera] = (pose, states, self._bodies)
 
     def busy(self, camera: int) -> bool:
         """A request for `camera` is outstanding: from request() until collect() hands its frame over.
@@ -322,9 +326,12 @@ class RenderPool:
     def _receive(self, worker: _Worker, message: FrameDone | RenderFailed | SceneFailed) -> None:
         match message:
             case FrameDone(camera, stamp, render_s):
-                self._finished.append(Frame(camera, stamp, dict(self._buffers[camera].arrays), render_s))
+                pose, states, bodies = self._requested.pop(camera)
+                arrays = dict(self._buffers[camera].arrays)
+                self._finished.append(Frame(camera, stamp, arrays, render_s, pose, states, bodies))
             case RenderFailed(camera, stamp, reason):
                 del self._outstanding[camera]
+                self._requested.pop(camera, None)
                 self._failures.append(f"camera {camera} {self.cameras[camera].name!r} at {stamp} ns: {reason}")
             case SceneFailed(reason):
                 self._failures.append(f"render worker {worker.index}: {reason}")

@@ -235,6 +235,13 @@ class Frame(Mapping[str, Array]):
     arrays: Mapping[str, Array]
     render_s: float
     """Seconds the worker spent on it (scene update, render, conversion, copy)."""
+    camera_pose: Transform | None = None
+    """The camera's world pose it was rendered from (looking along its +x, z up)."""
+    states: Mapping[str, BodyState] = field(default_factory=dict)
+    """Where the moving bodies were in it."""
+    bodies: Mapping[str, SceneBody] = field(default_factory=dict)
+    """The bodies of the scene it shows, by name (with their labels and instance numbers): what a
+    camera that reads geometry (bounding boxes) needs besides the pixels."""
 
     def __getitem__(self, name: str) -> Array:
         """KeyError naming the camera for an output it does not render."""

@@ -66,6 +66,13 @@ def link_indices(scene: BulletScene, name: str) -> dict[str, int]:
     return indices
 
 
+def visual_points(visual: ET.Element) -> np.ndarray:
+    """The vertices a URDF visual is drawn with, in its link's frame (N×3): what a bounding box of
+    it is fitted to (simbot/sim/render/boxes.py)."""
+    pieces = _visual_pieces(-1, visual, {})
+    return np.concatenate([p.positions for p in pieces]) if pieces else np.zeros((0, 3), np.float32)
+
+
 def _visual_pieces(link: int, visual: ET.Element, materials: dict[str, ET.Element]) -> list[Piece]:
     origin = urdf_origin(visual).matrix()
     surface = _surface(visual, materials)

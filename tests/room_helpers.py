@@ -1,0 +1,66 @@
+"""The labelled room (tests/fixtures/labelled/room.sdf) and Gazebo's example worlds, shared by the
+segmentation and bounding-box camera tests.
+
+Every camera of the room sits at (0, 0, 1) looking along +x: 160 × 120 pixels, 1.2 rad across, so
+fx = fy = 80 / tan(0.6) = 116.9 px with the principal point at the image centre (79.5, 59.5). A
+world point (x, y, z) lies at u = cx − fx·y/x, v = cy − fx·(z − 1)/x.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from gl_helpers import NO_EGL
+from server_helpers import SimServer, running_server
+
+REPO = Path(__file__).resolve().parents[1]
+ROOM = str(REPO / "tests" / "fixtures" / "labelled" / "room.sdf")
+W, H, HFOV = 160, 120, 1.2
+FX = (W / 2) / math.tan(HFOV / 2)
+CX, CY = (W - 1) / 2, (H - 1) / 2
+EYE_Z = 1.0
+CRATES = {"crate_left": (5.0, 1.2), "crate_right": (5.0, -1.2)}
+"""The two crates of label 10: 1 m cubes centred at (x, y, 1)."""
+GZ_SIM = Path(os.environ.get("GZ_SIM_SOURCE", REPO.parent / "shared" / "gz-sim"))
+"""A checkout of gazebosim/gz-sim, for its example worlds."""
+
+
+def pixel(x: float, y: float, z: float = EYE_Z) -> tuple[float, float]:
+    """(u, v) of a world point, by the pinhole model."""
+    return CX - FX * y / x, CY - FX * (z - EYE_Z) / x
+
+
+def box_corners(centre: tuple[float, float, float], size: tuple[float, float, float]) -> list[tuple[float, float]]:
+    """The pixels of an axis-aligned box's eight corners."""
+    return [
+        pixel(centre[0] + sx * size[0] / 2, centre[1] + sy * size[1] / 2, centre[2] + sz * size[2] / 2)
+        for sx in (-1, 1)
+        for sy in (-1, 1)
+        for sz in (-1, 1)
+    ]
+
+
+def room(renderer: str) -> Iterator[SimServer]:
+    """The room's server in lockstep (no robot), drawn by `renderer`."""
+    if renderer == "gl" and NO_EGL:
+        pytest.skip(NO_EGL)
+    with running_server(
+        ROOM, "lockstep", world_name="labelled_room", extra=["--robot", "none", "--renderer", renderer]
+    ) as sim:
+        yield sim
+
+
+def gazebo_example(name: str, folder: Path) -> Path:
+    """gz-sim's example world `name`, its Fuel includes removed (nothing here fetches models), in `folder`."""
+    source = GZ_SIM / "examples" / "worlds" / name
+    if not source.is_file():
+        pytest.skip(f"gz-sim's example worlds not found at {GZ_SIM} (set GZ_SIM_SOURCE to a gz-sim checkout)")
+    text = re.sub(r"<include>(?:(?!</include>).)*fuel\.gazebosim\.org.*?</include>", "", source.read_text(), flags=re.S)
+    target = folder / name
+    target.write_text(text)
+    return target
