@@ -236,13 +236,14 @@ def split_labels_map(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def box_of(detection: Any) -> Box:
-    """A Detection2D as a COCO box: its centre and size to the top-left corner, its class_id as the label."""
+    """A Detection2D as COCO's box: Gazebo's (and the server's) size is max − min of the first and
+    last pixel's indices, centred between them, so the box COCO measures (from the first pixel's
+    edge, over whole pixels) starts at centre − size/2 and is one pixel wider and taller."""
     box = detection.bbox
     width, height = float(box.size_x), float(box.size_y)
-    label = int(detection.results[0].hypothesis.class_id) if detection.results else int(detection.id or 0)
-    return Box(
-        label, float(box.center.position.x) - width / 2, float(box.center.position.y) - height / 2, width, height
-    )
+    label = int(detection.results[0].hypothesis.class_id) if detection.results else 0
+    x, y = float(box.center.position.x) - width / 2, float(box.center.position.y) - height / 2
+    return Box(label, x, y, width + 1, height + 1)
 
 
 class Collector:

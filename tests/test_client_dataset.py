@@ -305,9 +305,14 @@ def test_masks_and_boxes_from_the_segmentation_and_box_cameras(tmp_path: Path) -
         place = camera_place(server)
     coco = COCO(str(out / "annotations.json"))
     assert len(manifest["sets"]) == 2
-    for image in coco.loadImgs(coco.getImgIds()):
+    images = coco.loadImgs(coco.getImgIds())
+    assert sorted(i["camera"] for i in images) == ["rig_boxes", "rig_boxes", "rig_seg", "rig_seg"]
+    for image in images:
         assert image["file_name"].startswith("rig_rgb/rgb/"), "masks and boxes come with the colour image beside them"
-        for annotation in coco.loadAnns(coco.getAnnIds(imgIds=[image["id"]])):
+        annotations = coco.loadAnns(coco.getAnnIds(imgIds=[image["id"]]))
+        assert sorted(a["category_id"] for a in annotations) == [5, 9], annotations
+        assert all(("segmentation" in a) == (image["camera"] == "rig_seg") for a in annotations)
+        for annotation in annotations:
             expected = crate_box(annotation["category_id"], tuple(place))
             assert np.allclose(annotation["bbox"], expected, atol=EDGE_PX), (image["camera"], annotation, expected)
             if "segmentation" in annotation:

@@ -4,8 +4,7 @@ as `simbot dataset` writes), a relative P relative to the server's working direc
 does. Cameras saving to one folder share its manifest, their frames grouped by stamp.
 
 A saving camera renders at its rate whether or not anyone subscribes. Its pose is the optical
-frame's in the world when the frame is published: exact in lockstep (a frame is published in the
-step it shows); in real time and fast mode up to one render later than the frame's stamp.
+frame's in the world where the frame was rendered from (the frame carries it).
 """
 
 from __future__ import annotations
@@ -15,8 +14,6 @@ from pathlib import Path
 
 from simbot.dataset import OPTICAL_IN_BODY, DatasetWriter, Intrinsics, Shot, open_shared, release
 from simbot.description.model import Param, Sensor
-from simbot.description.poses import Pose
-from simbot.sim.physics.protocols import WorldAccess
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.labels import instance_of, label_of, labelled
 from simbot.sim.system import SystemConfigError
@@ -45,22 +42,23 @@ def _child(params: tuple[Param, ...] | Param | None, tag: str) -> Param | None:
 class FrameSaver:
     """Writes a camera's frames with its intrinsics and ground-truth pose."""
 
-    def __init__(self, path: Path, name: str, spec: CameraSpec, physics: WorldAccess, where: tuple[str, str, Pose]):
+    def __init__(self, path: Path, name: str, spec: CameraSpec) -> None:
         try:
             self.writer: DatasetWriter | None = open_shared(path)
         except OSError as exc:
             raise SystemConfigError(f"sensor {spec.name}: <camera><save><path> {path}: cannot write: {exc}") from None
         log.info("camera %s saves its frames to %s", spec.name, self.writer.root)
-        self.name, self.physics, self.where = name, physics, where
+        self.name = name
         cx, cy = spec.principal_point
         self.intrinsics = Intrinsics(spec.width, spec.height, spec.fx, spec.fx, cx, cy, d=spec.distortion.d)
 
     def save(self, frame: Frame) -> None:
-        """The frame's colour, depth and labels (each the camera renders), its camera's pose now."""
+        """The frame's colour, depth and labels (each the camera renders), and the pose it was rendered from."""
         if self.writer is None:
             return
+        body = frame.camera_pose
         shot = Shot(
-            self.name, frame.stamp_ns, self.intrinsics, self.physics.frame_pose(*self.where).matrix() @ OPTICAL_IN_BODY
+            self.name, frame.stamp_ns, self.intrinsics, None if body is None else body.matrix() @ OPTICAL_IN_BODY
         )
         shot.color = frame.get("color", frame.get("mono"))
         shot.depth = frame.get("depth")

@@ -195,7 +195,7 @@ class Camera(Sampled):
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
         path = save_path(sensor)
-        self.saver = None if path is None else FrameSaver(path, topic, self.spec, ctx.physics, self.where)
+        self.saver = None if path is None else FrameSaver(path, topic, self.spec)
         """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/camera_save.py)."""
 
     def _advertise(self, bus: SimBus, topic: str, product: Product, output: str) -> _Published:
