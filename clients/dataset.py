@@ -136,6 +136,7 @@ def every_camera(topics: dict[str, Topic], robot_namespace: str) -> list[Source]
 def find_sources(node: Node, names: Sequence[str], timeout: float, stop: threading.Event) -> list[Source]:
     """The chosen cameras as the graph shows them, waiting up to `timeout` s for all to appear."""
     deadline = time.monotonic() + timeout
+    names = list(dict.fromkeys(names))
     while True:
         topics = live_topics(node)
         if names:
@@ -174,10 +175,6 @@ class PoseTrack:
             if self._samples and stamp < self._samples[-1][0]:
                 self._samples.clear()  # sim time went back: another run
             self._samples.append((stamp, Transform.of((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))))
-
-    @property
-    def silent(self) -> bool:
-        return not self._samples
 
     def reached(self, stamp_ns: int) -> bool:
         """Whether a sample at or after `stamp_ns` has come (so the pose there is known)."""
@@ -261,7 +258,7 @@ class Collector:
         self.poses = PoseTrack(node, args.robot or followed_model(node.robot_namespace))
         self.tf = StaticTransforms(node, "base_link")
         self.pending: deque[tuple[float, dict[str, Any]]] = deque()
-        self.seen = self.written = self.incomplete = 0
+        self.seen = self.written = self.incomplete = self.unreadable = 0
         self._warned = False
 
     def _receive(self, stream: str, msg: Any) -> None:
@@ -289,6 +286,17 @@ class Collector:
             self.write(ready)
 
     def write(self, ready: dict[str, Any]) -> None:
+        """One set into the dataset; a set whose messages cannot be read is dropped with a warning."""
+        try:
+            shots = self.shots(ready)
+        except (ValueError, IndexError) as exc:
+            self.unreadable += 1
+            logger.warning("dropped the set at %d ns: %s", _stamp(ready), exc)
+            return
+        self.writer.write(shots)
+        self.written += 1
+
+    def shots(self, ready: dict[str, Any]) -> list[Shot]:
         stamp = _stamp(ready)
         shots = []
         for source in self.sources:
@@ -298,8 +306,7 @@ class Collector:
             shot.pose = self.pose(msg.header.frame_id, stamp)
             fill(shot, source, msg)
             shots.append(shot)
-        self.writer.write(shots)
-        self.written += 1
+        return shots
 
     def pose(self, frame: str, stamp: int) -> Matrix | None:
         """The optical frame's pose in the world at `stamp`, or None (said once) without ground truth."""
@@ -333,7 +340,10 @@ class Collector:
         return self.count is not None and self.written >= self.count
 
     def progress(self) -> str:
-        return f"{self.written} sets written, {self.seen} seen, {self.incomplete} incomplete dropped"
+        dropped = (
+            f"{self.incomplete} incomplete, {self.unreadable} unreadable, {self.sets.overwritten} not taken in time"
+        )
+        return f"{self.written} sets written of {self.seen} seen; dropped: {dropped}"
 
 
 def _stamp(ready: dict[str, Any]) -> int:
