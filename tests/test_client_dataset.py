@@ -243,47 +243,51 @@ SAVER = """<?xml version="1.0"?>
   <model name="saver">
     <static>true</static>
     <pose>0 0 1.5 0 0.3 0</pose>
-    <link name="link">
-      <sensor name="cam" type="camera">
-        <update_rate>10</update_rate>
-        <topic>saver</topic>
-        <camera>
-          <horizontal_fov>1.2</horizontal_fov>
-          <image><width>160</width><height>120</height></image>
-          <save enabled="true"><path>{path}</path></save>
-        </camera>
-      </sensor>
-    </link>
+    <link name="link">{sensors}</link>
   </model>
 </sdf>
 """
+SAVING_CAMERA = """
+      <sensor name="{name}" type="{type}">
+        <update_rate>10</update_rate>
+        <topic>{name}</topic>
+        <camera>
+          <horizontal_fov>1.2</horizontal_fov>
+          <image><width>160</width><height>120</height></image>
+          <segmentation_type>instance</segmentation_type>
+          <save enabled="true"><path>{path}</path></save>
+        </camera>
+      </sensor>"""
+PITCH = 0.3
+"""The saving cameras look along +x pitched down this much (rad), from 1.5 m up at the origin."""
 
 
-@pytest.fixture
-def saved(tmp_path: Path) -> Iterator[tuple[SimServer, Path]]:
-    """A server with a static camera that saves, its path given relative to the server's working
-    directory (the repository, where the test servers run)."""
+def saved_run(tmp_path: Path, cameras: dict[str, str]) -> dict[str, Any]:
+    """A second of a server whose static cameras (name → SDF type) save to one folder, given
+    relative to the server's working directory (the repository, where the test servers run); the
+    manifest they wrote, and its folder under "root"."""
     target = tmp_path / "saved"
+    path = os.path.relpath(target, REPO)
+    sensors = "".join(SAVING_CAMERA.format(name=name, type=kind, path=path) for name, kind in cameras.items())
     addition = tmp_path / "saver.sdf"
-    addition.write_text(SAVER.format(path=os.path.relpath(target, REPO)))
+    addition.write_text(SAVER.format(sensors=sensors))
     with running_server(str(ROOM), extra=("--robot", "none", "--add", str(addition))) as server:
-        yield server, target
+        server.step(1000)
+        server.stop(timeout=STOP_TIMEOUT_S)
+    return json.loads((target / "manifest.json").read_text()) | {"root": target}
 
 
-def test_save_writes_every_frame_in_the_layout(saved: tuple[SimServer, Path]) -> None:
-    server, target = saved
-    server.step(1000)
-    server.stop(timeout=STOP_TIMEOUT_S)
-    manifest = json.loads((target / "manifest.json").read_text())
+def test_save_writes_every_frame_in_the_layout(tmp_path: Path) -> None:
+    manifest = saved_run(tmp_path, {"saver": "camera"})
+    target = manifest["root"]
     frames = [f for s in manifest["sets"] for f in s["frames"]]
     assert [frame_number(f["stamp_ns"]) for f in frames] == list(range(11)), "the first step's, then ten over a second"
-    pitch = 0.3
     for frame in frames:
         assert frame["camera"] == "saver"
         assert cv2.imread(str(target / frame["files"]["rgb"])).shape == (H, W, 3)
         pose = np.array(frame["pose"])
         assert np.allclose(pose[:3, 3], [0, 0, 1.5], atol=1e-6)
-        forward = [math.cos(pitch), 0.0, -math.sin(pitch)]
+        forward = [math.cos(PITCH), 0.0, -math.sin(PITCH)]
         assert np.allclose(pose[:3, 2], forward, atol=1e-6), "the optical z axis along the pitched-down view"
     assert json.loads((target / "annotations.json").read_text())["images"] == [], "a colour camera annotates nothing"
 
@@ -333,3 +337,25 @@ def test_masks_and_boxes_from_the_segmentation_and_box_cameras(tmp_path: Path) -
             if "segmentation" in annotation:
                 assert coco.annToMask(annotation).sum() == annotation["area"]
                 check_area(annotation, tuple(place))
+
+
+@pytest.mark.skipif(not _registered("segmentation"), reason="the segmentation camera (branch seg) is not registered")
+def test_save_of_a_segmentation_camera_beside_a_colour_one(tmp_path: Path) -> None:
+    """Two cameras saving to one folder share its manifest, a set per stamp; the segmentation
+    camera's frames give COCO masks of both crates, shown by the colour camera's images."""
+    manifest = saved_run(tmp_path, {"saver": "camera", "saver_seg": "segmentation"})
+    target = manifest["root"]
+    assert len(manifest["sets"]) == 11
+    for group in manifest["sets"]:
+        assert sorted(f["camera"] for f in group["frames"]) == ["saver", "saver_seg"]
+    coco = COCO(str(target / "annotations.json"))
+    images = coco.loadImgs(coco.getImgIds())
+    assert len(images) == 11 and all(i["file_name"].startswith("saver/rgb/") for i in images)
+    for image in images:
+        annotations = coco.loadAnns(coco.getAnnIds(imgIds=[image["id"]]))
+        assert sorted(a["category_id"] for a in annotations) == [5, 9]
+        labels = cv2.imread(str(target / "saver_seg" / "labels" / Path(image["file_name"]).name), cv2.IMREAD_UNCHANGED)
+        for annotation in annotations:
+            mask = coco.annToMask(annotation).astype(bool)
+            assert mask.sum() == annotation["area"] > 0
+            assert set(np.unique(labels[mask]).tolist()) == {annotation["category_id"]}
