@@ -293,7 +293,10 @@ class Collector:
             self.unreadable += 1
             logger.warning("dropped the set at %d ns: %s", _stamp(ready), exc)
             return
-        self.writer.write(shots)
+        try:
+            self.writer.write(shots)
+        except OSError as exc:
+            raise ClientError(f"--out {self.writer.root}: cannot write there: {exc}") from None
         self.written += 1
 
     def shots(self, ready: dict[str, Any]) -> list[Shot]:
@@ -331,9 +334,14 @@ class Collector:
 
     def flush(self) -> None:
         """Write what still waits for its pose (the nearest sample serves), then the JSON files."""
-        while self.pending and not self.done:
-            self.write(self.pending.popleft()[1])
-        self.writer.close()
+        try:
+            while self.pending and not self.done:
+                self.write(self.pending.popleft()[1])
+        finally:
+            try:
+                self.writer.close()
+            except OSError as exc:
+                logger.error("--out %s: the manifest was not written: %s", self.writer.root, exc)
 
     @property
     def done(self) -> bool:

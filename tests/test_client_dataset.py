@@ -21,11 +21,12 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+from bus_helpers import endpoint, free_port
 from client_helpers import bus_args, client_process, run_without_terminal
 from gl_helpers import NO_EGL, box_urdf
 from pycocotools import mask as coco_mask
 from pycocotools.coco import COCO
-from server_helpers import REPO, SimServer, running_server, wait_until
+from server_helpers import REPO, SimServer, refused, running_server, wait_until
 
 from simbot.dataset import DatasetWriter, Intrinsics, Shot
 from simbot.sim.render import Annotation, CameraSpec, RenderPool, SceneBody
@@ -290,6 +291,16 @@ def test_save_writes_every_frame_in_the_layout(tmp_path: Path) -> None:
         forward = [math.cos(PITCH), 0.0, -math.sin(PITCH)]
         assert np.allclose(pose[:3, 2], forward, atol=1e-6), "the optical z axis along the pitched-down view"
     assert json.loads((target / "annotations.json").read_text())["images"] == [], "a colour camera annotates nothing"
+
+
+def test_save_to_a_folder_that_cannot_be_made_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    addition = tmp_path / "saver.sdf"
+    camera = SAVING_CAMERA.format(name="saver", type="camera", path=blocker / "sub")
+    addition.write_text(SAVER.format(sensors=camera))
+    line = refused("--world", str(ROOM), "--robot", "none", "--add", str(addition), "--listen", endpoint(free_port()))
+    assert "sensor saver: <camera><save><path>" in line and str(blocker / "sub") in line, line
 
 
 # --- segmentation and boxes (the cameras of branch seg)

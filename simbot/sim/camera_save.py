@@ -73,6 +73,10 @@ class FrameSaver:
             self.close()
 
     def close(self) -> None:
-        if self.writer is not None:
-            release(self.writer)
-            self.writer = None
+        """The folder's JSON files written out when the last camera saving there closes."""
+        writer, self.writer = self.writer, None
+        if writer is not None:
+            try:
+                release(writer)
+            except OSError as exc:
+                log.error("camera %s: %s: the manifest was not written: %s", self.name, writer.root, exc)
