@@ -219,6 +219,13 @@ def test_sets_of_colour_and_depth_with_intrinsics_and_poses(sim: SimServer) -> N
         assert abs(crate - 1000 * (CRATE_X - place[0])) <= DEPTH_MM, crate
 
 
+def test_without_cameras_named_every_camera_of_the_robot_is_taken(sim: SimServer) -> None:
+    manifest, out = collect(sim, "--count", "1")
+    (group,) = manifest["sets"]
+    assert sorted(f["camera"] for f in group["frames"]) == ["rig_depth", "rig_rgb"]
+    assert all((out / file).is_file() for f in group["frames"] for file in f["files"].values())
+
+
 def test_an_unwritable_folder_is_one_line_and_exit_2(sim: SimServer, tmp_path: Path) -> None:
     blocker = tmp_path / "a_file"
     blocker.write_text("")
