@@ -124,6 +124,22 @@ def _imu(name: str = "imu") -> str:
 CAMERA = """<sensor name="eye" type="camera"><pose>0.3 0 0.1 0 0 0</pose><update_rate>30</update_rate><topic>eye</topic>
   <camera><horizontal_fov>1.5</horizontal_fov><image><width>64</width><height>48</height><format>R8G8B8</format></image>
   <clip><near>0.05</near><far>20</far></clip><noise type="gaussian"><mean>0</mean><stddev>0.02</stddev></noise></camera></sensor>"""
+THERMAL = (
+    CAMERA.replace('type="camera"', 'type="thermal"')
+    .replace("R8G8B8", "L16")
+    .replace(
+        "</sensor>",
+        '<plugin name="gz::sim::systems::ThermalSensor" filename="gz-sim-thermal-sensor-system">'
+        "<min_temp>250</min_temp><max_temp>400</max_temp><resolution>0.05</resolution></plugin></sensor>",
+    )
+)
+"""A thermal camera (issue 26): L16 counts of 0.05 K between 250 and 400 K."""
+HOT = """<plugin name="gz::sim::systems::Thermal" filename="gz-sim-thermal-system"><temperature>310</temperature></plugin>"""
+
+WIDE_ANGLE_CAMERA = CAMERA.replace(
+    "</clip>",
+    "</clip><lens><type>equisolid_angle</type><cutoff_angle>1.2</cutoff_angle><env_texture_size>32</env_texture_size></lens>",
+).replace("<horizontal_fov>1.5</horizontal_fov>", "<horizontal_fov>3.0</horizontal_fov>")
 
 SEGMENTATION = CAMERA.replace('type="camera"', 'type="segmentation"').replace(
     "<camera>", "<camera><segmentation_type>panoptic</segmentation_type>"
@@ -308,6 +324,15 @@ CASES: dict[tuple[str, str], Case] = {
     **{
         (SENSOR_GROUP, kind): Case(sensors=CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye/points")
         for kind in ("rgbd", "rgbd_camera")
+    },
+    (GROUP, "Thermal"): Case(plugins=HOT, sensors=THERMAL, key="eye"),
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=THERMAL.replace('type="thermal"', f'type="{kind}"'), key="eye")
+        for kind in ("thermal", "thermal_camera")
+    },
+    **{
+        (SENSOR_GROUP, kind): Case(sensors=WIDE_ANGLE_CAMERA.replace('type="camera"', f'type="{kind}"'), key="eye")
+        for kind in ("wideanglecamera", "wide_angle_camera")
     },
     # the sensors of issue 15 item 7: each with noise on every channel it has
     (SENSOR_GROUP, "altimeter"): Case(sensors=ALTIMETER, key="altimeter"),

@@ -3,8 +3,11 @@ frame the camera renders is written to P in simbot's dataset layout (simbot/data
 as `simbot dataset` writes), a relative P relative to the server's working directory, as Gazebo
 does. Cameras saving to one folder share its manifest, their frames grouped by stamp.
 
-A saving camera renders at its rate whether or not anyone subscribes. Its pose is the optical
-frame's in the world where the frame was rendered from (the frame carries it).
+A saving camera renders at its rate whether or not anyone subscribes. What it writes: its colour
+(or mono) image, depth, and labels (a segmentation or bounding-box camera's, as label and
+instance maps and COCO masks); a camera that renders none of these (thermal, wide-angle) saves
+nothing, with a warning. Its pose is the optical frame's in the world where the frame was
+rendered from (the frame carries it).
 """
 
 from __future__ import annotations
@@ -37,6 +40,22 @@ def save_path(sensor: Sensor) -> Path | None:
 def _child(params: tuple[Param, ...] | Param | None, tag: str) -> Param | None:
     children = params.children if isinstance(params, Param) else params or ()
     return next((p for p in children if p.tag == tag), None)
+
+
+SAVED = ("color", "mono", "depth", "labels")
+"""The outputs a saving camera writes (as rgb, depth, labels and instances)."""
+
+
+def frame_saver(sensor: Sensor, name: str, spec: CameraSpec) -> FrameSaver | None:
+    """The saver of a camera whose `<save>` is enabled, else None; None with a warning for a camera
+    that renders nothing the layout holds (a thermal or wide-angle image)."""
+    path = save_path(sensor)
+    if path is None:
+        return None
+    if not set(SAVED) & {kind.name for kind in spec.kinds}:
+        log.warning("sensor %s: <save> writes colour, depth and labels; this camera renders none of them", sensor.name)
+        return None
+    return FrameSaver(path, name, spec)
 
 
 class FrameSaver:

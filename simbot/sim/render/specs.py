@@ -12,6 +12,7 @@ import numpy.typing as npt
 
 from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
 from simbot.sim.render.lens import Distortion, principal_point, render_focal
+from simbot.sim.render.wide_lens import WideLens
 from simbot.transform import Transform, Vec3
 
 Pixels = npt.NDArray[np.uint8]
@@ -90,6 +91,8 @@ class CameraSpec:
     seed: int = 0
     distortion: Distortion = Distortion()
     """The lens (SDF `<distortion>`; `lens.py`); the default bends nothing."""
+    wide: WideLens | None = None
+    """A wide-angle lens (`wide_lens.py`): the camera is drawn as cube faces (`rendered`) and remapped."""
     kinds: tuple[OutputKind, ...] = field(init=False, repr=False, compare=False)
     """The outputs' kinds, each after those it needs."""
 
@@ -97,8 +100,9 @@ class CameraSpec:
         """Fail at configuration, not in a worker."""
         if self.width <= 0 or self.height <= 0:
             raise ValueError(f"camera {self.name!r}: image size {self.width}x{self.height} must be positive")
-        if not 0.0 < self.hfov < math.pi:
-            raise ValueError(f"camera {self.name!r}: horizontal fov {self.hfov} must be in (0, pi)")
+        widest = math.pi if self.wide is None else 2.0 * math.pi + 1e-6
+        if not 0.0 < self.hfov < widest:
+            raise ValueError(f"camera {self.name!r}: horizontal fov {self.hfov} must be in (0, {widest:.4f})")
         if not 0.0 < self.near < self.far:
             raise ValueError(f"camera {self.name!r}: clip near {self.near} / far {self.far} must be 0 < near < far")
         if not all(math.isfinite(c) for c in (*self.distortion.d, *self.distortion.center)):
@@ -150,8 +154,19 @@ class CameraSpec:
 
     @property
     def fx(self) -> float:
-        """Focal length in pixels (fx = fy)."""
+        """Focal length in pixels (fx = fy); a wide-angle lens's f."""
+        if self.wide is not None:
+            return self.wide.focal_px(self.width, self.hfov)
         return (self.width / 2.0) / math.tan(self.hfov / 2.0)
+
+    @property
+    def rendered(self) -> CameraSpec:
+        """The camera a renderer draws: this one, or for a wide-angle lens a 90° cube face
+        (`wide_angle.views` poses it and gives it its buffer)."""
+        if self.wide is None:
+            return self
+        size = self.wide.face
+        return CameraSpec(self.name, size, size, math.pi / 2.0, self.near, self.far)
 
     @property
     def principal_point(self) -> tuple[float, float]:

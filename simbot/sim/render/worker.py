@@ -40,6 +40,7 @@ from simbot.sim.render.pipe import (
 )
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody
+from simbot.sim.render.wide_angle import views
 from simbot.transform import Transform
 
 RENDERERS = ("auto", "gl", "tiny")
@@ -116,7 +117,7 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         from simbot.sim.bullet import pb
 
         scene = BulletScene(pb, plan.bodies)
-        specs = {i: spec for i, (spec, _) in plan.jobs.items()}
+        specs = {i: spec.rendered for i, (spec, _) in plan.jobs.items()}
         renderer, fallback = open_renderer(plan.renderer, scene, plan.light, specs, plan.gl_threads)
         held = _Held(scene, renderer, {i: _camera(i, spec, name) for i, (spec, name) in plan.jobs.items()})
     except Exception as exc:
@@ -177,7 +178,7 @@ class _Held:
                 self.scene.remove(name)
             case AddCamera(index, spec, shm_name):
                 self.cameras[index] = _camera(index, spec, shm_name)
-                self.renderer.add_camera(index, spec)
+                self.renderer.add_camera(index, spec.rendered)
 
 
 def _serve(conn: Connection, held: _Held) -> None:
@@ -212,10 +213,12 @@ def _reason(exc: Exception) -> str:
 def render(
     scene: BulletScene, renderer: Renderer, camera: _Camera, pose: Transform, states: Mapping[str, BodyState]
 ) -> None:
-    """Pose the scene, draw, and finish the outputs in the camera's shared memory."""
+    """Pose the scene, draw (each view of a wide-angle camera: `wide_angle.views`), and finish the
+    outputs in the camera's shared memory."""
     scene.apply(states)
     arrays = camera.buffers.arrays
-    renderer.render(camera.index, pose, camera.buffers.drawn())
+    for view, drawn in views(camera.buffers.spec, pose, camera.buffers.drawn()):
+        renderer.render(camera.index, view, drawn)
     for name, finish in camera.finishes:
         finish(arrays[name], arrays)
 

@@ -50,12 +50,13 @@ from simbot.bus import Publisher, messages
 from simbot.bus.frames import optical_frame
 from simbot.description.model import Sensor
 from simbot.sim.bus_view import SimBus
-from simbot.sim.camera_save import FrameSaver, save_path
+from simbot.sim.camera_save import frame_saver
 from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.contract import RenderStatus
 from simbot.sim.render.lens import Distortion
+from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
@@ -79,7 +80,8 @@ class CameraParams:
     distortion: Distortion = Distortion()
 
     @staticmethod
-    def from_sdf(sensor: Sensor, color: bool = True) -> CameraParams:
+    def from_sdf(sensor: Sensor, color: bool = True, widest: float = math.pi) -> CameraParams:
+        """`widest`: the field of view it may not reach (a wide-angle lens's is 2π and more)."""
         camera = SdfElement.of(sensor).child("camera")
         if camera is None:
             raise SystemConfigError(f"sensor {sensor.name}: type {sensor.type!r} needs a <camera> element")
@@ -97,8 +99,9 @@ class CameraParams:
         for tag, value in (("width", params.width), ("height", params.height)):
             if not 1 <= value <= MAX_SIDE:
                 raise image.error(tag, f"must be 1..{MAX_SIDE} pixels, got {value}")
-        if not 0.0 < params.horizontal_fov < math.pi:
-            raise camera.error("horizontal_fov", f"must be in (0, π) radians, got {params.horizontal_fov}")
+        if not 0.0 < params.horizontal_fov < widest:
+            limit = "π" if widest == math.pi else f"{widest:.4f}"
+            raise camera.error("horizontal_fov", f"must be in (0, {limit}) radians, got {params.horizontal_fov}")
         if not 0.0 < params.near < params.far:
             raise clip.error("near", f"and <far> need 0 < near < far, got near {params.near} far {params.far}")
         if color and params.format not in COLOR_OUTPUTS:
@@ -163,13 +166,18 @@ class Camera(Sampled):
     products: tuple[Product, ...] = (Product("", "color"),)
     kind = "image"
     """The last segment of Gazebo's default key (`world/<w>/model/<m>/link/<l>/sensor/<s>/image`)."""
+    formats = COLOR_OUTPUTS
+    """The output that renders a `color` product, by SDF image format."""
+    widest = math.pi
+    """The horizontal field of view it cannot reach."""
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
         color = any(product.output == "color" for product in self.products)
-        params = CameraParams.from_sdf(sensor, color)
+        params = CameraParams.from_sdf(sensor, color, self.widest)
         width, height = ctx.override("camera.size") or (params.width, params.height)
-        outputs = [COLOR_OUTPUTS[params.format] if p.output == "color" else p.output for p in self.products]
+        wide = self.wide_lens(sensor)
+        outputs = [self.formats[params.format] if p.output == "color" else p.output for p in self.products]
         self.spec = CameraSpec(
             sensor.name,
             width,
@@ -180,7 +188,8 @@ class Camera(Sampled):
             outputs=tuple(dict.fromkeys(outputs)),
             noise_stddev=params.noise_stddev,
             seed=int(ctx.rng.integers(2**31)),
-            distortion=params.distortion,
+            distortion=params.distortion if wide is None else Distortion(),  # the wide lens bends it alone
+            wide=wide,
         )
         super().__init__(sensor.name, ctx.override("camera.rate") or sensor_rate(sensor, DEFAULT_RATE_HZ))
         self.where = (model, link.name, sensor.pose)
@@ -194,9 +203,12 @@ class Camera(Sampled):
         self.status = RenderStatus()
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
-        path = save_path(sensor)
-        self.saver = None if path is None else FrameSaver(path, topic, self.spec)
+        self.saver = frame_saver(sensor, topic, self.spec)
         """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/camera_save.py)."""
+
+    def wide_lens(self, sensor: Sensor) -> WideLens | None:
+        """The wide-angle lens it sees through (`wide_angle_camera.py`); None: a pinhole camera."""
+        return None
 
     def _advertise(self, bus: SimBus, topic: str, product: Product, output: str) -> _Published:
         kind = next(kind for kind in self.spec.kinds if kind.name == output)

@@ -11,7 +11,11 @@ SDF parameters:
 | element | default | meaning |
 | --- | --- | --- |
 | `<temperature>` | required | kelvin, > 0 |
-| `<heat_signature>`, `<min_temp>`, `<max_temp>` | none | a texture of temperatures: not drawn; the visual shows `<max_temp>` (a warning says so) |
+| `<heat_signature>`, `<min_temp>`, `<max_temp>` | none, the atmosphere's temperature | a texture whose grey maps min..max (K; Gazebo's defaults): not drawn; the visual shows the hotter bound (a warning says so) |
+
+A heat signature is not drawn because drawing it would take a texture per annotated visual in the
+OpenGL renderer's annotation pass, whose static geometry is batched by surface alone (and
+TinyRenderer has one temperature per link).
 """
 
 from __future__ import annotations
@@ -42,10 +46,12 @@ def _temperature(ctx: SystemContext) -> float:
     assert plugin is not None
     where = f"Thermal on {ctx.model_name}" + (f" visual {ctx.visual.name}" if ctx.visual else "")
     if param(plugin, "heat_signature") is not None:
-        hottest = number_param(plugin, "max_temp", positive=True)
-        if hottest is None:
-            raise SystemConfigError(f"{where}: <heat_signature> needs <max_temp> (kelvin)")
-        log.warning("%s: <heat_signature> is not drawn; the visual shows <max_temp> %.2f K", where, hottest)
+        ambient = ctx.world.atmosphere.temperature
+        bounds = [
+            number_param(plugin, tag, default=ambient, positive=True) or ambient for tag in ("min_temp", "max_temp")
+        ]
+        hottest = max(bounds)  # Gazebo swaps a <min_temp> above <max_temp>
+        log.warning("%s: <heat_signature> is not drawn; the visual shows its hottest, %.2f K", where, hottest)
         return hottest
     temperature = number_param(plugin, "temperature", positive=True)
     if temperature is None:

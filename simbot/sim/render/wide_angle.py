@@ -1,0 +1,116 @@
+"""Wide-angle cameras as camera outputs: the cube faces a renderer draws (`wide_faces`, posed by
+`views`), remapped into the image (`wide_color`, `wide_mono`); the lens and the remap tables are
+in `wide_lens.py`."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Mapping
+
+import cv2
+import numpy as np
+
+from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind, Raw
+from simbot.sim.render.outputs import add_noise, luminance
+from simbot.sim.render.specs import CameraSpec
+from simbot.sim.render.wide_lens import FACES, OPTICAL_IN_CAMERA, Plan, WideLens, plan
+from simbot.transform import Matrix, Transform, quaternion_to_matrix
+
+
+def _plan_of(spec: Intrinsics) -> tuple[WideLens, Plan]:
+    if not isinstance(spec, CameraSpec) or spec.wide is None:
+        raise ValueError(f"a wide-angle output needs a camera with a wide-angle lens, got {spec!r}")
+    return spec.wide, plan(spec.wide, spec.width, spec.height, spec.hfov)
+
+
+class FacesKind(OutputKind):
+    """The raw faces: each drawn face of `lens.face` pixels a side, one below the other."""
+
+    def shape(self, spec: Intrinsics) -> tuple[int, ...]:
+        lens, drawn = _plan_of(spec)
+        return (len(drawn.faces) * lens.face, lens.face, 3)
+
+
+def _remap(spec: Intrinsics) -> Callable[[Mapping[str, Array], Array], None]:
+    """The camera's remap of its faces into an rgb image."""
+    _, drawn = _plan_of(spec)
+
+    def remap(arrays: Mapping[str, Array], out: Array) -> None:
+        cv2.remap(arrays["wide_faces"], drawn.map1, drawn.map2, cv2.INTER_LINEAR, dst=out, borderValue=0)
+
+    return remap
+
+
+def _noise(spec: Intrinsics) -> Callable[[Array], None]:
+    """The camera's seeded pixel noise, after the lens as on a real sensor."""
+    rng = np.random.default_rng(spec.seed)
+
+    def noise(pixels: Array) -> None:
+        if spec.noise_stddev > 0.0:
+            add_noise(pixels, spec.noise_stddev, rng)
+
+    return noise
+
+
+def color(spec: Intrinsics) -> Finish:
+    """The faces remapped into the image, then the camera's pixel noise."""
+    remap, noise = _remap(spec), _noise(spec)
+
+    def finish(image: Array, arrays: Mapping[str, Array]) -> None:
+        remap(arrays, image)
+        noise(image)
+
+    return finish
+
+
+def mono(spec: Intrinsics) -> Finish:
+    """As `color`, then to luminance (the faces are drawn in colour)."""
+    remap, noise = _remap(spec), _noise(spec)
+    rgb = np.empty((spec.height, spec.width, 3), dtype=np.uint8)
+
+    def finish(image: Array, arrays: Mapping[str, Array]) -> None:
+        remap(arrays, rgb)
+        image[...] = luminance(rgb)
+        noise(image)
+
+    return finish
+
+
+WIDE_FACES = FacesKind("wide_faces", np.uint8, 3, draws="color")
+WIDE_COLOR = OutputKind("wide_color", np.uint8, 3, encoding="rgb8", needs=("wide_faces",), finisher=color)
+WIDE_MONO = OutputKind("wide_mono", np.uint8, 1, encoding="mono8", needs=("wide_faces",), finisher=mono)
+
+
+def views(
+    spec: CameraSpec, pose: Transform, drawn: Mapping[Raw, Array]
+) -> Iterator[tuple[Transform, dict[Raw, Array]]]:
+    """What a renderer draws for a camera at `pose`: the pose and its buffers once for a pinhole
+    camera; each face's pose and its slice of the raw faces for a wide-angle one (`spec.rendered`
+    is the face's camera)."""
+    if spec.wide is None:
+        yield pose, dict(drawn)
+        return
+    lens, drawn_plan = spec.wide, plan(spec.wide, spec.width, spec.height, spec.hfov)
+    faces = drawn["color"].reshape(len(drawn_plan.faces), lens.face, lens.face, 3)
+    body = quaternion_to_matrix(pose.orientation)
+    for slot, index in enumerate(drawn_plan.faces):
+        rotation = body @ OPTICAL_IN_CAMERA @ FACES[index] @ OPTICAL_IN_CAMERA.T
+        yield Transform(pose.position, _quaternion(rotation)), {"color": faces[slot]}
+
+
+def _quaternion(m: Matrix) -> tuple[float, float, float, float]:
+    """x, y, z, w of a rotation matrix (Shepperd's method: the largest of the four first)."""
+    trace = float(np.trace(m))
+    candidates = [trace, m[0, 0], m[1, 1], m[2, 2]]
+    largest = int(np.argmax(candidates))
+    if largest == 0:
+        s = 2.0 * math.sqrt(1.0 + trace)
+        q = ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4.0)
+    else:
+        i = largest - 1
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
+        v = [0.0, 0.0, 0.0]
+        v[i], v[j], v[k] = s / 4.0, (m[j, i] + m[i, j]) / s, (m[k, i] + m[i, k]) / s
+        q = (v[0], v[1], v[2], (m[k, j] - m[j, k]) / s)
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
