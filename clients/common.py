@@ -307,6 +307,10 @@ class StaticTransforms:
             self._poses[frame] = self._tree.lookup(self.target_of(frame), frame)
         return self._poses[frame]
 
+    def rooted(self, frame: str) -> tuple[str, Matrix] | None:
+        """(the root of `frame`'s tree, `frame`'s pose in it), or None while tf_static does not name `frame`."""
+        return self._tree.rooted(frame) if frame in self._tree.frames else None
+
     def target_of(self, frame: str) -> str:
         """The target frame in the tree of `frame`'s robot."""
         return prefixed_frame(self.target, frame_prefix(frame))

@@ -34,6 +34,7 @@ CLIENTS: dict[str, str] = {
     "remove": "take a model out of the running world (world control's remove)",
     "record": "record keys into a rosbag2 bag in MCAP storage; Ctrl-C closes it",
     "play": "publish a recorded bag back onto the bus at its recorded rate",
+    "dataset": "write synchronised camera frames (RGB, depth, label maps, boxes) with intrinsics and poses as a dataset",
     "foxglove": "serve the live bus to the Foxglove app over its WebSocket protocol (pip install 'simbot[foxglove]')",
     "ros2": "carry the bus to ROS 2 nodes (DDS) and back through rclpy, bytes unchanged (pip install 'simbot[ros2]')",
 }

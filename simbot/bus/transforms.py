@@ -60,6 +60,10 @@ class TransformTree:
             matrix = step @ matrix
         return frame, matrix
 
+    def rooted(self, frame: str) -> tuple[str, Matrix]:
+        """(the root of `frame`'s tree, the pose of `frame` in it): a robot's frames from its root link."""
+        return self._to_root(frame)
+
     def lookup(self, target: str, source: str) -> Matrix | None:
         """The matrix mapping points in `source` into `target` (the pose of `source` in `target`), or None if unconnected."""
         target_root, target_matrix = self._to_root(target)

@@ -34,6 +34,7 @@ SDF parameters (under `<camera>`; `CameraParams`):
 | `<distortion>` `<k1>` `<k2>` `<k3>` `<p1>` `<p2>` | 0 | plumb_bob lens distortion of colour, depth and points |
 | `<distortion><center>` | 0.5 0.5 | distortion centre, normalised image coordinates; the principal point |
 | `<update_rate>` (of the `<sensor>`) | 30 | frames per second (`--camera-rate` overrides) |
+| `<save enabled="true"><path>` | off | every frame also written to the folder in simbot's dataset layout (simbot/sim/camera_save.py) |
 
 Command-line parameters (`RunOptions.overrides`): `camera.size` ((width, height)), `camera.rate` (Hz).
 """
@@ -49,6 +50,7 @@ from simbot.bus import Publisher, messages
 from simbot.bus.frames import optical_frame
 from simbot.description.model import Sensor
 from simbot.sim.bus_view import SimBus
+from simbot.sim.camera_save import frame_saver
 from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
@@ -201,6 +203,8 @@ class Camera(Sampled):
         self.status = RenderStatus()
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
+        self.saver = frame_saver(sensor, topic, self.spec)
+        """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/camera_save.py)."""
 
     def wide_lens(self, sensor: Sensor) -> WideLens | None:
         """The wide-angle lens it sees through (`wide_angle_camera.py`); None: a pinhole camera."""
@@ -220,7 +224,7 @@ class Camera(Sampled):
         return camera_info_key(topic)
 
     def wanted(self) -> bool:
-        return any(output.publisher.has_subscribers for output in self.outputs)
+        return self.saver is not None or any(output.publisher.has_subscribers for output in self.outputs)
 
     def publish(self, frame: Frame) -> None:
         """Each subscribed product, then camera_info, all under the frame's stamp (the sim time it shows)."""
@@ -229,6 +233,8 @@ class Camera(Sampled):
                 output.publisher.put(output.build(frame.stamp_ns, self.frame_id, frame[output.output]))
         self.publish_info(frame.stamp_ns)
         self.published(frame.stamp_ns)
+        if self.saver is not None:
+            self.saver.save(frame)
 
     def publish_info(self, stamp_ns: int) -> None:
         if self._info.has_subscribers:
@@ -251,3 +257,7 @@ class Camera(Sampled):
     def reset(self, info: UpdateInfo) -> None:
         super().reset(info)
         self.skipped = 0
+
+    def close(self) -> None:
+        if self.saver is not None:
+            self.saver.close()
