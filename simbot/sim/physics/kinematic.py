@@ -83,6 +83,8 @@ class Kinematics:
     """Per body: joint index → the velocity it turns at."""
     carried: dict[int, Carried] = field(default_factory=dict)
     """Per constraint made by `attach`."""
+    _parked: set[int] = field(default_factory=set)
+    """Bodies whose joints stand still and read so."""
 
     def drive(self, body: Body, others: list[int], forward: float, lateral: float, turn: float) -> None:
         """The base's twist from now on; the first one sets the body down on the floor (`others` below it)."""
@@ -116,6 +118,7 @@ class Kinematics:
         """A body left the world."""
         self.driven.pop(body, None)
         self.joints.pop(body, None)
+        self._parked.discard(body)
         self.carried = {c: k for c, k in self.carried.items() if body not in (k.parent, k.child)}
 
     def step(self, bodies: dict[str, Body], dt: float) -> None:
@@ -164,11 +167,20 @@ class Kinematics:
         return com
 
     def _turn(self, body: int, velocities: dict[int, float], dt: float) -> None:
+        """Each joint on by its velocity over dt, in one call a body; a parked robot's cost nothing
+        once its joints read their zero velocities."""
+        moving = any(velocities.values())
+        if not moving and body in self._parked:
+            return
+        if moving:
+            self._parked.discard(body)
+        else:
+            self._parked.add(body)
         joints = list(velocities)
         states = pb.getJointStates(body, joints, physicsClientId=self.client)
-        for joint, state in zip(joints, states):
-            velocity = velocities[joint]
-            pb.resetJointState(body, joint, state[0] + velocity * dt, velocity, physicsClientId=self.client)
+        speeds = [[velocities[joint]] for joint in joints]
+        positions = [[state[0] + speed[0] * dt] for state, speed in zip(states, speeds)]
+        pb.resetJointStatesMultiDof(body, joints, positions, speeds, physicsClientId=self.client)
 
     def _check(self, body: int, old: Transform, names: dict[int, str]) -> None:
         """Back to `old` if the move sank the body deeper into something than it was."""
