@@ -81,3 +81,29 @@ def test_a_hundred_tugs_step() -> None:
         fleet.step(_steps(0.2))
         end, _ = fleet.pose("tug_100")
         assert math.isclose(planar_distance(start, end), 0.1, rel_tol=0.01), (start, end)
+
+
+def test_docking_carries_the_trolley() -> None:
+    """The warehouse's docking (tests/test_server_docking.py) kinematically: driven 3.5 m under the
+    trolley, attached, 1 m of pull moves the trolley exactly as the tug (1 cm), detached it stays."""
+    with running_server("warehouse", extra=("--physics", "kinematic")) as dock:
+        trolley0, _ = dock.pose("trolley")
+        _drive_for(dock, 0.5, 7.0)
+        (trolley1, _), (robot1, _) = dock.pose("trolley"), dock.pose()
+        assert abs(robot1[0] - trolley1[0]) < 0.15 and planar_distance(trolley0, trolley1) < 1e-6
+        dock.send("attach", messages.empty())
+        _drive_for(dock, 0.5, 2.0)
+        (trolley2, _), (robot2, _) = dock.pose("trolley"), dock.pose()
+        assert abs(planar_distance(trolley1, trolley2) - planar_distance(robot1, robot2)) < 0.01
+        assert abs(planar_distance(robot1, robot2) - 1.0) < 0.01
+        dock.send("detach", messages.empty())
+        _drive_for(dock, 0.5, 1.0)
+        (trolley3, _), (robot3, _) = dock.pose("trolley"), dock.pose()
+        assert planar_distance(trolley2, trolley3) < 1e-6 and abs(planar_distance(robot2, robot3) - 0.5) < 0.01
+
+
+def _drive_for(sim: SimServer, speed: float, seconds: float) -> None:
+    sim.drive(speed)
+    sim.step(_steps(seconds))
+    sim.drive(0.0)
+    sim.step(1)
