@@ -1,29 +1,31 @@
-"""Benchmark of a fleet: N Flexley Tugs in a row in one world, N = 1, 5, 10, 20.
+"""Benchmark of a fleet: N Flexley Tugs, dynamic and kinematic, N = 1, 10, 20, 50, 100 (as far as each gets).
 
-Every figure is a ratio against a baseline measured in the same run, the variants interleaved and
-each the median of `--repeats` runs (a shared machine is noisy); the bare loops count their own
-CPU time, the servers wall time (what real time means):
+Every figure is measured in the same run, the bare loops interleaved and each the median of
+`--repeats` runs (a shared machine is noisy); the bare loops count their own CPU time, the servers
+wall time (what real time means) and their own CPU time:
 
 1. baseline: a bare PyBullet loop at 1 kHz, the plain URDF (`urdf/flexley_tug.urdf`, 20 joints,
    12 of them castor gimbals) loaded N times by `loadURDF` on a plane, nothing but `stepSimulation`;
-2. simbot's loader with the castors' gimbals: the same loop over the bodies `Physics.add_model`
-   builds with `fixed_castors=False, merge_fixed_links=False` (passive joints, SDF friction, tyre
-   compliance, castors frictionless and contact-free until they touch);
-3. with `fixed_castors` alone (each ball castor one rigid frictionless sphere);
-4. simbot's loader as it is (castors fixed, fixed links merged: 5 links a tug);
-5. `Physics.step`: simbot's loader plus its wheel-friction model, what the server steps;
-6. `simbot-server` in real time and in fast mode with N tugs (two lidars and an IMU each publishing,
-   cameras idle: nobody subscribes), measured through world control's sim time: the real-time
-   factor it holds (wall time, on this machine as loaded as it is) and fast mode's sim seconds per
-   CPU second of the server process (what it would hold on a core of its own; ≥ 1 is real time). The tugs' SDF
-   states its topics, so all N publish on the same keys: a measure of rate, not of a fleet's bus.
+2. simbot's loader (castors fixed, fixed links merged: 5 links a tug), the same bare loop;
+3. `Physics.step`: simbot's loader plus its wheel-friction model, what the server steps;
+4. `simbot-server --robots N` (each tug in its own namespace, its own keys), dynamic: the
+   real-time factor it holds in real-time mode (wall time, on this machine as loaded as it is) and
+   fast mode's sim seconds per CPU second of the server process (≥ 1: real time on a core of its
+   own). The fleet's tug is the Flexley Tug less its six cameras: two lidars at 5 Hz, an IMU at
+   200 Hz, odometry and tf at 50 Hz, joint states and tf at 30 Hz;
+5. the same with `--physics kinematic` (5 ms steps), the tug without its IMU (the issue's goal:
+   two lidars, odometry and tf), and in fast mode with the IMU at 200 Hz too.
 
-    python benchmarks/bench_fleet.py [--fleets 1,5,10,20] [--seconds S] [--repeats R]
+The dynamic rows stop after the first N whose server, in fast mode, makes less than half a sim
+second per CPU second (the real-time factor on a shared machine counts the others' work).
+
+    python benchmarks/bench_fleet.py [--fleets 1,10,20,50,100] [--seconds S] [--repeats R] [--kinematic-only]
 """
 
 from __future__ import annotations
 
 import argparse
+import re
 import statistics
 import subprocess
 import sys
@@ -98,8 +100,6 @@ Loop = Callable[[int], AbstractContextManager[Callable[[], None]]]
 
 LOOPS: dict[str, Loop] = {
     "plain": plain_world,
-    "gimbals": lambda n: simbot_world(n, fixed_castors=False, merge_fixed_links=False),
-    "fixed": lambda n: simbot_world(n, merge_fixed_links=False),
     "lean": simbot_world,
     "step": lambda n: simbot_world(n, full_step=True),
 }
@@ -118,21 +118,18 @@ def loop_rtf(world: Loop, n: int, seconds: float) -> float:
         return steps * STEP_S / (time.process_time() - start)
 
 
-def fleet_world(folder: Path, n: int) -> Path:
-    """The empty world with tugs 2..N included beside the server's own robot (spawned at the row's start)."""
-    tug = asset("urdf/flexley_tug.sdf")
-    includes = "".join(
-        f"<include><uri>{tug}</uri><name>tug_{i + 1}</name><pose>{x} {y} {z} 0 0 0</pose></include>"
-        for i, (x, y, z) in enumerate(row(n))
-        if i > 0
-    )
-    path = folder / f"fleet_{n}.sdf"
-    path.write_text(asset(f"worlds/{WORLD}.sdf").read_text().replace("</world>", includes + "</world>"))
+def fleet_tug(folder: Path, imu: bool) -> Path:
+    """The Flexley Tug less its cameras (and its IMU unless `imu`), its meshes where they are."""
+    text = asset("urdf/flexley_tug.sdf").read_text().replace("../meshes/", f"{asset('meshes')}/")
+    kinds = "camera" if imu else "camera|imu"
+    text = re.sub(rf'<sensor name="[^"]*" type="(?:{kinds})">.*?</sensor>', "", text, flags=re.DOTALL)
+    path = folder / ("tug_imu.sdf" if imu else "tug.sdf")
+    path.write_text(text)
     return path
 
 
 def _ready(node: Node, proc: subprocess.Popen[bytes]) -> None:
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 300
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             raise RuntimeError(f"simbot-server exited with code {proc.returncode} at start")
@@ -142,20 +139,21 @@ def _ready(node: Node, proc: subprocess.Popen[bytes]) -> None:
         except (TimeoutError, RuntimeError):
             pass
         time.sleep(0.1)
-    raise RuntimeError("the server's world control did not answer within 120 s")
+    raise RuntimeError("the server's world control did not answer within 300 s")
 
 
-def server_rtf(n: int, mode: str, seconds: float) -> tuple[float, float]:
-    """(sim seconds per wall second, per CPU second of the server process) of `simbot-server --mode
-    MODE` with N tugs over `seconds`, after SETTLE_S (real time first catches up what loading lost)."""
+def server_rtf(n: int, mode: str, seconds: float, kinematic: bool = False, imu: bool = True) -> tuple[float, float]:
+    """(sim seconds per wall second, per CPU second of the server process) of `simbot-server --robots N
+    --mode MODE` over `seconds`, after SETTLE_S (real time first catches up what loading lost)."""
     port, namespace = free_port(), f"bench_{uuid.uuid4().hex[:8]}"
     endpoint = f"tcp/127.0.0.1:{port}"
     with tempfile.TemporaryDirectory(prefix="bench-fleet-") as folder:
-        command = [sys.executable, "-m", "simbot.sim.server", "--world", str(fleet_world(Path(folder), n))]
-        command += ["--spawn", "0", "0", str(SPAWN_Z), "0", "--mode", mode, "--quiet"]
+        command = [sys.executable, "-m", "simbot.sim.server", "--world", WORLD, "--robots", str(n)]
+        command += ["--robot", str(fleet_tug(Path(folder), imu)), "--spawn", "0", "0", str(SPAWN_Z), "0"]
+        command += ["--mode", mode, "--quiet", "--physics", "kinematic" if kinematic else "dynamic"]
         proc = subprocess.Popen([*command, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL)
         try:
-            with Node(BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=30.0), "client") as node:
+            with Node(BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=180.0), "client") as node:
                 _ready(node, proc)
                 time.sleep(SETTLE_S)
                 sim0, wall0, cpu0 = _sim_time(node), time.perf_counter(), cpu_seconds(proc.pid)
@@ -168,41 +166,53 @@ def server_rtf(n: int, mode: str, seconds: float) -> tuple[float, float]:
 
 
 def _sim_time(node: Node) -> float:
-    return float(node.call(f"world/{WORLD}/state", {})["sim_time"])
+    return float(node.call(f"world/{WORLD}/state", {}, timeout=60.0)["sim_time"])
+
+
+def dynamic_row(n: int, args: argparse.Namespace) -> tuple[str, float]:
+    """The bare loops and the dynamic server with N tugs: the row's cells, and fast mode's sim
+    seconds per CPU second (what it would hold on a core of its own)."""
+    runs: dict[str, list[float]] = {name: [] for name in LOOPS}
+    for _ in range(args.repeats):
+        for name, world in LOOPS.items():
+            runs[name].append(loop_rtf(world, n, args.seconds))
+    rtf = {name: statistics.median(values) for name, values in runs.items()}
+    held, _ = server_rtf(n, "realtime", 5 * args.seconds)
+    _, fast = server_rtf(n, "fast", 5 * args.seconds)
+    cells = (
+        f"{rtf['plain']:.3f}× | {rtf['lean']:.3f}× | {rtf['step']:.3f}× | {held:.3f} "
+        f"| {fast:.3f}× = {fast / rtf['lean']:.2f} of the loader's loop | {1 / fast:.2f} s"
+    )
+    return cells, fast
+
+
+def kinematic_row(n: int, args: argparse.Namespace) -> str:
+    held, _ = server_rtf(n, "realtime", 5 * args.seconds, kinematic=True, imu=False)
+    _, fast = server_rtf(n, "fast", 5 * args.seconds, kinematic=True, imu=False)
+    _, fast_imu = server_rtf(n, "fast", 5 * args.seconds, kinematic=True)
+    return f"{held:.3f} | {fast:.2f}×, {1 / fast:.3f} s | {fast_imu:.2f}×, {1 / fast_imu:.3f} s"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--fleets", default="1,5,10,20", help="the numbers of tugs, comma-separated")
+    parser.add_argument("--fleets", default="1,10,20,50,100", help="the numbers of tugs, comma-separated")
     parser.add_argument(
         "--seconds", type=float, default=1.0, help="sim seconds per bare loop; a server runs 5× as long"
     )
-    parser.add_argument("--repeats", type=int, default=5, help="runs of each bare loop (median)")
-    parser.add_argument("--no-server", action="store_true", help="the bare loops only")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each bare loop (median)")
+    parser.add_argument("--kinematic-only", action="store_true", help="the kinematic servers alone")
     args = parser.parse_args()
-    print("| tugs | plain URDF, bare loop | cost per tug ÷ the first row's | loader, gimbals / plain "
-          "| castors fixed / plain | loader (fixed, merged) / plain | Physics.step / plain "
-          "| server real time: factor held | server fast, per CPU second |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
-    one_tug = None
+    print("| tugs | dynamic: plain URDF, bare loop | loader's bare loop | `Physics.step` | server, real time: "
+          "factor held | server fast, per CPU second | CPU per sim second | kinematic server, real time: "
+          "factor held | kinematic fast, per CPU second; CPU per sim second | the same with IMUs at 200 Hz |")  # fmt: skip
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    dynamic = not args.kinematic_only
     for n in (int(part) for part in args.fleets.split(",")):
-        runs: dict[str, list[float]] = {name: [] for name in LOOPS}
-        for _ in range(args.repeats):
-            for name, world in LOOPS.items():
-                runs[name].append(loop_rtf(world, n, args.seconds))
-        rtf = {name: statistics.median(values) for name, values in runs.items()}
-        one_tug = one_tug or rtf["plain"] * n
-        server = "| — | — |"
-        if not args.no_server:
-            held, _ = server_rtf(n, "realtime", 5 * args.seconds)
-            _, fast = server_rtf(n, "fast", 5 * args.seconds)
-            server = f"| {held:.3f} | {fast:.2f}× = {fast / rtf['plain']:.2f} plain |"
-        print(
-            f"| {n} | {rtf['plain']:.2f}× real time | {one_tug / (rtf['plain'] * n):.2f} "
-            f"| {rtf['gimbals'] / rtf['plain']:.2f} | {rtf['fixed'] / rtf['plain']:.2f} "
-            f"| {rtf['lean'] / rtf['plain']:.2f} | {rtf['step'] / rtf['plain']:.2f} {server}",
-            flush=True,
-        )
+        cells = "— | — | — | — | — | —"
+        if dynamic:
+            cells, fast = dynamic_row(n, args)
+            dynamic = fast >= 0.5
+        print(f"| {n} | {cells} | {kinematic_row(n, args)} |", flush=True)
 
 
 if __name__ == "__main__":

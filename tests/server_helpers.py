@@ -529,3 +529,22 @@ def reset_before_each(settle_steps: int = 0) -> Any:
         sim.unsubscribe_all()
 
     return fresh
+
+
+ROUTER_CONFIG = REPO / "docker" / "zenoh-router.json5"
+ROUTER = REPO / "docker" / "zenoh_router.py"
+
+
+@contextmanager
+def router(port: int, servers: list[SimServer]) -> Iterator[str]:
+    """docker/zenoh_router.py (a Zenoh session in router mode, configured by docker/zenoh-router.json5
+    with only its endpoints replaced) on `port`, connected to `servers`; yields its endpoint."""
+    listen, connect = endpoint(port), [s.endpoint for s in servers]
+    args = [sys.executable, str(ROUTER), str(ROUTER_CONFIG), "--listen", listen, "--connect", *connect]
+    process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert process.stdout is not None and process.stdout.readline().startswith(b"zenoh router: "), process.stderr
+        yield listen
+    finally:
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=10) == 0, process.stderr.read() if process.stderr else ""

@@ -17,37 +17,15 @@ test holds.
 from __future__ import annotations
 
 import json
-import signal
-import subprocess
-import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import yaml  # type: ignore[import-untyped]  # PyYAML, which xacro requires
 import zenoh
-from bus_helpers import endpoint, free_port
+from bus_helpers import free_port
 from conftest import REPO
-from server_helpers import Collector, SimServer, keyed_payload, raw_samples, running_server
+from server_helpers import ROUTER_CONFIG, Collector, SimServer, keyed_payload, raw_samples, router, running_server
 
 from simbot.bus import BusOptions, Node
-
-ROUTER_CONFIG = REPO / "docker" / "zenoh-router.json5"
-ROUTER = REPO / "docker" / "zenoh_router.py"
-
-
-@contextmanager
-def router(port: int, servers: list[SimServer]) -> Iterator[str]:
-    """The router on `port`, connected to `servers`; yields its endpoint."""
-    listen, connect = endpoint(port), [s.endpoint for s in servers]
-    args = [sys.executable, str(ROUTER), str(ROUTER_CONFIG), "--listen", listen, "--connect", *connect]
-    process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        assert process.stdout is not None and process.stdout.readline().startswith(b"zenoh router: "), process.stderr
-        yield listen
-    finally:
-        process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=10) == 0, process.stderr.read() if process.stderr else ""
 
 
 def _client(at: str) -> zenoh.Session:

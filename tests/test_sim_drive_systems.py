@@ -86,7 +86,7 @@ class Rig:
         wait_until(lambda: all(i.received for i in inputs), 5.0, f"{topic} at its input")
 
     def step(self, seconds: float) -> None:
-        for _ in range(round(seconds / STEP_S)):
+        for _ in range(round(seconds / self.server.physics.step_size)):
             self.server.sim.step()
 
     def pose(self) -> tuple[float, float, float]:
@@ -109,10 +109,13 @@ class Rig:
 
 
 @contextmanager
-def lockstep(tmp_path: Path, robot: str, spawn_z: float = 0.0) -> Iterator[Rig]:
+def lockstep(tmp_path: Path, robot: str, spawn_z: float = 0.0, kinematic: bool = False) -> Iterator[Rig]:
+    """The robot alone in a flat world, in lockstep; `kinematic`: moved by its drive's command
+    (simbot.sim.physics.kinematic) at 5 ms steps, where a dynamic world steps at 1 ms."""
     (tmp_path / "world.sdf").write_text(WORLD)
     (tmp_path / "robot.sdf").write_text(robot)
-    config = ServerConfig(tmp_path / "world.sdf", tmp_path / "robot.sdf", (0.0, 0.0, spawn_z, 0.0), Mode.LOCKSTEP)
+    spawn = (0.0, 0.0, spawn_z, 0.0)
+    config = ServerConfig(tmp_path / "world.sdf", tmp_path / "robot.sdf", spawn, Mode.LOCKSTEP, kinematic=kinematic)
     with Node(BusOptions(listen=(endpoint(free_port()),), namespace=unique_namespace()), "server") as node:
         server = Server(config, node)
         try:
@@ -309,12 +312,14 @@ def _car() -> str:
       </plugin>""")
 
 
-def test_ackermann_car_turns_on_the_radius_of_its_wheelbase_and_steering(tmp_path: Path) -> None:
+@pytest.mark.parametrize("kinematic", [False, True], ids=["dynamic", "kinematic"])
+def test_ackermann_car_turns_on_the_radius_of_its_wheelbase_and_steering(tmp_path: Path, kinematic: bool) -> None:
     """v = 0.5 m/s, ω = 0.25 rad/s: R = v/ω = 2 m, the bicycle angle φ = atan(L/R). The rear axle's
     centre (the model origin) must run on a circle of radius L/tan φ, both as commanded and as the
     steering joints' angles give it (cot φ = the mean of their cotangents), within 5 %; odometry
-    from the rear wheels and the steering must end within 5 % of the path of the true pose."""
-    with lockstep(tmp_path, _car()) as rig:
+    from the rear wheels and the steering must end within 5 % of the path of the true pose. The
+    same holds kinematically, where the base turns at v·k as the drive commands."""
+    with lockstep(tmp_path, _car(), kinematic=kinematic) as rig:
         odometry = rig.collect(f"{BOT}/odometry", "nav_msgs/msg/Odometry")
         rig.send(f"{BOT}/cmd_vel", messages.twist((0.5, 0.0, 0.0), (0.0, 0.0, 0.25)))
         rig.step(1.5)  # the steering settles: 10/s of gain, 15 time constants
@@ -364,13 +369,14 @@ def _mecanum() -> str:
       </plugin>""")
 
 
-def test_mecanum_platform_moves_sideways_at_the_commanded_speed(tmp_path: Path) -> None:
+@pytest.mark.parametrize("kinematic", [False, True], ids=["dynamic", "kinematic"])
+def test_mecanum_platform_moves_sideways_at_the_commanded_speed(tmp_path: Path, kinematic: bool) -> None:
     """linear.y = 0.3 m/s alone: the wheels turn ∓5 rad/s in pairs and the rollers carry the
     platform sideways at 0.3 m/s, without going forward or turning. The wheel friction saturates at
     0.01 m/s of slip (3 % of the speed); nothing resists steady motion, so the slip, and the
     error, stay well below that: 5 % for the speed, 2 cm and 0.02 rad of drift over 2 m.
-    Odometry from the four encoders follows the same path."""
-    with lockstep(tmp_path, _mecanum()) as rig:
+    Odometry from the four encoders follows the same path, kinematically too."""
+    with lockstep(tmp_path, _mecanum(), kinematic=kinematic) as rig:
         odometry = rig.collect(f"{BOT}/odometry", "nav_msgs/msg/Odometry")
         rig.send(f"{BOT}/cmd_vel", messages.twist((0.0, 0.3, 0.0), (0.0, 0.0, 0.0)))
         rig.step(1.0)

@@ -34,13 +34,21 @@ def frame_prefix(frame: str) -> str:
 
 
 def with_frame_prefix(msg: Any, prefix: str) -> Any:
-    """A copy of `msg` with its frame ids (header, child frame, each transform's) under `prefix`:
-    one place for every system of a namespaced model, so none of them needs to know."""
+    """`msg` with its frame ids (header, child frame, each transform's) under `prefix`: one place for
+    every system of a namespaced model, so none of them needs to know. A copy only where a frame
+    changes: a system that names its frames prefixed already (`SimBus.frame`) costs no copy a message."""
     changes: dict[str, Any] = {}
-    if hasattr(msg, "header"):
-        changes["header"] = replace(msg.header, frame_id=prefixed_frame(msg.header.frame_id, prefix))
-    if isinstance(getattr(msg, "child_frame_id", None), str):
-        changes["child_frame_id"] = prefixed_frame(msg.child_frame_id, prefix)
-    if isinstance(getattr(msg, "transforms", None), list):
-        changes["transforms"] = [with_frame_prefix(t, prefix) for t in msg.transforms]
+    header = getattr(msg, "header", None)
+    if header is not None:
+        frame = prefixed_frame(header.frame_id, prefix)
+        if frame != header.frame_id:
+            changes["header"] = replace(header, frame_id=frame)
+    child = getattr(msg, "child_frame_id", None)
+    if isinstance(child, str) and prefixed_frame(child, prefix) != child:
+        changes["child_frame_id"] = prefixed_frame(child, prefix)
+    transforms = getattr(msg, "transforms", None)
+    if isinstance(transforms, list):
+        prefixed = [with_frame_prefix(t, prefix) for t in transforms]
+        if any(new is not old for new, old in zip(prefixed, transforms)):
+            changes["transforms"] = prefixed
     return replace(msg, **changes) if changes else msg

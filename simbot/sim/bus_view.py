@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from simbot.bus import DecodeError, Node, Publisher, decode
+from simbot.bus.frames import prefixed_frame
 
 log = logging.getLogger(__name__)
 
@@ -106,6 +107,11 @@ class SimBus:
 
     def topic(self, topic: str) -> str:
         return f"{self.namespace}/{topic}" if self.namespace else topic
+
+    def frame(self, frame: str) -> str:
+        """`frame` as this view's publishers send it (`tug_2/base_scan_front`): a system that names its
+        frames so once spares every message the publisher's copy (`with_frame_prefix`)."""
+        return prefixed_frame(frame, self.namespace)
 
     def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
         """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""

@@ -207,7 +207,7 @@ class OdometryOutput:
     def __init__(self, bus: SimBus, odom_topic: str, tf_topic: str | None, frame_id: str, child_frame_id: str) -> None:
         self._odom = bus.publisher(odom_topic, messages.Odometry)
         self._tf = bus.publisher(tf_topic, messages.TFMessage) if tf_topic is not None else None
-        self.frame_id, self.child_frame_id = frame_id, child_frame_id
+        self.frame_id, self.child_frame_id = bus.frame(frame_id), bus.frame(child_frame_id)
 
     def put_planar(self, now_ns: int, pose: PlanarPose, linear: tuple[float, float], turn_rate: float) -> None:
         """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown)."""

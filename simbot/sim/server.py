@@ -1,7 +1,7 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
     simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
-                  [--mode realtime|fast|lockstep] [--seed N] [--renderer auto|gl|tiny]
+                  [--mode realtime|fast|lockstep] [--physics dynamic|kinematic] [--seed N] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
 
 `--robot none` runs the world alone, with the models it holds or includes. `--add` (repeatable)
@@ -32,6 +32,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import WorldControl
+from simbot.sim.physics.kinematic import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode
 from simbot.sim.system import RunOptions, System, SystemConfigError
@@ -66,6 +67,9 @@ class ServerConfig:
     """`--robots N`: N tugs `tug_1..tug_N` in namespaces of their names; 0: the one `flexley_tug`."""
     additions: tuple[Path, ...] = ()
     """`--add`: SDF files whose models and actors join the world's own (`with_additions`)."""
+    kinematic: bool = False
+    """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic),
+    as a world's `<physics type="kinematic">` asks."""
 
     def run_options(self) -> RunOptions:
         """What every system is told: lockstep follows the mode."""
@@ -133,8 +137,9 @@ class Server:
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
         robot = load_robot(config.robot) if config.robot is not None else None
+        world = with_additions(load_world(config.world), config.additions)
         self.world = SimWorld(
-            with_additions(load_world(config.world), config.additions),
+            kinematic(world) if config.kinematic else world,
             robot,
             robot_places(config.spawn, config.robots),
             SimBus(node),
@@ -202,6 +207,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=[m.value for m in Mode],
         default=Mode.REALTIME.value,
         help="realtime (default), fast, or lockstep",
+    )
+    parser.add_argument(
+        "--physics",
+        choices=["dynamic", KINEMATIC],
+        help="dynamic (default, or as the world's <physics type> says): forces, friction, contacts; "
+        "kinematic: robots move by their drives' commands and stop at contact (fleets of a hundred)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
     parser.add_argument(
@@ -281,7 +292,15 @@ def _config(args: argparse.Namespace) -> ServerConfig:
     spawn = tuple(args.spawn)
     additions = tuple(addition_path(name) for name in args.add)
     return ServerConfig(
-        world_path(args.world), robot, spawn, Mode(args.mode), args.seed, overrides, args.robots or 0, additions
+        world_path(args.world),
+        robot,
+        spawn,
+        Mode(args.mode),
+        args.seed,
+        overrides,
+        args.robots or 0,
+        additions,
+        args.physics == KINEMATIC,
     )
 
 

@@ -16,6 +16,7 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.commands import Commands
 from simbot.sim.physics.guard import changes_world
+from simbot.sim.physics.kinematic import KINEMATIC, Kinematics
 from simbot.sim.physics.loading import Loader
 from simbot.sim.physics.rays import Rays
 from simbot.sim.physics.wheel_friction import WheelFriction
@@ -45,6 +46,8 @@ class Physics(Commands):
     _loader: Loader = field(init=False)
     _wheels: dict[str, WheelFriction] = field(default_factory=dict)
     """The wheels' friction model of each body that has wheels."""
+    _kinematics: Kinematics | None = None
+    """Set in kinematic mode (`<physics type="kinematic">`): robots move by their drives' commands."""
     _heightfields: dict[str, list[int]] = field(default_factory=dict)
     """The heightfield bodies of each model's heightmaps (PyBullet bodies apart from the model's)."""
     _saved_state: int | None = None
@@ -57,6 +60,8 @@ class Physics(Commands):
         pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
         self._rays = Rays(self.client)
+        if self.world.physics.type == KINEMATIC:
+            self._kinematics = Kinematics(self.client)
         self._loader = Loader(self.client, Path(self._tmp.name), self.fixed_castors, self.merge_fixed_links)
 
     def close(self) -> None:
@@ -101,6 +106,8 @@ class Physics(Commands):
         for part in names:
             body = self.bodies.pop(part)
             self._wheels.pop(part, None)
+            if self._kinematics is not None:
+                self._kinematics.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
             self._rays.release(part)
             for heightfield in self._heightfields.pop(part, []):
@@ -126,7 +133,11 @@ class Physics(Commands):
 
     @changes_world
     def step(self) -> None:
-        """One physics step: wheel friction from the last contacts, then PyBullet."""
+        """One physics step: wheel friction from the last contacts, then PyBullet; in kinematic mode
+        the drives' motions and a collision check (`kinematic`)."""
+        if self._kinematics is not None:
+            self._kinematics.step(self.bodies, self.step_size)
+            return
         for wheels in self._wheels.values():
             wheels.apply()
         pb.stepSimulation(physicsClientId=self.client)

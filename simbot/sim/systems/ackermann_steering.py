@@ -165,6 +165,7 @@ class AckermannSteering:
         p = self.params
         k = p.curvature(v, w)
         self._steer(*p.steering_angles(k, p.kingpin_width))
+        self._physics.drive_base(self._name, v, 0.0, v * k)
         for joints, speed in ((p.left, v * (1 - k * p.separation / 2)), (p.right, v * (1 + k * p.separation / 2))):
             for joint in joints:
                 self._physics.set_joint_velocity(self._name, joint, speed / p.radius, self._efforts[joint])

@@ -139,6 +139,7 @@ class DiffDrive:
         for joints, speed in ((self.params.left, v - half), (self.params.right, v + half)):
             for joint in joints:
                 self._physics.set_joint_velocity(self._name, joint, speed / self.params.radius, self._efforts[joint])
+        self._physics.drive_base(self._name, v, 0.0, w)
         self._applied = (v, w)
 
     def post_update(self, info: UpdateInfo) -> None:

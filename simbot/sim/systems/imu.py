@@ -70,7 +70,7 @@ class Imu(Sampled):
         self._gyro = ChannelNoise(spec.angular_velocity_noise, ctx.rng)
         self._accel = ChannelNoise(spec.linear_acceleration_noise, ctx.rng)
         self._covariances = (np.zeros(9), self._gyro.covariance(), self._accel.covariance())
-        self._frame = sensor_frame(sensor)
+        self._frame = ctx.bus.frame(sensor_frame(sensor))
         self._last: tuple[int, npt.NDArray[np.float64]] | None = None
         self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 

@@ -149,7 +149,7 @@ class Lidar(Sampled):
         self._rng = ctx.rng
         self._fan = ray_fan(self.params)
         h = self.params.horizontal
-        self._frame = sensor_frame(sensor)
+        self._frame = ctx.bus.frame(sensor_frame(sensor))
         self._angles = (h.min_angle, h.max_angle, self._fan.increment)
         self._times = (0.0, 1.0 / rate)
         topic = ctx.sensor_topic("scan")

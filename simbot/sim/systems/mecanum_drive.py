@@ -115,6 +115,7 @@ class MecanumDrive:
         dt = info.step_ns / 1e9
         vx, vy, w = (lim.ramp(now, goal, dt) for now, goal in zip(self._current, self._target))
         self._current = (vx, vy, w)
+        self._physics.drive_base(self._name, vx, vy, w)
         for corner, speed in zip(self.params.wheels, self.params.wheel_speeds(vx, vy, w)):
             for joint in corner:
                 self._physics.set_joint_velocity(self._name, joint, speed, self._efforts[joint])

@@ -102,6 +102,8 @@ class RobotStatePublisher:
         ctx.bus.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
         self._physics = ctx.physics
         self._joints = [joint for joint in joints if joint.name not in held]
+        self._frames = [(ctx.bus.frame(joint.parent), ctx.bus.frame(joint.child)) for joint in self._joints]
+        """Each moving joint's (parent, child) frames as published: prefixed once, not copied per message."""
         self._tf = ctx.bus.publisher("tf", messages.TFMessage) if self._joints else None
         self._every = Every.hz(DEFAULT_RATE_HZ)
 
@@ -111,8 +113,8 @@ class RobotStatePublisher:
             return
         states = self._physics.joint_states(self._name, [joint.name for joint in self._joints])
         transforms = [
-            messages.transform_stamped(now_ns, joint.parent, joint.child, *joint.transform(state[0]))
-            for joint, state in zip(self._joints, states)
+            messages.transform_stamped(now_ns, parent, child, *joint.transform(state[0]))
+            for joint, (parent, child), state in zip(self._joints, self._frames, states)
         ]
         self._tf.put(messages.tf_message(transforms))
 
