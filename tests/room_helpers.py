@@ -9,8 +9,6 @@ world point (x, y, z) lies at u = cx − fx·y/x, v = cy − fx·(z − 1)/x.
 from __future__ import annotations
 
 import math
-import os
-import re
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -27,8 +25,6 @@ CX, CY = (W - 1) / 2, (H - 1) / 2
 EYE_Z = 1.0
 CRATES = {"crate_left": (5.0, 1.2), "crate_right": (5.0, -1.2)}
 """The two crates of label 10: 1 m cubes centred at (x, y, 1)."""
-GZ_SIM = Path(os.environ.get("GZ_SIM_SOURCE", REPO.parent / "shared" / "gz-sim"))
-"""A checkout of gazebosim/gz-sim, for its example worlds."""
 
 
 def pixel(x: float, y: float, z: float = EYE_Z) -> tuple[float, float]:
@@ -54,17 +50,6 @@ def room(renderer: str) -> Iterator[SimServer]:
         ROOM, "lockstep", world_name="labelled_room", extra=["--robot", "none", "--renderer", renderer]
     ) as sim:
         yield sim
-
-
-def gazebo_example(name: str, folder: Path) -> Path:
-    """gz-sim's example world `name`, its Fuel includes removed (nothing here fetches models), in `folder`."""
-    source = GZ_SIM / "examples" / "worlds" / name
-    if not source.is_file():
-        pytest.skip(f"gz-sim's example worlds not found at {GZ_SIM} (set GZ_SIM_SOURCE to a gz-sim checkout)")
-    text = re.sub(r"<include>(?:(?!</include>).)*fuel\.gazebosim\.org.*?</include>", "", source.read_text(), flags=re.S)
-    target = folder / name
-    target.write_text(text)
-    return target
 
 
 def runs_without(world: Path, keys: Mapping[str, str]) -> tuple[list[str], dict[str, Any]]:

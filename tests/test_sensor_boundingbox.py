@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from room_helpers import CX, CY, FX, ROOM, H, W, box_corners, gazebo_example, room, runs_without
+from gz_examples import gazebo_example
+from room_helpers import CX, CY, FX, ROOM, H, W, box_corners, room, runs_without
 from server_helpers import running_server, stamp_ns
 
 from simbot.bus import messages

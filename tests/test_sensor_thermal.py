@@ -21,9 +21,6 @@ vfov = hfov), 270 K.
 from __future__ import annotations
 
 import math
-import os
-import re
-import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -31,6 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 from gl_helpers import NO_EGL
+from gz_examples import gazebo_example
 from server_helpers import SimServer, running_server
 
 from simbot.sim.render import CameraSpec
@@ -46,8 +44,6 @@ HOT, MARKED, SIGNED = 350.0, 310.0, 320.0
 BOX_DEPTH, WALL_DEPTH = 3.7, 7.9
 SKY = AMBIENT - 40.0 / 2
 NO_ROBOT = ["--robot", "none"]
-GZ_SIM = Path(os.environ.get("SIMBOT_GZ_SIM", "/work/.mirror/gazebosim+gz-sim/repo"))
-"""A gz-sim git directory or checkout (the fetched copy); the example world is read from it."""
 
 RANGED = """<plugin name="gz::sim::systems::ThermalSensor" filename="gz-sim-thermal-sensor-system">{}</plugin>"""
 
@@ -231,34 +227,13 @@ def test_counts_saturate_as_gazebos_unorm_target_does() -> None:
     assert sixteen.tolist() == [[1400, 1500, 500, 400]]
 
 
-def _gz_sim_world(name: str, into: Path) -> Path:
-    """An example world of the fetched gz-sim copy, its Fuel includes removed (simbot downloads
-    nothing), written into `into`; skip where there is no copy."""
-    if not GZ_SIM.exists():
-        pytest.skip(f"no gz-sim copy at {GZ_SIM} (set SIMBOT_GZ_SIM to a gz-sim checkout or git directory)")
-    path = GZ_SIM / "examples" / "worlds" / name
-    if path.is_file():
-        text = path.read_text()
-    else:
-        shown = subprocess.run(
-            ["git", f"--git-dir={GZ_SIM}", "show", f"HEAD:examples/worlds/{name}"], capture_output=True, text=True
-        )
-        if shown.returncode != 0:
-            pytest.skip(f"gz-sim copy at {GZ_SIM} has no examples/worlds/{name}: {shown.stderr.strip()}")
-        text = shown.stdout
-    (into / name).write_text(
-        re.sub(r"<include>(?:(?!</include>).)*fuel\.gazebosim\.org.*?</include>", "", text, flags=re.S)
-    )
-    return into / name
-
-
 def test_gz_sims_example_world_publishes_on_its_keys(tmp_path: Path) -> None:
     """thermal_camera.sdf: 300 K air warming 0.1 K/m; its red box 285 K (a visual's Thermal), its
     near face 5.05 m ahead of the cameras (they face −x), 0.95 m to their right and 0.05 m below;
     the sky 300 − band/2 with gz-sim's band 0.1 × 2·tan(1.047/2) × 100 m = 11.55 K."""
     if NO_EGL:
         pytest.skip(NO_EGL)
-    world = _gz_sim_world("thermal_camera.sdf", tmp_path)
+    world = gazebo_example("thermal_camera.sdf", tmp_path)
     keys = {"thermal_camera": IMAGE, "thermal_camera/camera_info": CAMERA_INFO}
     keys |= {"thermal_camera_8bit/image": IMAGE, "thermal_camera_8bit/camera_info": CAMERA_INFO}
     with running_server(str(world), "lockstep", extra=NO_ROBOT) as server:

@@ -16,15 +16,13 @@ stretch across it is symmetric to first order); ±2 px allows for the cube faces
 from __future__ import annotations
 
 import math
-import os
-import re
-import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 from gl_helpers import NO_EGL
+from gz_examples import gazebo_example
 from server_helpers import SimServer, running_server
 
 from simbot.sim.render.wide_lens import LENS_TYPES, WideLens
@@ -36,8 +34,6 @@ WIDTH, HEIGHT = 320, 240
 FOCAL = (WIDTH / 2) / (math.pi / 2)
 DISTANCE, HEIGHT_M = 3.0, 1.0
 BEHIND = ["--spawn", "-10", "0", "0.1", "0"]
-GZ_SIM = Path(os.environ.get("SIMBOT_GZ_SIM", "/work/.mirror/gazebosim+gz-sim/repo"))
-"""A gz-sim git directory or checkout (the fetched copy); the example world is read from it."""
 
 BOXES = {
     "red": ((1.0, 0.0, 0.0), 0.0, 0.0),
@@ -188,29 +184,8 @@ def test_camera_info_fits_a_lens_no_ros_model_holds() -> None:
     assert np.abs(fitted - lens.radius(theta, lens.focal_px(WIDTH, math.pi))).max() < 0.1
 
 
-def _gz_sim_world(name: str, into: Path) -> Path:
-    """An example world of the fetched gz-sim copy, its Fuel includes removed (simbot downloads
-    nothing), written into `into`; skip where there is no copy."""
-    if not GZ_SIM.exists():
-        pytest.skip(f"no gz-sim copy at {GZ_SIM} (set SIMBOT_GZ_SIM to a gz-sim checkout or git directory)")
-    path = GZ_SIM / "examples" / "worlds" / name
-    if path.is_file():
-        text = path.read_text()
-    else:
-        shown = subprocess.run(
-            ["git", f"--git-dir={GZ_SIM}", "show", f"HEAD:examples/worlds/{name}"], capture_output=True, text=True
-        )
-        if shown.returncode != 0:
-            pytest.skip(f"gz-sim copy at {GZ_SIM} has no examples/worlds/{name}: {shown.stderr.strip()}")
-        text = shown.stdout
-    (into / name).write_text(
-        re.sub(r"<include>(?:(?!</include>).)*fuel\.gazebosim\.org.*?</include>", "", text, flags=re.S)
-    )
-    return into / name
-
-
 def test_gz_sims_example_world_publishes_on_its_key(tmp_path: Path) -> None:
-    world = _gz_sim_world("wide_angle_camera.sdf", tmp_path)
+    world = gazebo_example("wide_angle_camera.sdf", tmp_path)
     with running_server(str(world), "lockstep", extra=BEHIND, world_name="wide_angle_camera_sensor") as server:
         frames = server.latest(
             {"wide_angle_camera": IMAGE, "wide_angle_camera/camera_info": CAMERA_INFO}, chunk=34, timeout=180.0

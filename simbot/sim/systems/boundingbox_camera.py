@@ -80,8 +80,8 @@ class BoundingBoxCamera(Camera):
     def wanted(self) -> bool:
         return self._boxes.has_subscribers or super().wanted()
 
-    def publish(self, frame: Frame) -> None:
-        """The boxes and the image with them drawn, then camera_info, under the frame's stamp."""
+    def send(self, frame: Frame) -> None:
+        """The boxes, and the image with them drawn."""
         view = View(frame.camera_pose or Transform(), self.spec)
         seen = visible(frame["labels"])
         self._objects.forget(set(frame.bodies))
@@ -102,8 +102,6 @@ class BoundingBoxCamera(Camera):
         (output,) = self.outputs
         if output.publisher.has_subscribers:
             output.publisher.put(messages.image(frame.stamp_ns, self.frame_id, drawn))
-        self.publish_info(frame.stamp_ns)
-        self.published(frame.stamp_ns)
 
     def _put(self, message: Any) -> None:
         if self._boxes.has_subscribers:

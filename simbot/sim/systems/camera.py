@@ -166,6 +166,8 @@ class Camera(Sampled):
     products: tuple[Product, ...] = (Product("", "color"),)
     kind = "image"
     """The last segment of Gazebo's default key (`world/<w>/model/<m>/link/<l>/sensor/<s>/image`)."""
+    in_optical_frame = True
+    """Its messages are stamped in the optical frame, which the robot's tf_static adds for it."""
     formats = COLOR_OUTPUTS
     """The output that renders a `color` product, by SDF image format."""
     widest = math.pi
@@ -227,14 +229,19 @@ class Camera(Sampled):
         return self.saver is not None or any(output.publisher.has_subscribers for output in self.outputs)
 
     def publish(self, frame: Frame) -> None:
-        """Each subscribed product, then camera_info, all under the frame's stamp (the sim time it shows)."""
-        for output in self.outputs:
-            if output.publisher.has_subscribers:
-                output.publisher.put(output.build(frame.stamp_ns, self.frame_id, frame[output.output]))
+        """Its products, then camera_info, all under the frame's stamp (the sim time it shows); and
+        the frame to disk where `<save>` says."""
+        self.send(frame)
         self.publish_info(frame.stamp_ns)
         self.published(frame.stamp_ns)
         if self.saver is not None:
             self.saver.save(frame)
+
+    def send(self, frame: Frame) -> None:
+        """Each subscribed product (a camera of another kind sends its own)."""
+        for output in self.outputs:
+            if output.publisher.has_subscribers:
+                output.publisher.put(output.build(frame.stamp_ns, self.frame_id, frame[output.output]))
 
     def publish_info(self, stamp_ns: int) -> None:
         if self._info.has_subscribers:

@@ -29,6 +29,7 @@ from simbot.description.urdf_writer import link_frame, model_to_urdf
 from simbot.sim.naming import sensor_frame
 from simbot.sim.physics import compose, pose_to_transform
 from simbot.sim.rates import Every
+from simbot.sim.registry import SENSOR_GROUP, registered
 from simbot.sim.system import SystemContext, UpdateInfo
 from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 from simbot.transform import Transform, Vec3
@@ -74,7 +75,7 @@ def static_transforms(model: Model, tree: KinematicTree) -> list[tuple[str, str,
         frame = sensor_frame(sensor)
         if frame not in tree.links:
             found.append((link.name, frame, link_frame(link).inverse() @ link.pose @ sensor.pose))
-        if sensor.type == "camera":
+        if getattr(registered(SENSOR_GROUP).get(sensor.type), "in_optical_frame", False):
             found.append((frame, optical_frame(frame), Pose(rpy=OPTICAL_RPY)))
     return found
 
