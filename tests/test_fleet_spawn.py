@@ -132,6 +132,27 @@ def test_namespaced_keys_and_frames(fleet: SimServer) -> None:
     assert all(parent.startswith(f"{DRIVEN}/") and child.startswith(f"{DRIVEN}/") for parent, child in frames)
 
 
+def test_each_tug_s_odometry_frame_hangs_from_world_where_it_entered(fleet: SimServer) -> None:
+    """The scene's tf places world → tug_k/odom (viewers draw scans over the walls), at the tug's
+    entry: x 0, y its spacing (±5 cm: it settles on its wheels); no tug claims a bare `odom`."""
+    transforms = fleet.subscribe("tf", "tf2_msgs/msg/TFMessage")
+    fleet.step(200)  # the scene's frames go out at 10 Hz
+
+    def placed(msgs: list[Any]) -> dict[str, Any]:
+        return {
+            t.child_frame_id: t.transform.translation
+            for m in msgs
+            for t in m.transforms
+            if t.header.frame_id == "world"
+        }
+
+    found = transforms.wait_for(lambda msgs: f"{DRIVEN}/odom" in placed(msgs), timeout=30.0, what="world → tug_5/odom")
+    where = placed(found)
+    assert where[f"{DRIVEN}/odom"].x == pytest.approx(0.0, abs=0.05)
+    assert where[f"{DRIVEN}/odom"].y == pytest.approx(_tug_y(5), abs=0.05)
+    assert "odom" not in where
+
+
 def test_lidar_sees_a_robot_placed_ahead(fleet: SimServer) -> None:
     """tug_5's front lidar: 720 rays, the mast's face 3.00 m ahead on the middle rays."""
     fleet.send(f"{DRIVEN}/cmd_vel", messages.twist((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))

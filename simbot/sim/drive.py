@@ -252,6 +252,8 @@ class DeadReckoning:
 
     def __init__(self, output: OdometryOutput, encoders: Encoders, rate_hz: float) -> None:
         self._output, self._encoders = output, encoders
+        self.frames = (output.frame_id, output.child_frame_id)
+        """(odometry frame, child frame) as published: the robot's namespace prefixed."""
         self._every = Every.hz(rate_hz)
         self.pose = PlanarPose()
         self._last_ns = 0

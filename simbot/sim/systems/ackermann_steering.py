@@ -141,6 +141,11 @@ class AckermannSteering:
             )
         self._target = self._current = (0.0, 0.0)
 
+    @property
+    def odometry_frames(self) -> tuple[str, str] | None:
+        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
+        return None if self._odometry is None else self._odometry.frames
+
     def pre_update(self, info: UpdateInfo) -> None:
         for msg in self._commands.drain():
             self._target = (msg.data, msg.data) if self.params.steering_only else (msg.linear.x, msg.angular.z)

@@ -124,6 +124,11 @@ class DiffDrive:
         self._odom = Odometry()
         self._last_ns = 0
 
+    @property
+    def odometry_frames(self) -> tuple[str, str] | None:
+        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
+        return (self._output.frame_id, self._output.child_frame_id)
+
     def pre_update(self, info: UpdateInfo) -> None:
         for msg in self._commands.drain():
             self._target = (self.params.linear.clamp(msg.linear.x), self.params.angular.clamp(msg.angular.z))

@@ -108,6 +108,11 @@ class MecanumDrive:
         )
         self._target = self._current = (0.0, 0.0, 0.0)
 
+    @property
+    def odometry_frames(self) -> tuple[str, str] | None:
+        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
+        return self._odometry.frames
+
     def pre_update(self, info: UpdateInfo) -> None:
         lim = self.params.limits
         for msg in self._commands.drain():

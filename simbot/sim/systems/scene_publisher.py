@@ -160,14 +160,14 @@ def _skip(skipped: set[str], kind: str) -> None:
 
 
 def odometry_frames(event: ModelEvent) -> list[tuple[str, str]]:
-    """(odometry frame, child frame) of each drive of the model: the systems whose `params` name a
-    `frame_id` and a `child_frame_id` (DiffDrive and the drives built like it)."""
+    """(odometry frame, child frame) of each drive of the model, as it publishes them (a fleet's
+    robots prefixed with their namespaces): the systems with `odometry_frames` (DiffDrive,
+    AckermannSteering, MecanumDrive)."""
     found = []
     for system in event.systems:
-        params = getattr(system, "params", None)
-        frame, child = getattr(params, "frame_id", None), getattr(params, "child_frame_id", None)
-        if isinstance(frame, str) and isinstance(child, str):
-            found.append((frame, child))
+        frames = getattr(system, "odometry_frames", None)
+        if isinstance(frames, tuple) and len(frames) == 2:
+            found.append(frames)
     return found
 
 
