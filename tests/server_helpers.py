@@ -210,15 +210,6 @@ def exited(pid: int) -> bool:
         return True
 
 
-def refused(*args: str) -> str:
-    """The one line a server started with `args` refuses them with (exit code 2 and no traceback asserted)."""
-    done = subprocess.run(server_command(*args), capture_output=True, text=True, timeout=STARTUP_TIMEOUT_S)
-    assert done.returncode == 2, done.stderr
-    lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
-    return lines[0]
-
-
 def dropped(caplog: pytest.LogCaptureFixture) -> list[str]:
     """The lines a world logged for the systems it left out for bad parameters (in this process)."""
     return [r.getMessage() for r in caplog.records if r.name == "simbot.sim.world" and r.levelno == logging.ERROR]

@@ -173,10 +173,12 @@ def odometry_frames(event: ModelEvent) -> list[tuple[str, str]]:
 
 class LatestSender:
     """Puts the newest message handed to it on a thread of its own: encoding a large scene never
-    holds up the loop, and a message superseded before it went is never sent."""
+    holds up the loop, and a message superseded before it went is never sent. In lockstep it puts
+    each at once, in its step, as every message of lockstep goes (a seeded run sends the same)."""
 
-    def __init__(self, publisher: Publisher) -> None:
+    def __init__(self, publisher: Publisher, at_once: bool = False) -> None:
         self._publisher = publisher
+        self._at_once = at_once
         self._pending: Any = None
         self._wake = threading.Condition()
         self._closed = False
@@ -184,6 +186,9 @@ class LatestSender:
         self._thread.start()
 
     def send(self, msg: Any) -> None:
+        if self._at_once:
+            self._publisher.put(msg)
+            return
         with self._wake:
             self._pending = msg
             self._wake.notify()
@@ -212,7 +217,8 @@ class ScenePublisher:
 
     def __init__(self, ctx: SystemContext) -> None:
         self._physics = ctx.physics
-        self._sender = LatestSender(ctx.bus.publisher(SCENE_TOPIC, messages.MarkerArray, latched=True))
+        publisher = ctx.bus.publisher(SCENE_TOPIC, messages.MarkerArray, latched=True)
+        self._sender = LatestSender(publisher, at_once=ctx.options.lockstep)
         self._tf = ctx.bus.publisher("tf", messages.TFMessage)
         self._parts: dict[str, list[Part]] = {}
         self._moving: list[str] = []
