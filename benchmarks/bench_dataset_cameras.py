@@ -30,6 +30,7 @@ from pathlib import Path
 
 from bench_sensors import count_topics
 from bench_server import free_port
+from tables import publish
 
 from simbot.bus import BusOptions, Node
 from simbot.sim.render import Frame
@@ -189,7 +190,7 @@ def main() -> None:
     width, height = (int(v) for v in args.size.lower().split("x"))
     costs = measure(ROWS, (width, height), args.frames, args.rounds, args.renderer)
     print(f"dataset cameras at {width}×{height}, {args.frames} frames × {args.rounds} rounds, renderer {args.renderer}")
-    print("\n".join(table(costs)))
+    publish("dataset_cameras", table(costs))
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from pathlib import Path
 
 from bench_sensors import cpu_seconds
 from bench_server import free_port
+from tables import publish
 
 from simbot.bus import BusOptions, Node
 from simbot.description import load_model, load_world
@@ -202,17 +203,19 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3, help="runs of each bare loop (median)")
     parser.add_argument("--kinematic-only", action="store_true", help="the kinematic servers alone")
     args = parser.parse_args()
-    print("| tugs | dynamic: plain URDF, bare loop | loader's bare loop | `Physics.step` | server, real time: "
+    table = ["| tugs | dynamic: plain URDF, bare loop | loader's bare loop | `Physics.step` | server, real time: "
           "factor held | server fast, per CPU second | CPU per sim second | kinematic server, real time: "
-          "factor held | kinematic fast, per CPU second; CPU per sim second | the same with IMUs at 200 Hz |")  # fmt: skip
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+          "factor held | kinematic fast, per CPU second; CPU per sim second | the same with IMUs at 200 Hz |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     dynamic = not args.kinematic_only
     for n in (int(part) for part in args.fleets.split(",")):
         cells = "— | — | — | — | — | —"
         if dynamic:
             cells, fast = dynamic_row(n, args)
             dynamic = fast >= 0.5
-        print(f"| {n} | {cells} | {kinematic_row(n, args)} |", flush=True)
+        table.append(f"| {n} | {cells} | {kinematic_row(n, args)} |")
+        print(table[-1], flush=True)
+    publish("fleet", table)
 
 
 if __name__ == "__main__":

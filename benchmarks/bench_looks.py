@@ -45,6 +45,7 @@ from bench_sensors import (
     systems_of,
     verdict,
 )
+from tables import publish
 
 from simbot.description.resources import asset
 
@@ -160,7 +161,7 @@ def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     looks = measure(args.seconds)
     print()
-    print("\n".join(table(looks)))
+    publish("looks", table(looks))
     print(f"\ntargets: ≥ {CAMERA_TARGET_HZ:.0f} images/s each camera (aim 30), real-time factor ≥ {RTF_TARGET}")
     print(f"GL device: {looks[BASELINE].device}")
     for label, look in looks.items():

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from tables import publish
 from timing import per_call_ms
 
 from simbot.bus import decode, encode, messages
@@ -122,10 +123,8 @@ def main() -> None:
         ),
     ]
     print(f"\n{SAMPLES}-ray scans into {binning.bins} bins, median of {args.repeats} calls each\n")
-    print("| measurement | result | target | baseline in the same run |")
-    print("| --- | --- | --- | --- |")
-    for row in rows:
-        print("| " + " | ".join(row) + " |")
+    header = ["| measurement | result | target | baseline in the same run |", "| --- | --- | --- | --- |"]
+    publish("merger", header + ["| " + " | ".join(row) + " |" for row in rows])
 
 
 if __name__ == "__main__":

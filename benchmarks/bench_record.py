@@ -19,6 +19,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from tables import publish
 from timing import per_call_ms
 
 from simbot.bus import encode, messages
@@ -50,7 +51,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=300)
     repeats = parser.parse_args().repeats
     kinds = samples()
-    print(f"{'message':<14}{'bytes':>9}{'file write':>13}{'bag write':>12}{'ratio':>8}{'tap check':>12}{'ratio':>8}")
+    table = [
+        "| message | bytes | bag write (rosbags, MCAP) | tap check (one CDR decode) | bare file write |",
+        "| --- | --- | --- | --- | --- |",
+    ]
     load_ms = 0.0
     with tempfile.TemporaryDirectory() as tmp:
         bag = Bag(Path(tmp) / "bag")
@@ -62,12 +66,13 @@ def main() -> None:
                 write = per_call_ms(functools.partial(bag.write, sample), repeats)
                 check = per_call_ms(functools.partial(tap.check, topic, sample.data, ""), repeats)
                 load_ms += RATES_HZ[name] * (write + check)
-                print(
-                    f"{name:<14}{len(sample.data):>9}{bare:>10.4f} ms{write:>9.4f} ms{write / bare:>7.1f}×"
-                    f"{check:>9.4f} ms{check / bare:>7.1f}×"
+                table.append(
+                    f"| {name} | {len(sample.data)} | {write:.4f} ms = {write / bare:.0f}× bare "
+                    f"| {check:.4f} ms = {check / bare:.0f}× bare | {bare:.4f} ms |"
                 )
         bag.close()
-    print(f"recording the whole bus (IMU 200/s, scans 10/s, images 12/s): {load_ms / 10:.1f} % of one core")
+    table += ["", f"Recording the whole bus (IMU 200/s, scans 10/s, images 12/s): {load_ms / 10:.1f} % of one core."]
+    publish("record", table)
 
 
 if __name__ == "__main__":

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tables import publish
 
 from simbot.bus import BusOptions, Node, encode, messages
 
@@ -187,17 +188,19 @@ def drain(arrivals: queue.SimpleQueue[float]) -> None:
         arrivals.get()
 
 
-def per_message(args: argparse.Namespace) -> None:
-    """Latency and CPU per message, bridge against bare."""
+def per_message(args: argparse.Namespace) -> list[str]:
+    """Latency and CPU per message, bridge against bare: the docs' table, a row per message."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with (
         Node(BusOptions(listen=(endpoint,), namespace=NAMESPACE), "server") as bus,
         bridge(endpoint, NAMESPACE) as process,
     ):
         ros = RosSide()
-        print(
-            f"{'message':<14}{'bytes':>9}{'bare ms':>10}{'bridge ms':>11}{'added':>8}{'ratio':>7}{'bare CPU ms':>13}{'bridge CPU ms':>15}{'ratio':>7}"
-        )
+        table = [
+            "| message | bytes | latency, bare rclpy publish → subscriber | latency, Zenoh put → bridge → subscriber "
+            "| CPU per message, bare publisher process | CPU per message, bridge |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
         for key, data in payloads().items():
             typename, rate = KINDS[key]
             publisher = bus.publisher(key, typename)
@@ -210,11 +213,14 @@ def per_message(args: argparse.Namespace) -> None:
             bridge_cpu = bridge_cpu_per_message_ms(process.pid, ros, send, args.count, rate)
             ros.subscribe(typename, f"/{NAMESPACE}/cpu_{key}", lambda _: None)
             bare_cpu = bare_cpu_per_message_ms(typename, f"/{NAMESPACE}/cpu_{key}", data, args.count, rate)
-            print(
-                f"{key:<14}{len(data):>9}{bare:>10.3f}{bridged:>11.3f}{bridged - bare:>8.3f}{bridged / bare:>7.2f}"
-                f"{bare_cpu:>13.3f}{bridge_cpu:>15.3f}{bridge_cpu / bare_cpu:>7.2f}"
+            table.append(
+                f"| {key} ({typename.rsplit('/', 1)[-1]}) | {len(data)} | {bare:.2f} ms "
+                f"| {bridged:.2f} ms = {bridged / bare:.1f}× bare (+{bridged - bare:.2f} ms) | {bare_cpu:.2f} ms "
+                f"| {bridge_cpu:.2f} ms = {bridge_cpu / bare_cpu:.1f}× bare |"
             )
+            print(table[-1], flush=True)
         ros.close()
+    return table
 
 
 def wait_first(ros: RosSide, send: Callable[[], None]) -> None:
@@ -253,8 +259,8 @@ def counter(counts: dict[str, int], name: str) -> Callable[[Any], None]:
     return count
 
 
-def whole_bus(args: argparse.Namespace) -> None:
-    """The bridge's share of a core with a ROS node subscribing every topic but the cameras."""
+def whole_bus(args: argparse.Namespace) -> str:
+    """The bridge's share of a core with a ROS node subscribing every topic but the cameras, as a sentence."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     server = subprocess.Popen(
         [sys.executable, "-m", "simbot.sim.server", "--listen", endpoint, "--namespace", "bus", "--quiet"],
@@ -278,10 +284,11 @@ def whole_bus(args: argparse.Namespace) -> None:
             time.sleep(args.seconds)
             share = (cpu_s(process.pid) - start) / args.seconds
             rate = (sum(counts.values()) - received) / args.seconds
-            print(
-                f"whole bus without cameras: {len(topics)} topics, {rate:.0f} msg/s carried, bridge CPU {share * 100:.1f} % of a core"
-            )
             ros.close()
+            return (
+                f"The whole bus without cameras: {len(topics)} topics, {rate:.0f} messages/s carried, "
+                f"the bridge's CPU {share * 100:.1f} % of a core."
+            )
     finally:
         server.terminate()
         server.wait(timeout=10)
@@ -312,8 +319,8 @@ def main() -> None:
         return
     if not os.environ.get(INSIDE):
         print("bench_ros2: no private network namespace here (unshare): DDS runs on this host's interfaces")
-    per_message(args)
-    whole_bus(args)
+    table = per_message(args)
+    publish("ros2", [*table, "", whole_bus(args)])
 
 
 if __name__ == "__main__":

@@ -49,6 +49,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tables import publish
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_server import bare_loop, free_port
@@ -774,7 +775,7 @@ def main() -> None:
     bare = bare_physics(short)
 
     print()
-    print("\n".join(table(costs, workers, idle, big, small, big_tiny, fast, bare)))
+    publish("sensors", table(costs, workers, idle, big, small, big_tiny, fast, bare))
     fallback = f", fell back: {costs.fallback}" if costs.fallback else ", no fallback"
     print(
         f"\nraw: {workers} render worker(s) on {len(os.sched_getaffinity(0))} cores; renderer {costs.renderer}{fallback}"

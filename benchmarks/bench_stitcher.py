@@ -30,6 +30,7 @@ from collections.abc import Callable
 
 import cv2
 import numpy as np
+from tables import publish
 
 from simbot.bus import encode, messages
 from simbot.bus.frames import OPTICAL_RPY, optical_frame
@@ -176,10 +177,8 @@ def main() -> None:
         ),
         ("cylinder tables, once per camera geometry", f"{tables_ms:.0f} ms", "—", "—"),
     ]
-    print("| measurement | result | target | baseline in the same run |")
-    print("| --- | --- | --- | --- |")
-    for row in rows:
-        print("| " + " | ".join(row) + " |")
+    header = ["| measurement | result | target | baseline in the same run |", "| --- | --- | --- | --- |"]
+    publish("stitcher", header + ["| " + " | ".join(row) + " |" for row in rows])
     cores = len(os.sched_getaffinity(0))
     print(
         f"\nmedians of {args.calls} calls; OpenCV {cv2.__version__} with {cv2.getNumThreads()} threads on {cores} cores"

@@ -26,6 +26,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_looks import resources_from
 from bench_sensors import FIRST_FRAME_TIMEOUT_S, in_process_server, systems_of
+from tables import publish
 
 from simbot.description.resources import asset
 from simbot.sim.render import BodyState
@@ -98,11 +99,14 @@ def main() -> None:
             used = renderer.pool.renderer_used if renderer.pool else "none"
     (eye_render, eye_build), (heat_render, heat_build) = costs["eye"], costs["heat"]
     print(f"thermal camera against a colour camera, {SIZE[0]}x{SIZE[1]}, renderer {used}, medians of {args.rounds}:")
-    print(
-        f"  worker ms a frame:  colour {eye_render:7.2f}  thermal {heat_render:7.2f}  ratio {heat_render / eye_render:.2f}"
-    )
-    print(
-        f"  server ms a build:  colour {eye_build:7.2f}  thermal {heat_build:7.2f}  ratio {heat_build / eye_build:.2f}"
+    publish(
+        "thermal",
+        [
+            f"| {SIZE[0]}×{SIZE[1]}, renderer {used}, median of {args.rounds} | colour | thermal | thermal ÷ colour |",
+            "| --- | --- | --- | --- |",
+            f"| worker, a frame | {eye_render:.2f} ms | {heat_render:.2f} ms | {heat_render / eye_render:.2f} |",
+            f"| server, a build | {eye_build:.2f} ms | {heat_build:.2f} ms | {heat_build / eye_build:.2f} |",
+        ],
     )
 
 

@@ -41,6 +41,7 @@ from typing import Any
 import cv2
 import numpy as np
 import numpy.typing as npt
+from tables import publish
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_server import free_port
@@ -293,12 +294,29 @@ def report(label: str, result: Result) -> None:
     )
 
 
+def table_of(label: str, result: Result) -> list[str]:
+    """The docs' table: one row of this run, and the targets."""
+    errors = result.rotation_errors_deg
+    return [
+        "| renderer and world | ORB keypoints per frame (median) | pairs tracked "
+        "| rotation error, median / 95th percentile | recoverPose inliers (median) |",
+        "| --- | --- | --- | --- | --- |",
+        f"| {label} | {result.median_keypoints:.0f} | {result.tracked_share:.1%} "
+        f"| {statistics.median(errors):.2f}° / {float(np.percentile(errors, 95)):.2f}° "
+        f"| {statistics.median(result.inliers):.0f} |",
+        f"| target | ≥ {KEYPOINT_TARGET} | ≥ {TRACKED_TARGET:.0%} | — | — |",
+    ]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--world", default=WORLD, help="world name or SDF path (its <world> named warehouse)")
     parser.add_argument("--seconds", type=float, default=27.0, help="sim seconds of driving (27: one full circle)")
     args = parser.parse_args()
-    report(f"{args.world}, {CAMERA}", measure(args.world, args.seconds))
+    label = f"{args.world}, {CAMERA}"
+    result = measure(args.world, args.seconds)
+    report(label, result)
+    publish("vo", table_of(label, result))
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sensors import camera_mounts, in_process_server, systems_of
+from tables import publish
 
 from simbot.sim.render import CameraSpec, RenderPool, SceneBody
 from simbot.sim.render.wide_lens import WideLens
@@ -78,10 +79,15 @@ def main() -> None:
         finally:
             pool.close()
     base = statistics.median(seconds["colour"])
-    print(f"{args.size[0]}x{args.size[1]}, one worker on {device}, median of {args.frames} frames each")
+    table = [
+        f"| camera, {args.size[0]}×{args.size[1]}, one worker on {device}, median of {args.frames} frames "
+        "| a frame | ÷ the colour camera |",
+        "| --- | --- | --- |",
+    ]
     for name, values in seconds.items():
         median = statistics.median(values)
-        print(f"  {name:9s} {median * 1000:8.1f} ms a frame   {median / base:5.2f}x the colour camera")
+        table.append(f"| {name} | {median * 1000:.1f} ms | {median / base:.2f} |")
+    publish("wide_angle", table)
 
 
 if __name__ == "__main__":
