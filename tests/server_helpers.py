@@ -375,11 +375,11 @@ class SimServer:
         return elapsed
 
 
-def _spawn(args: Sequence[str], stderr_path: Path) -> subprocess.Popen[bytes]:
+def _spawn(args: Sequence[str], stderr_path: Path, cwd: Path = REPO) -> subprocess.Popen[bytes]:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     with stderr_path.open("wb") as err:
         return subprocess.Popen(
-            server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=REPO, env=env
+            server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=cwd, env=env
         )
 
 
@@ -425,8 +425,10 @@ def running_server(
     seed: int = 0,
     extra: Sequence[str] = (),
     world_name: str | None = None,
+    cwd: Path = REPO,
 ) -> Iterator[SimServer]:
-    """A `simbot-server` on a fresh loopback port and namespace; stopped with SIGTERM, exit 0 within 2 s asserted."""
+    """A `simbot-server` on a fresh loopback port and namespace, working in `cwd` (where a camera's
+    relative `<save>` path lands); stopped with SIGTERM, exit 0 within 2 s asserted."""
     port = free_port()
     namespace = unique_namespace()
     name = world_name or Path(world).stem
@@ -446,17 +448,17 @@ def running_server(
     ]
     with (
         tempfile.TemporaryDirectory(prefix="simbot-server-") as tmp,
-        _serving(args, port, namespace, name, mode, Path(tmp) / "stderr.txt") as server,
+        _serving(args, port, namespace, name, mode, Path(tmp) / "stderr.txt", cwd) as server,
     ):
         yield server
 
 
 @contextmanager
 def _serving(
-    args: Sequence[str], port: int, namespace: str, name: str, mode: str, stderr_path: Path
+    args: Sequence[str], port: int, namespace: str, name: str, mode: str, stderr_path: Path, cwd: Path = REPO
 ) -> Iterator[SimServer]:
     """The server process of `args`, once its world control answers; stopped (or killed) on the way out."""
-    process = _spawn(args, stderr_path)
+    process = _spawn(args, stderr_path, cwd)
     node: Node | None = None
     try:
         node = _connect(process, port, namespace, stderr_path)

@@ -141,7 +141,9 @@ def test_gazebo_boundingbox_example_publishes_on_its_keys(tmp_path: Path) -> Non
     label 10 and its sphere of label 20 (the Fuel model of label 30 is removed), images beside."""
     world = gazebo_example("boundingbox_camera.sdf", tmp_path)
     keys = {"boxes_full_2d": BOXES_2D, "boxes_visible_2d": BOXES_2D, "boxes_3d": BOXES_3D, "boxes_full_2d_image": IMAGE}
-    with running_server(str(world), "lockstep", world_name="boundingbox_sensor", extra=["--robot", "none"]) as sim:
+    with running_server(
+        str(world), "lockstep", cwd=tmp_path, world_name="boundingbox_sensor", extra=["--robot", "none"]
+    ) as sim:
         got = sim.latest(keys, chunk=34)
     for key in ("boxes_full_2d", "boxes_visible_2d", "boxes_3d"):
         labels = sorted(d.results[0].hypothesis.class_id for d in got[key].detections)

@@ -155,7 +155,7 @@ def test_gazebo_segmentation_example_publishes_on_its_keys(tmp_path: Path) -> No
     both maps of both cameras on the keys its GUI subscribes to, all background."""
     world = gazebo_example("segmentation_camera.sdf", tmp_path)
     keys = {f"{kind}/{name}": IMAGE for kind in ("semantic", "panoptic") for name in ("labels_map", "colored_map")}
-    with running_server(str(world), "lockstep", world_name="shapes", extra=["--robot", "none"]) as sim:
+    with running_server(str(world), "lockstep", cwd=tmp_path, world_name="shapes", extra=["--robot", "none"]) as sim:
         got = sim.latest(keys, chunk=34)
     for key, image in got.items():
         assert (image.width, image.height, image.encoding) == (800, 600, "rgb8"), key

@@ -236,7 +236,7 @@ def test_gz_sims_example_world_publishes_on_its_keys(tmp_path: Path) -> None:
     world = gazebo_example("thermal_camera.sdf", tmp_path)
     keys = {"thermal_camera": IMAGE, "thermal_camera/camera_info": CAMERA_INFO}
     keys |= {"thermal_camera_8bit/image": IMAGE, "thermal_camera_8bit/camera_info": CAMERA_INFO}
-    with running_server(str(world), "lockstep", extra=NO_ROBOT) as server:
+    with running_server(str(world), "lockstep", cwd=tmp_path, extra=NO_ROBOT) as server:
         shown = server.latest(keys, chunk=34, timeout=180.0)
     sixteen, eight = shown["thermal_camera"], shown["thermal_camera_8bit/image"]
     assert (sixteen.width, sixteen.height, sixteen.encoding, eight.encoding) == (320, 240, "mono16", "mono8")

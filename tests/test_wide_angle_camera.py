@@ -186,7 +186,9 @@ def test_camera_info_fits_a_lens_no_ros_model_holds() -> None:
 
 def test_gz_sims_example_world_publishes_on_its_key(tmp_path: Path) -> None:
     world = gazebo_example("wide_angle_camera.sdf", tmp_path)
-    with running_server(str(world), "lockstep", extra=BEHIND, world_name="wide_angle_camera_sensor") as server:
+    with running_server(
+        str(world), "lockstep", cwd=tmp_path, extra=BEHIND, world_name="wide_angle_camera_sensor"
+    ) as server:
         frames = server.latest(
             {"wide_angle_camera": IMAGE, "wide_angle_camera/camera_info": CAMERA_INFO}, chunk=34, timeout=180.0
         )
