@@ -27,7 +27,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +46,7 @@ SEED = 7
 STEPS_BEFORE = 50
 STEPS_DRIVEN = 600
 IMAGE = "sensor_msgs/msg/Image"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 LATCHED = ("robot_description", "tf_static", "scene")
 IMAGE_ENCODINGS = {"rgb8", "mono8", "32FC1"}
 
@@ -102,15 +103,18 @@ def _latched(session: zenoh.Session, prefix: str, keys: tuple[str, ...]) -> list
 
 
 def _placeless(key: str, payload: bytes) -> bytes:
-    """The payload with the checkout's path taken out: `robot_description` (a std_msgs/String)
-    names its meshes by absolute `file://` URIs, which differ from one clone to the next, and so do
-    the mesh markers of `scene` (their bytes are hashed with the path replaced, never decoded)."""
-    if str(REPO).encode() not in payload:
+    """The payload with the checkout's path taken out, decoded and encoded again (a string's length
+    is in its bytes): `robot_description` (a std_msgs/String) names its meshes by absolute
+    `file://` URIs, which differ from one clone to the next, and so do the mesh markers of `scene`."""
+    repo = str(REPO)
+    if repo.encode() not in payload:
         return payload
-    if key != "robot_description":
-        return payload.replace(str(REPO).encode(), b"<repo>")
-    text = decode(payload, STRING).data.replace(str(REPO), "<repo>")
-    return encode(messages.string(text))
+    if key == "robot_description":
+        return encode(messages.string(decode(payload, STRING).data.replace(repo, "<repo>")))
+    assert key == "scene", f"{key} names the checkout's path"
+    scene = decode(payload, MARKER_ARRAY)
+    markers = [replace(m, mesh_resource=m.mesh_resource.replace(repo, "<repo>")) for m in scene.markers]
+    return encode(replace(scene, markers=markers))
 
 
 def _drawn(payloads: dict[str, bytes]) -> set[str]:
