@@ -77,6 +77,11 @@ class Sampled:
         self._now_ns = info.sim_time_ns
         return self.every.due(info.sim_time_ns)
 
+    @property
+    def next_due_ns(self) -> int:
+        """Sim time from which `due` says True: a scheduler can skip asking until then."""
+        return self.every.next_ns
+
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)
 

@@ -40,6 +40,11 @@ class RenderedSensor(Protocol):
 
     def due(self, info: UpdateInfo) -> bool: ...
 
+    @property
+    def next_due_ns(self) -> int:
+        """Sim time before which `due` says False."""
+        ...
+
     def wanted(self) -> bool:
         """Someone subscribes to an output that needs rendering."""
         ...
