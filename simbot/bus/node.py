@@ -123,9 +123,6 @@ class Publisher:
         self._latest: tuple[bytes, zenoh.Encoding] | None = None
         self._lock = threading.Lock()
         self._queryable: zenoh.Queryable[None] | None = None
-        self._matching = True
-        self._matching_heard = False
-        self._matching_listener: zenoh.MatchingListener[None] | None = None
         self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
         if latched:
             self._publisher = zenoh.ext.declare_advanced_publisher(
@@ -139,23 +136,6 @@ class Publisher:
             self._queryable = session.declare_queryable(key, self._serve_latest, complete=True)
         else:
             self._publisher = session.declare_publisher(key, encoding=CDR_ENCODING, congestion_control=congestion)
-            self._listen_for_matching(self._publisher)
-
-    def _listen_for_matching(self, publisher: zenoh.Publisher) -> None:
-        """Keep `has_subscribers` as a cached boolean: polling Zenoh costs 0.1-1 ms a call once there
-        are hundreds of publishers, and idle cameras ask at every frame."""
-        self._matching_listener = publisher.declare_matching_listener(self._on_matching)
-        # zenoh 1.10 returns a MatchingStatus (always truthy), though its stub says bool
-        status: object = publisher.matching_status
-        with self._lock:
-            if not self._matching_heard:  # a change heard meanwhile is newer than this read
-                self._matching = bool(getattr(status, "matching", status))
-
-    def _on_matching(self, status: zenoh.MatchingStatus) -> None:
-        """A subscriber matching the key came or the last one went (called on a Zenoh thread)."""
-        with self._lock:
-            self._matching_heard = True
-            self._matching = status.matching
 
     def _encoding(self, typename: str) -> zenoh.Encoding:
         """`application/cdr;TYPE`: lets a monitor decode a key without being told its type."""
@@ -193,17 +173,19 @@ class Publisher:
     @property
     def has_subscribers(self) -> bool:
         """Whether a subscriber matching the key is known (plain publishers only; latched ones say True)."""
-        return self._matching
+        if not isinstance(self._publisher, zenoh.Publisher):
+            return True
+        # zenoh 1.10 returns a MatchingStatus (always truthy), though its stub says bool
+        status: object = self._publisher.matching_status
+        return bool(getattr(status, "matching", status))
 
     def close(self) -> None:
         """Undeclare the publisher (and the latched queryable)."""
         if self._announcement is not None:
             self._announcement.close()
-        _undeclare(self._matching_listener)
         _undeclare(self._queryable)
         _undeclare(self._publisher)
         self._queryable = None
-        self._matching_listener = None
 
 
 class Subscription(Generic[M]):
