@@ -24,7 +24,6 @@ import shutil
 import subprocess
 import tarfile
 import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -35,7 +34,7 @@ import pytest
 from bus_helpers import free_port
 from client_helpers import client_process
 from conftest import REPO
-from server_helpers import running_server
+from server_helpers import running_server, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -53,6 +52,8 @@ VIEW_M = 14.0
 """The scan panel's view: top-down, orthographic, this many metres from the canvas's top to its bottom."""
 DEADLINE_S = 600.0
 """Two cores shared with other test runs: the page loads, connects and draws in minutes, not seconds."""
+SHOT_EVERY_S = 5.0
+"""Seconds between screenshots while the page loads and draws (each costs a second of a loaded core)."""
 CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 """WebGL on the CPU (SwiftShader): the 3D panels need it and the test machine has no GPU."""
 
@@ -232,18 +233,21 @@ def test_foxglove_studio_shows_the_scene_and_the_camera(site: str) -> None:
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             url = f"{site}?ds=foxglove-websocket&ds.url=ws://127.0.0.1:{port}&layoutId=simbot"
             page.goto(url, timeout=DEADLINE_S * 1000)
-            deadline = time.monotonic() + DEADLINE_S
             missing = ["the page"]
-            while missing and time.monotonic() < deadline:
-                time.sleep(5.0)
+
+            def on_screen() -> bool:
                 shot = _screenshot(page, ARTIFACTS / "simbot-foxglove.png")
                 boxes = _canvases(page)
-                missing = [
+                missing[:] = [
                     *_scene_drawn(shot, boxes["scan"]),
                     *_scan_drawn(shot, boxes["scan"]),
                     *_camera_shown(shot, boxes["image"]),
                 ]
-            errors = page.evaluate("window.studioErrors")
+                return not missing
+
+            try:
+                wait_until(on_screen, DEADLINE_S, "simbot's layout on the screen", poll=SHOT_EVERY_S)
+            except AssertionError as late:
+                raise AssertionError(f"{late}: {missing}; page errors {page.evaluate('window.studioErrors')}") from None
         finally:
             browser.close()
-    assert not missing, f"not on the screen within {DEADLINE_S:g} s: {missing}; page errors {errors}"
