@@ -13,9 +13,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-import pytest
-from gl_helpers import NO_EGL
-from server_helpers import SimServer, running_server
+from server_helpers import SimServer, drawn_by, running_server
 
 REPO = Path(__file__).resolve().parents[1]
 ROOM = str(REPO / "tests" / "fixtures" / "labelled" / "room.sdf")
@@ -44,11 +42,7 @@ def box_corners(centre: tuple[float, float, float], size: tuple[float, float, fl
 
 def room(renderer: str) -> Iterator[SimServer]:
     """The room's server in lockstep (no robot), drawn by `renderer`."""
-    if renderer == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
-    with running_server(
-        ROOM, "lockstep", world_name="labelled_room", extra=["--robot", "none", "--renderer", renderer]
-    ) as sim:
+    with drawn_by(renderer, ROOM, ["--robot", "none"], world_name="labelled_room") as sim:
         yield sim
 
 

@@ -33,6 +33,7 @@ from typing import Any, Generic, TypeVar
 import pytest
 import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace
+from gl_helpers import NO_EGL
 
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError, Subscription, messages
 
@@ -497,6 +498,17 @@ def left_out(world: str, world_name: str, *extra: str) -> list[str]:
         errors = sim.errors()
     assert errors, "no system was left out"
     return errors
+
+
+@contextmanager
+def drawn_by(
+    renderer: str, world: str, extra: Sequence[str] = (), world_name: str | None = None
+) -> Iterator[SimServer]:
+    """A lockstep server of `world` whose cameras `renderer` draws (gl or tiny); skips gl where no EGL context opens."""
+    if renderer == "gl" and NO_EGL:
+        pytest.skip(NO_EGL)
+    with running_server(world, "lockstep", extra=[*extra, "--renderer", renderer], world_name=world_name) as sim:
+        yield sim
 
 
 def module_server(world: str, mode: str = "lockstep", extra: Sequence[str] = ()) -> Any:

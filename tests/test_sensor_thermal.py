@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 from gl_helpers import NO_EGL
 from gz_examples import gazebo_example
-from server_helpers import SimServer, running_server
+from server_helpers import SimServer, drawn_by, running_server
 
 from simbot.sim.render import CameraSpec
 from simbot.sim.render.thermal import ThermalScale, ThermalSpec, counts8, counts16
@@ -100,11 +100,9 @@ def _range(low: float, high: float, resolution: float) -> str:
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimServer]:
     """Every test runs with each renderer: TinyRenderer gives unannotated geometry the atmosphere at z = 0."""
-    if request.param == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
     world = tmp_path_factory.mktemp("thermal") / "thermal_room.sdf"
     world.write_text(world_text())
-    with running_server(str(world), "lockstep", extra=[*NO_ROBOT, "--renderer", request.param]) as server:
+    with drawn_by(request.param, str(world), NO_ROBOT) as server:
         server.renderer = request.param  # type: ignore[attr-defined]
         yield server
 

@@ -21,9 +21,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gl_helpers import NO_EGL
 from gz_examples import gazebo_example
-from server_helpers import SimServer, running_server
+from server_helpers import SimServer, drawn_by, running_server
 
 from simbot.sim.render.wide_lens import LENS_TYPES, WideLens
 from simbot.sim.systems.wide_angle_camera import info_model
@@ -80,11 +79,9 @@ def world_text() -> str:
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimServer]:
     """The lens and cut-off tests run with each renderer: both draw the cube faces."""
-    if request.param == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
     world = tmp_path_factory.mktemp("wide") / "wide_boxes.sdf"
     world.write_text(world_text())
-    with running_server(str(world), "lockstep", extra=[*BEHIND, "--renderer", request.param]) as server:
+    with drawn_by(request.param, str(world), BEHIND) as server:
         yield server
 
 
