@@ -59,6 +59,11 @@ class Wheel:
     fdir1 and μ2 across it. A mecanum wheel's rollers give 45° with μ2 0 (Gazebo's mecanum example)."""
 
 
+Loads = dict[tuple[int, int], list[float]]
+"""Per (body, wheel link): the normal force N summed over its contact points, then N × point and
+N × normal summed (x, y, z each): the load-weighted centre and normal, seen from the wheel."""
+
+
 class WheelFriction:
     """The wheels of one body; `apply` once before every physics step (plain floats: it runs at 1 kHz)."""
 
@@ -66,31 +71,16 @@ class WheelFriction:
         self._client = client
         self.body = body
         self._wheels = {w.link: w for w in wheels}
+        self.links = frozenset(self._wheels)
         self._links = list(self._wheels)
 
-    def apply(self) -> None:
-        """Friction forces from the last step's contacts and the current velocities."""
-        loads: dict[int, list[float]] = {}
-        for c in pb.getContactPoints(bodyA=self.body, physicsClientId=self._client):
-            n = c[9]
-            if n > 0 and c[3] in self._wheels:
-                (px, py, pz), (nx, ny, nz) = c[5], c[7]
-                acc = loads.get(c[3])
-                if acc is None:
-                    loads[c[3]] = [n, n * px, n * py, n * pz, n * nx, n * ny, n * nz]
-                else:
-                    acc[0] += n
-                    acc[1] += n * px
-                    acc[2] += n * py
-                    acc[3] += n * pz
-                    acc[4] += n * nx
-                    acc[5] += n * ny
-                    acc[6] += n * nz
-        if not loads:
+    def apply(self, loads: Loads) -> None:
+        """Friction forces from the last step's contacts (`wheel_loads`) and the current velocities."""
+        mine = [loads.get((self.body, link)) for link in self._links]
+        if not any(mine):
             return
         states = pb.getLinkStates(self.body, self._links, computeLinkVelocity=1, physicsClientId=self._client)
-        for link, state in zip(self._links, states):
-            acc = loads.get(link)
+        for link, state, acc in zip(self._links, states, mine):
             if acc is not None:
                 n = acc[0]
                 self._apply_one(
@@ -128,3 +118,40 @@ class WheelFriction:
         f2 = -wheel.mu2 * load * max(-1.0, min(1.0, (ux * sx + uy * sy + uz * sz) / SLIP_SPEED))
         force = (f1 * lx + f2 * sx, f1 * ly + f2 * sy, f1 * lz + f2 * sz)
         pb.applyExternalForce(self.body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)
+
+
+def wheel_loads(client: int, models: dict[int, WheelFriction]) -> Loads:
+    """Every wheel's load from one contact query for the whole world. PyBullet answers a query
+    for one body by walking every contact manifold of the world, so a query per robot cost a
+    fleet O(robots²) a step (0.36 ms against 0.09 ms for twenty tugs). Seen from the wheel: where
+    the wheel is PyBullet's body B, its point is the one on B and the normal turned round, as
+    PyBullet's query for that body reports them."""
+    loads: Loads = {}
+    for c in pb.getContactPoints(physicsClientId=client):
+        n = c[9]
+        if n <= 0:
+            continue
+        model = models.get(c[1])
+        if model is not None and c[3] in model.links:
+            (nx, ny, nz) = c[7]
+            _add_load(loads, (c[1], c[3]), n, c[5], (nx, ny, nz))
+        model = models.get(c[2])
+        if model is not None and c[4] in model.links:
+            (nx, ny, nz) = c[7]
+            _add_load(loads, (c[2], c[4]), n, c[6], (-nx, -ny, -nz))
+    return loads
+
+
+def _add_load(loads: Loads, key: tuple[int, int], n: float, point: Vec3, normal: Vec3) -> None:
+    (px, py, pz), (nx, ny, nz) = point, normal
+    acc = loads.get(key)
+    if acc is None:
+        loads[key] = [n, n * px, n * py, n * pz, n * nx, n * ny, n * nz]
+        return
+    acc[0] += n
+    acc[1] += n * px
+    acc[2] += n * py
+    acc[3] += n * pz
+    acc[4] += n * nx
+    acc[5] += n * ny
+    acc[6] += n * nz

@@ -19,7 +19,7 @@ from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.kinematic import KINEMATIC, Kinematics
 from simbot.sim.physics.loading import Loader
 from simbot.sim.physics.rays import Rays
-from simbot.sim.physics.wheel_friction import WheelFriction
+from simbot.sim.physics.wheel_friction import WheelFriction, wheel_loads
 from simbot.transform import Transform
 
 
@@ -44,8 +44,8 @@ class Physics(Commands):
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _loader: Loader = field(init=False)
-    _wheels: dict[str, WheelFriction] = field(default_factory=dict)
-    """The wheels' friction model of each body that has wheels."""
+    _wheels: dict[int, WheelFriction] = field(default_factory=dict)
+    """The wheels' friction model of each body that has wheels, by PyBullet body id."""
     _kinematics: Kinematics | None = None
     """Set in kinematic mode (`<physics type="kinematic">`): robots move by their drives' commands."""
     _heightfields: dict[str, list[int]] = field(default_factory=dict)
@@ -92,7 +92,7 @@ class Physics(Commands):
         loaded = self._loader.load(model, name, pose)
         self.bodies[name] = loaded.body
         if loaded.wheels is not None:
-            self._wheels[name] = loaded.wheels
+            self._wheels[loaded.body.id] = loaded.wheels
         self._heightfields[name] = loaded.heightfields
         return loaded.body
 
@@ -105,7 +105,7 @@ class Physics(Commands):
         names = [n for n in self.bodies if n == name or n.startswith(name + "::")]
         for part in names:
             body = self.bodies.pop(part)
-            self._wheels.pop(part, None)
+            self._wheels.pop(body.id, None)
             if self._kinematics is not None:
                 self._kinematics.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
@@ -138,8 +138,10 @@ class Physics(Commands):
         if self._kinematics is not None:
             self._kinematics.step(self.bodies, self.step_size)
             return
-        for wheels in self._wheels.values():
-            wheels.apply()
+        if self._wheels:
+            loads = wheel_loads(self.client, self._wheels)
+            for wheels in self._wheels.values():
+                wheels.apply(loads)
         pb.stepSimulation(physicsClientId=self.client)
 
     @changes_world
