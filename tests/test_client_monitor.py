@@ -40,6 +40,8 @@ POSE_TOLERANCE = 0.01 + ROUNDING
 SPAWN, TROLLEY = (-2.5, 0.0), (1.0, 0.2)
 BLOCKS = 5
 """Tables to wait for: the rates' 3 s horizon is full from the fourth on."""
+NO_MESSAGE = "no message yet"
+"""The monitor's latest cell of a key that has had none."""
 
 
 @pytest.fixture(scope="module", name="sim")
@@ -66,21 +68,34 @@ def parse_block(block: str) -> tuple[str, dict[str, tuple[str, str]]]:
 
 @pytest.fixture(scope="module", name="table")
 def table_fixture(sim: SimServer) -> tuple[str, dict[str, tuple[str, str]], dict[str, Any]]:
-    """The monitor's fifth table (from a pipe: plain blocks), and the test's own scans and camera_info taken meanwhile."""
+    """The monitor's first table (from a pipe: plain blocks) from the fifth on that shows the
+    stitcher's panorama (a loaded machine starts the stitcher later), and the test's own scans and
+    camera_info taken meanwhile."""
     keys = ["lidar_front", "lidar_back", "scan"]
     scans = {key: sim.subscribe(key, LASER_SCAN) for key in keys}
     info = sim.subscribe("camera_360/camera_info", CAMERA_INFO)
     with client_process(sim, "monitor") as monitor:
-        wait_until(lambda: monitor.stdout().count("\n\n") >= BLOCKS, timeout=TIMEOUT_S, what=f"{BLOCKS} tables")
+        what = f"a table from the {BLOCKS}th on with the panorama"
+        wait_until(lambda: complete_table(monitor.stdout()), timeout=TIMEOUT_S, what=what)
         assert monitor.alive(), monitor.stderr()
-        text = monitor.stdout()
+        found = complete_table(monitor.stdout())
+    assert found is not None
     own: dict[str, Any] = {
         key: collector.wait_count(1, timeout=TIMEOUT_S, what=f"{key} scans")[-1] for key, collector in scans.items()
     }
     own["camera_360/camera_info"] = info.wait_count(1, timeout=TIMEOUT_S, what="panorama camera_info")[-1]
     sim.unsubscribe_all()
-    heading, rows = parse_block(text.split("\n\n")[BLOCKS - 1])
+    heading, rows = found
     return heading, rows, own
+
+
+def complete_table(text: str) -> tuple[str, dict[str, tuple[str, str]]] | None:
+    """The last whole table printed, from the BLOCKS-th on, once its panorama row has a message."""
+    blocks = text.split("\n\n")[:-1]
+    if len(blocks) < BLOCKS:
+        return None
+    heading, rows = parse_block(blocks[-1])
+    return (heading, rows) if rows.get("camera_360/camera_info", ("", NO_MESSAGE))[1] != NO_MESSAGE else None
 
 
 def numbers(text: str) -> list[float]:

@@ -154,23 +154,19 @@ def test_in_real_time_the_cameras_render_as_sets_sharing_a_stamp() -> None:
 
 
 def test_every_image_has_its_camera_info_under_the_same_stamp_in_real_time() -> None:
-    """All six cameras at 640×480 in real time for 3 s of frames: each image's stamp has a camera_info
-    with that stamp (what image_transport's CameraSubscriber and exact-time synchronisers pair)."""
+    """All six cameras at 640×480 in real time, eleven frames each (however long a loaded machine
+    takes to render them): each image's stamp has a camera_info with that stamp (what
+    image_transport's CameraSubscriber and exact-time synchronisers pair)."""
     with running_server(WORLD, "realtime", extra=AT_ORIGIN) as sim:
         images = {topic: sim.subscribe(topic, IMAGE) for topic in CAMERAS}
         infos = {topic: sim.subscribe(f"{topic}/camera_info", CAMERA_INFO) for topic in CAMERAS}
-        first = images["camera_front"].wait_count(1, timeout=60.0, what="a first camera_front image")
-        start = stamp_ns(first[0])
-        images["camera_front"].wait_for(
-            lambda items: stamp_ns(items[-1]) >= start + 3_000_000_000, timeout=60.0, what="3 s of frames"
-        )
+        for topic in CAMERAS:
+            images[topic].wait_count(11, timeout=120.0, what=f"{topic} images")
         for topic in CAMERAS:
             stamps = [stamp_ns(m) for m in images[topic].messages()][:-1]  # the last one's info may be in flight
             info_stamps = {stamp_ns(m) for m in infos[topic].messages()}
             missing = [s for s in stamps if s not in info_stamps]
-            assert len(stamps) >= 10 and not missing, (
-                f"{topic}: {len(missing)} of {len(stamps)} images have no camera_info with their stamp"
-            )
+            assert not missing, f"{topic}: {len(missing)} of {len(stamps)} images have no camera_info with their stamp"
 
 
 def test_camera_rate_option_and_the_renderer_in_world_state() -> None:
