@@ -34,7 +34,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, left_out, running_server
+from server_helpers import SimServer, drawn_by, left_out
 
 from simbot.bus import messages
 from simbot.clients.stitcher import CameraModel, CylinderStitcher, Intrinsics
@@ -114,9 +114,7 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest, world: Path) -> Iterator[SimServer]:
     """Both renderers draw the wider pinhole field the lens samples from."""
-    if request.param == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
-    with running_server(str(world), "lockstep", extra=[*BEHIND, "--renderer", request.param]) as server:
+    with drawn_by(request.param, str(world), BEHIND) as server:
         yield server
 
 

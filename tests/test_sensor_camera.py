@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from conftest import CAMERAS
 from gl_helpers import NO_EGL
-from server_helpers import SimServer, render_workers, running_server, stamp_ns, wait_until
+from server_helpers import SimServer, drawn_by, render_workers, running_server, stamp_ns, wait_until
 
 from simbot.bus import messages
 
@@ -36,9 +36,7 @@ BOX_WIDTH, BOX_DISTANCE = 1.0, 2.5
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
     """The geometry, intrinsics, stamps and rendering-on-demand tests run with each renderer."""
-    if request.param == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
-    with running_server(WORLD, "lockstep", extra=[*AT_ORIGIN, "--renderer", request.param]) as server:
+    with drawn_by(request.param, WORLD, AT_ORIGIN) as server:
         yield server
 
 

@@ -16,8 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gl_helpers import NO_EGL
-from server_helpers import SimServer, left_out, running_server, stamp_ns
+from server_helpers import SimServer, drawn_by, left_out, stamp_ns
 
 from simbot.bus import messages
 
@@ -33,9 +32,7 @@ FRAME_NS = 100_000_000  # the cameras' 10 Hz
 
 @pytest.fixture(scope="module", params=["gl", "tiny"])
 def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
-    if request.param == "gl" and NO_EGL:
-        pytest.skip(NO_EGL)
-    with running_server(str(WORLD), "lockstep", extra=[*BEHIND, "--renderer", request.param]) as server:
+    with drawn_by(request.param, str(WORLD), BEHIND) as server:
         yield server
 
 
