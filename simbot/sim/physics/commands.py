@@ -65,8 +65,7 @@ class Commands(Queries):
         """The planar twist a drive commands of the model frame (m/s along x and y, rad/s about z):
         in kinematic mode the base moves by it; a dynamic world moves it through the wheels instead."""
         if self._kinematics is not None:
-            others = [body.id for body in self.bodies.values()]
-            self._kinematics.drive(self.body(model), others, forward, lateral, turn)
+            self._kinematics.drive(self.body(model), self.bodies.values(), forward, lateral, turn)
 
     @changes_world
     def set_joint_force(self, model: str, joint: str, force: float) -> None:
@@ -124,4 +123,4 @@ class Commands(Queries):
         if self.constraints.pop(constraint, None) is not None:
             pb.removeConstraint(constraint, physicsClientId=self.client)
             if self._kinematics is not None:
-                self._kinematics.carried.pop(constraint, None)
+                self._kinematics.release(constraint)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
 from simbot.description.model import World
@@ -86,20 +87,21 @@ class Kinematics:
     _parked: set[int] = field(default_factory=set)
     """Bodies whose joints stand still and read so."""
 
-    def drive(self, body: Body, others: list[int], forward: float, lateral: float, turn: float) -> None:
-        """The base's twist from now on; the first one sets the body down on the floor (`others` below it)."""
+    def drive(self, body: Body, others: Iterable[Body], forward: float, lateral: float, turn: float) -> None:
+        """The base's twist from now on; the first one sets the body down on the floor (`others` below
+        it, read only then: a drive says its twist every step it ramps)."""
         if body.id not in self.driven:
             self._settle(body.id, others)
         self.driven.setdefault(body.id, Driven()).twist = (forward, lateral, turn)
 
-    def _settle(self, body: int, others: list[int]) -> None:
+    def _settle(self, body: int, others: Iterable[Body]) -> None:
         """Lowers (or lifts) `body` until it touches what supports it: nothing falls in kinematic mode,
         and a robot spawned above the floor would carry its lidars too high."""
         gaps = [
             c[8]
             for other in others
-            if other != body
-            for c in pb.getClosestPoints(body, other, SETTLE_SEARCH_M, physicsClientId=self.client)
+            if other.id != body
+            for c in pb.getClosestPoints(body, other.id, SETTLE_SEARCH_M, physicsClientId=self.client)
             if abs(c[7][2]) >= FLOOR_NORMAL_Z
         ]
         if gaps:
@@ -113,6 +115,10 @@ class Kinematics:
         """`child` rides with `parent` from now on, as it sits now (base frames)."""
         relative = compose(invert(self._base(parent)), self._base(child))
         self.carried[constraint] = Carried(parent, child, relative)
+
+    def release(self, constraint: int) -> None:
+        """The joint `carry` followed is gone: its child stays where it is."""
+        self.carried.pop(constraint, None)
 
     def forget(self, body: int) -> None:
         """A body left the world."""
