@@ -44,7 +44,7 @@ from simbot.bus import Publisher, messages
 from simbot.description.model import Box, Capsule, Cylinder, Ellipsoid, Geometry, Mesh, Plane, Sphere, Visual
 from simbot.description.poses import Pose
 from simbot.sim.naming import scoped_key
-from simbot.sim.physics import WorldReader
+from simbot.sim.physics import WorldReader, pose_to_transform
 from simbot.sim.rates import Every
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import Transform
@@ -116,24 +116,9 @@ def colour_of(visual: Visual, shape: Shape) -> tuple[float, float, float, float]
     return (r, g, b, a * (1.0 - visual.transparency))
 
 
-def quaternion_of(pose: Pose) -> tuple[float, float, float, float]:
-    """An SDF pose's rotation (Rz·Ry·Rx of its roll, pitch, yaw) as x, y, z, w."""
-    (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a / 2), math.sin(a / 2)) for a in pose.rpy)
-    return (
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-        cr * cp * cy + sr * sp * sy,
-    )
-
-
 def model_frame(body: str) -> str:
     """The tf frame a moving body draws its markers in."""
     return f"scene/{scoped_key(body)}"
-
-
-def placed(pose: Pose) -> Transform:
-    return Transform(pose.xyz, quaternion_of(pose))
 
 
 def body_parts(physics: WorldReader, body: str, skipped: set[str]) -> list[Part]:
@@ -148,7 +133,7 @@ def body_parts(physics: WorldReader, body: str, skipped: set[str]) -> list[Part]
             if shape is None:
                 _skip(skipped, type(visual.geometry).__name__)
                 continue
-            pose = placed(origin @ link.pose @ visual.pose @ plane_turn(visual.geometry))
+            pose = pose_to_transform(origin @ link.pose @ visual.pose @ plane_turn(visual.geometry))
             parts.append(Part(scoped_key(body), len(parts), frame, shape, pose, colour_of(visual, shape)))
     return parts
 
@@ -255,7 +240,7 @@ class ScenePublisher:
         links = {link.name: link.pose for link in self._physics.model_of(model).links}
         here = Pose.from_transform(self._physics.model_pose(model))
         for frame, child in self._odometry[model]:
-            self._anchors[frame] = placed(here @ links.get(child.rpartition("/")[2], Pose()))
+            self._anchors[frame] = pose_to_transform(here @ links.get(child.rpartition("/")[2], Pose()))
 
     def post_update(self, info: UpdateInfo) -> None:
         if self._changed:
