@@ -6,6 +6,13 @@ transform as a `Transform`; 4×4 matrices and headings are made here and nowhere
 numpy, depending on nothing else in simbot, so that the bus need not import the description
 layer (SPEC §7). A `Transform` is a tuple `(position, orientation)`: it unpacks as PyBullet's
 pose pairs do and crosses process boundaries as plain data.
+
+The products here (`matmul`, `norm`, `rigid_inverse`, `inverse3`) are what every published value
+is computed with, in place of numpy's `@`, `dot` and `linalg`: those hand even a 3×3 product to
+BLAS (OpenBLAS), whose kernel, and with it the order of a sum and its last bit, is chosen per
+CPU at run time (`OPENBLAS_CORETYPE`). numpy's elementwise multiply and add round every operation
+exactly as IEEE 754 says on any CPU, so a product summed term by term in index order gives the
+same bits on an AVX-512 Xeon and an AVX2 EPYC (docs/reproducibility.md).
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+from numpy.typing import ArrayLike
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -23,15 +31,88 @@ Quat = tuple[float, float, float, float]
 Matrix = npt.NDArray[np.float64]
 
 
+def matmul(a: ArrayLike, b: ArrayLike) -> npt.NDArray[np.floating]:
+    """`a @ b` for a matrix (or a stack of rows) `a` and a matrix or vector `b`, each element summed
+    term by term in index order, ((t0 + t1) + t2) + ...: the same bits on every CPU, where `@`
+    would ask BLAS. The dtype is numpy's for `a * b` (float32 rows stay float32)."""
+    left, right = np.asarray(a), np.asarray(b)
+    if left.ndim == 2 and right.ndim == 1 and np.result_type(left, right) == np.float64:
+        vector = right.tolist()
+        return np.array([_dot(row, vector) for row in left.tolist()])
+    if right.ndim == 1:
+        return _in_order(left * right, -1)
+    return _in_order(left[..., :, :, np.newaxis] * right[..., np.newaxis, :, :], -2)
+
+
+def _dot(row: list[float], vector: list[float]) -> float:
+    """Σ row[k]·vector[k] in Python floats (IEEE doubles, no fused multiply-add): a small matrix
+    times a vector costs a third of numpy's per-call overhead this way."""
+    total = row[0] * vector[0]
+    for k in range(1, len(row)):
+        total += row[k] * vector[k]
+    return total
+
+
+def _in_order(terms: npt.NDArray[np.floating], axis: int) -> npt.NDArray[np.floating]:
+    """The terms' sum along `axis` (−1 or −2), added one after the other."""
+    pick = (lambda k: terms[..., k]) if axis == -1 else (lambda k: terms[..., k, :])
+    total = pick(0)
+    for k in range(1, terms.shape[axis]):
+        total = total + pick(k)
+    return total
+
+
+def norm(vector: Sequence[float] | npt.NDArray[np.floating]) -> float:
+    """The Euclidean length of a vector (`math.hypot`: correctly rounded, no BLAS)."""
+    return math.hypot(*np.ravel(vector).tolist())
+
+
+def rigid_inverse(matrix: Matrix) -> Matrix:
+    """The inverse of a 4×4 rigid transform, (Rᵀ, −Rᵀt): exact where `np.linalg.inv` asks LAPACK."""
+    rotation = np.asarray(matrix, dtype=float)[:3, :3].T
+    out = np.eye(4)
+    out[:3, :3] = rotation
+    out[:3, 3] = -matmul(rotation, np.asarray(matrix, dtype=float)[:3, 3])
+    return out
+
+
+def inverse3(matrix: Matrix) -> Matrix:
+    """The inverse of a general 3×3 matrix (a scaled mesh's), from its cofactors: no LAPACK."""
+    m = np.asarray(matrix, dtype=float)
+    cofactors = np.array([np.cross(m[1], m[2]), np.cross(m[2], m[0]), np.cross(m[0], m[1])])
+    determinant = float(matmul(m[0], cofactors[0]))
+    if determinant == 0.0:
+        raise ValueError("a singular 3×3 matrix has no inverse")
+    return cofactors.T / determinant
+
+
 def quaternion_to_matrix(xyzw: Sequence[float]) -> Matrix:
     """Rotation matrix of a (normalised here) quaternion given as x, y, z, w."""
-    x, y, z, w = np.asarray(xyzw, dtype=float) / np.linalg.norm(xyzw)
+    length = norm(xyzw)
+    x, y, z, w = (float(v) / length for v in xyzw)
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
         ]
+    )
+
+
+def rotate_into(xyzw: Sequence[float], vector: Sequence[float]) -> Vec3:
+    """`vector`, given in the parent frame, in the frame whose orientation is the quaternion `xyzw`
+    (normalised here): Rᵀv, as v + 2w(v × q) + 2q × (q × v) with q = (x, y, z) in Python floats.
+    What a sensor does to every sample (an IMU's rates, a magnetometer's field), so it is cheap:
+    no matrix is built, and no BLAS decides its last bit."""
+    length = math.hypot(*xyzw)
+    x, y, z, w = (float(c) / length for c in xyzw)
+    vx, vy, vz = (float(c) for c in vector)
+    # the conjugate rotation: t = 2 (v × q), Rᵀv = v + w t + t × q
+    tx, ty, tz = 2.0 * (vy * z - vz * y), 2.0 * (vz * x - vx * z), 2.0 * (vx * y - vy * x)
+    return (
+        vx + w * tx + (ty * z - tz * y),
+        vy + w * ty + (tz * x - tx * z),
+        vz + w * tz + (tx * y - ty * x),
     )
 
 
