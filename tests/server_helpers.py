@@ -376,8 +376,10 @@ class SimServer:
         return elapsed
 
 
-def _spawn(args: Sequence[str], stderr_path: Path, cwd: Path = REPO) -> subprocess.Popen[bytes]:
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+def _spawn(
+    args: Sequence[str], stderr_path: Path, cwd: Path = REPO, env: Mapping[str, str] | None = None
+) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
     with stderr_path.open("wb") as err:
         return subprocess.Popen(
             server_command(*args), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err, cwd=cwd, env=env
@@ -427,9 +429,11 @@ def running_server(
     extra: Sequence[str] = (),
     world_name: str | None = None,
     cwd: Path = REPO,
+    env: Mapping[str, str] | None = None,
 ) -> Iterator[SimServer]:
     """A `simbot-server` on a fresh loopback port and namespace, working in `cwd` (where a camera's
-    relative `<save>` path lands); stopped with SIGTERM, exit 0 within 2 s asserted."""
+    relative `<save>` path lands), with `env` added to its environment; stopped with SIGTERM, exit 0
+    within 2 s asserted."""
     port = free_port()
     namespace = unique_namespace()
     name = world_name or Path(world).stem
@@ -449,17 +453,24 @@ def running_server(
     ]
     with (
         tempfile.TemporaryDirectory(prefix="simbot-server-") as tmp,
-        _serving(args, port, namespace, name, mode, Path(tmp) / "stderr.txt", cwd) as server,
+        _serving(args, port, namespace, name, mode, Path(tmp) / "stderr.txt", cwd, env) as server,
     ):
         yield server
 
 
 @contextmanager
 def _serving(
-    args: Sequence[str], port: int, namespace: str, name: str, mode: str, stderr_path: Path, cwd: Path = REPO
+    args: Sequence[str],
+    port: int,
+    namespace: str,
+    name: str,
+    mode: str,
+    stderr_path: Path,
+    cwd: Path = REPO,
+    env: Mapping[str, str] | None = None,
 ) -> Iterator[SimServer]:
     """The server process of `args`, once its world control answers; stopped (or killed) on the way out."""
-    process = _spawn(args, stderr_path, cwd)
+    process = _spawn(args, stderr_path, cwd, env)
     node: Node | None = None
     try:
         node = _connect(process, port, namespace, stderr_path)
