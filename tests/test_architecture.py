@@ -112,3 +112,39 @@ def test_the_systems_folder_holds_exactly_the_registered_systems() -> None:
     }
     folder = {_module(path) for path in (PACKAGE / "sim" / "systems").glob("*.py") if path.name != "__init__.py"}
     assert folder == registered
+
+
+BLAS_CALLS = {"dot", "vdot", "inner", "matmul", "tensordot", "multi_dot", "inv", "pinv", "solve", "lstsq", "det"}
+"""numpy calls that hand their sums to BLAS or LAPACK, whose kernel (and last bit) the CPU picks."""
+PRODUCTS = PACKAGE / "transform.py"
+"""The one module that says how a product is summed (docs/reproducibility.md)."""
+
+
+def _blas_calls(source: str) -> list[int]:
+    """Lines calling a BLAS-backed numpy function, `x.dot(y)` and `np.linalg.norm(v)` of a whole
+    array (its dot product; with `axis=` numpy squares and sums elementwise) included."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            name = node.func.attr
+            whole_norm = name == "norm" and ast.unparse(node.func.value).endswith("linalg")
+            if name in BLAS_CALLS or (whole_norm and not any(k.arg == "axis" for k in node.keywords)):
+                lines.append(node.lineno)
+    return lines
+
+
+def test_no_published_value_is_summed_by_a_blas_kernel() -> None:
+    """simbot/ and clients/ take their products from simbot.transform, never from BLAS: the
+    behaviour test's runs under other kernels catch an `@` on its paths, this catches the calls anywhere."""
+    found = {
+        str(path.relative_to(REPO)): lines
+        for folder in (PACKAGE, REPO / "clients")
+        for path in sorted(folder.rglob("*.py"))
+        if path != PRODUCTS and (lines := _blas_calls(path.read_text()))
+    }
+    assert not found, f"BLAS-backed numpy calls (use simbot.transform's products): {found}"
+
+
+def test_the_blas_finder_finds_each_form() -> None:
+    source = "a.dot(b)\nnp.linalg.inv(m)\nnp.linalg.norm(v)\nnp.linalg.norm(v, axis=1)\nmath.hypot(1, 2)\n"
+    assert _blas_calls(source) == [1, 2, 3]
