@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from simbot.description.errors import DescriptionError
 from simbot.description.model import Cone, Ellipsoid, Heightmap, Polyline
+from simbot.transform import matmul
 
 logger = logging.getLogger(__name__)
 
@@ -100,7 +101,7 @@ def polyline(shape: Polyline) -> tuple[Vertices, Faces]:
 
 def _signed_area(points: Vertices) -> float:
     x, y = points[:, 0], points[:, 1]
-    return float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) / 2.0
+    return float(matmul(x, np.roll(y, -1)) - matmul(np.roll(x, -1), y)) / 2.0
 
 
 def _ear_clip(points: Vertices) -> list[tuple[int, int, int]]:

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simbot.transform import Transform
+from simbot.transform import Transform, matmul, rigid_inverse
 
 Vec3 = tuple[float, float, float]
 
@@ -67,11 +67,11 @@ class Pose:
 
     def __matmul__(self, other: Pose) -> Pose:
         """Composition: (a_T_b @ b_T_c) is a_T_c."""
-        return Pose.from_matrix(self.matrix() @ other.matrix())
+        return Pose.from_matrix(matmul(self.matrix(), other.matrix()))
 
     def inverse(self) -> Pose:
         """b_T_a from a_T_b."""
-        return Pose.from_matrix(np.linalg.inv(self.matrix()))
+        return Pose.from_matrix(rigid_inverse(self.matrix()))
 
     def is_identity(self, tol: float = 1e-12) -> bool:
         """True when the frame coincides with its parent."""

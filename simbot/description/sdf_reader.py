@@ -54,6 +54,7 @@ from simbot.description.sdf_elements import (
 )
 from simbot.description.sdf_frames import MODEL_FRAME, Frames, read_pose
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
+from simbot.transform import matmul
 
 logger = logging.getLogger(__name__)
 
@@ -325,7 +326,7 @@ def _read_axis(reader: Reader, version: tuple[int, int], frames: Frames, joint_p
         expressed_in = MODEL_FRAME
     if expressed_in:
         frame = frames.in_model(expressed_in, xyz_element)
-        xyz = rpy_to_matrix(joint_pose.rpy).T @ rpy_to_matrix(frame.rpy) @ xyz
+        xyz = matmul(matmul(rpy_to_matrix(joint_pose.rpy).T, rpy_to_matrix(frame.rpy)), xyz)
     xyz = xyz / (xyz**2).sum() ** 0.5
     limit = axis.find("limit")
     dynamics = axis.find("dynamics")

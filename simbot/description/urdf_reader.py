@@ -34,6 +34,7 @@ from simbot.description.model import (
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import resolve
 from simbot.description.xml import parse_text
+from simbot.transform import norm
 
 logger = logging.getLogger(__name__)
 
@@ -162,7 +163,7 @@ def _joint(joint: yourdfpy.Joint, pose: Pose, path: Path) -> Joint:
         limit = joint.limit
         xyz = np.asarray(joint.axis, dtype=float)
         axis = Axis(
-            xyz=tuple(float(v) for v in xyz / np.linalg.norm(xyz)),  # type: ignore[arg-type]
+            xyz=tuple(float(v) for v in xyz / norm(xyz)),  # type: ignore[arg-type]
             lower=None if limit is None or joint.type == "continuous" else limit.lower,
             upper=None if limit is None or joint.type == "continuous" else limit.upper,
             effort=None if limit is None else limit.effort,

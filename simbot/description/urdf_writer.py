@@ -68,6 +68,7 @@ from simbot.description.model import (
 )
 from simbot.description.poses import IDENTITY, Pose, matrix_to_rpy
 from simbot.description.stand_in_meshes import needs_stand_in, stand_in
+from simbot.transform import matmul, norm
 
 MASSLESS = Inertial(0.0, IDENTITY, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))
@@ -265,12 +266,12 @@ def _add_limit(joint: ET.Element, kind: str, axis: Axis) -> None:
 
 def _plane_offset(plane: Plane) -> Pose:
     """Turns the box's z onto the plane normal and sinks it so its top face is the plane."""
-    normal = np.asarray(plane.normal, dtype=float) / np.linalg.norm(plane.normal)
+    normal = np.asarray(plane.normal, dtype=float) / norm(plane.normal)
     z = np.array([0.0, 0.0, 1.0])
     axis = np.cross(z, normal)
-    sin, cos = np.linalg.norm(axis), float(z @ normal)
+    sin, cos = norm(axis), float(matmul(z, normal))
     skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rot = np.eye(3) + skew + skew @ skew * ((1 - cos) / sin**2 if sin > 1e-12 else 0.0)
+    rot = np.eye(3) + skew + matmul(skew, skew) * ((1 - cos) / sin**2 if sin > 1e-12 else 0.0)
     if sin <= 1e-12 and cos < 0:
         rot = np.diag([1.0, -1.0, -1.0])
     return Pose(tuple(-normal * PLANE_THICKNESS / 2), matrix_to_rpy(rot))
