@@ -43,7 +43,7 @@ from simbot.bus.frames import OPTICAL_SUFFIX
 from simbot.bus.sync import StampSync
 from simbot.bus.transforms import Matrix
 from simbot.dataset import OPTICAL_IN_BODY, Box, DatasetWriter, Intrinsics, Shot
-from simbot.transform import Transform
+from simbot.transform import Transform, matmul, norm
 
 from .common import (
     ClientError,
@@ -195,11 +195,11 @@ class PoseTrack:
 def blend(a: Transform, b: Transform, f: float) -> Matrix:
     """The pose a fraction `f` of the way from `a` to `b` (position linear, orientation normalised lerp)."""
     qa, qb = np.asarray(a.orientation), np.asarray(b.orientation)
-    if float(qa @ qb) < 0:
+    if float(matmul(qa, qb)) < 0:
         qb = -qb
     q = (1 - f) * qa + f * qb
     p = (1 - f) * np.asarray(a.position) + f * np.asarray(b.position)
-    return Transform.of(p.tolist(), (q / np.linalg.norm(q)).tolist()).matrix()
+    return Transform.of(p.tolist(), (q / norm(q)).tolist()).matrix()
 
 
 def intrinsics_of(info: Any) -> Intrinsics:
@@ -316,7 +316,7 @@ class Collector:
         model = self.poses.at(stamp)
         placed = self.placed(frame.lstrip("/"))
         if model is not None and placed is not None:
-            return model @ placed
+            return matmul(model, placed)
         if not self._warned:
             self._warned = True
             what = f"no {self.poses.key}" if model is None else f"no {frame} in tf_static"
@@ -329,7 +329,7 @@ class Collector:
         rooted = self.tf.rooted(frame)
         if rooted is None and frame.endswith(OPTICAL_SUFFIX):
             body = self.tf.rooted(frame.removesuffix(OPTICAL_SUFFIX))
-            return None if body is None else body[1] @ OPTICAL_IN_BODY
+            return None if body is None else matmul(body[1], OPTICAL_IN_BODY)
         return None if rooted is None else rooted[1]
 
     def flush(self) -> None:

@@ -47,6 +47,7 @@ import numpy.typing as npt
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.transforms import Matrix
+from simbot.transform import matmul
 
 from .common import ClockSubscriber, StampedSets, StaticTransforms, client_parser, number, run_client
 
@@ -150,7 +151,7 @@ class ScanMerger:
         in_sensor = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)])
         origin = np.array(pose[:2, 3], dtype=np.float64)
         geometry = _Geometry(
-            np.array(pose, dtype=np.float64), origin, pose[:2, :3] @ in_sensor, float(np.hypot(*origin))
+            np.array(pose, dtype=np.float64), origin, matmul(pose[:2, :3], in_sensor), float(np.hypot(*origin))
         )
         self._geometries[key] = geometry
         return geometry

@@ -40,6 +40,7 @@ import numpy.typing as npt
 from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
 from simbot.bus.transforms import planar_pose
+from simbot.transform import matmul
 
 from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
 
@@ -112,7 +113,7 @@ class Box:
         """The four corners (x, y), counter-clockwise from front-left."""
         half = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]]) * (self.length / 2, self.width / 2)
         c, s = math.cos(self.yaw), math.sin(self.yaw)
-        return half @ np.array([[c, s], [-s, c]]) + (self.x, self.y)
+        return matmul(half, np.array([[c, s], [-s, c]])) + (self.x, self.y)
 
 
 SPEC_FOOTPRINT = Box(0.0, 0.0, 0.0, *SPEC_CHASSIS_M)

@@ -42,6 +42,7 @@ import numpy.typing as npt
 
 from simbot.bus import Node, messages
 from simbot.bus.transforms import Matrix
+from simbot.transform import matmul
 
 from .common import POLL_S, ClockSubscriber, Recent, SimTicker, StaticTransforms, client_parser, number, run_client
 from .terminal import Terminal, terminal_input
@@ -92,7 +93,7 @@ def path_ranges(scan: Any, sensor_in_base: Matrix, half_width: float, ahead: boo
     valid = np.isfinite(ranges) & (ranges >= scan.range_min) & (ranges <= scan.range_max)
     reach = np.where(valid, ranges, 0.0)
     ends = np.stack([reach * np.cos(angles), reach * np.sin(angles), np.zeros_like(reach), np.ones_like(reach)])
-    x, y = (sensor_in_base @ ends)[:2]
+    x, y = matmul(sensor_in_base, ends)[:2]
     on_side = x > 0 if ahead else x < 0
     return ranges[valid & on_side & (np.abs(y) <= half_width)]
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from simbot.transform import Matrix, Transform, yaw_of
+from simbot.transform import Matrix, Transform, matmul, norm, rigid_inverse, yaw_of
 
 
 def _transform_of(msg: Any) -> Transform:
@@ -19,7 +19,7 @@ def _transform_of(msg: Any) -> Transform:
     (a malformed tf message must not turn every pose looked up through it into NaN)."""
     t, r = msg.translation, msg.rotation
     quat = (r.x, r.y, r.z, r.w)
-    if not np.linalg.norm(quat) > 0:
+    if not norm(quat) > 0:
         raise ValueError(f"quaternion {quat} has no rotation (zero norm)")
     return Transform.of((t.x, t.y, t.z), quat)
 
@@ -57,7 +57,7 @@ class TransformTree:
             if frame in seen:
                 raise ValueError(f"tf has a cycle through {frame!r}")
             seen.add(frame)
-            matrix = step @ matrix
+            matrix = matmul(step, matrix)
         return frame, matrix
 
     def rooted(self, frame: str) -> tuple[str, Matrix]:
@@ -70,4 +70,4 @@ class TransformTree:
         source_root, source_matrix = self._to_root(source)
         if target_root != source_root:
             return None
-        return np.linalg.inv(target_matrix) @ source_matrix
+        return matmul(rigid_inverse(target_matrix), source_matrix)
