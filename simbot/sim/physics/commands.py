@@ -12,7 +12,7 @@ from simbot.sim.physics.frames import compose, invert, vec3
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.kinematic import Kinematics
 from simbot.sim.physics.queries import Queries
-from simbot.transform import Transform, Vec3
+from simbot.transform import Transform, Vec3, matmul
 
 FIXED_CONSTRAINT_FORCE = 1e6
 """Newtons a detachable joint may exert: rigid for anything the tug can pull."""
@@ -40,8 +40,8 @@ class Commands(Queries):
         com = self._base(body)
         frame = compose(com, body.com_to_frame)
         rotation = np.reshape(pb.getMatrixFromQuaternion(frame[1]), (3, 3))
-        angular_world = rotation @ np.asarray(angular)
-        linear_world = rotation @ np.asarray(linear) + np.cross(angular_world, np.subtract(com[0], frame[0]))
+        angular_world = matmul(rotation, angular)
+        linear_world = matmul(rotation, linear) + np.cross(angular_world, np.subtract(com[0], frame[0]))
         pb.resetBaseVelocity(body.id, vec3(linear_world), vec3(angular_world), physicsClientId=self.client)
 
     @changes_world

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from simbot.sim.physics.frames import vec3
-from simbot.transform import Vec3
+from simbot.transform import Vec3, matmul
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,6 @@ def contact_point(point: tuple[Any, ...], other: tuple[str, str]) -> ContactPoin
     with the reported normal, the pair was swapped and the friction forces on the asked body are the
     opposite of the reported ones."""
     a, b, normal, dir_1, dir_2 = (np.asarray(point[i], dtype=float) for i in (5, 6, 7, 11, 13))
-    swapped = float(np.dot(dir_2, np.cross(normal, dir_1))) < 0
+    swapped = float(matmul(dir_2, np.cross(normal, dir_1))) < 0
     friction = (point[10] * dir_1 + point[12] * dir_2) * (-1.0 if swapped else 1.0)
     return ContactPoint(other, vec3((a + b) / 2), vec3(normal), -float(point[8]), vec3(point[9] * normal + friction))

@@ -14,7 +14,7 @@ from simbot.description.urdf_writer import sdf_joint
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
-from simbot.transform import Vec3
+from simbot.transform import Vec3, matmul, norm
 
 SDF_DEFAULT_MU = 1.0
 """SDF's friction default. PyBullet multiplies two surfaces' coefficients, so with 1.0 on every
@@ -108,19 +108,19 @@ def _fdir1_angle(model: Model, joint: Joint, fdir1: Vec3 | None) -> float:
     if fdir1 is None or joint.axis is None:
         return 0.0
     up = np.array([0.0, 0.0, 1.0])
-    axle = joint.pose.matrix()[:3, :3] @ np.asarray(joint.axis.xyz)
+    axle = matmul(joint.pose.matrix()[:3, :3], joint.axis.xyz)
     along = np.cross(axle, up)
-    if np.linalg.norm(along) < 1e-9:
+    if norm(along) < 1e-9:
         return 0.0
     across = np.cross(up, along)
     parent = next((link.pose for link in model.links if link.name == joint.parent), IDENTITY)
-    direction = parent.matrix()[:3, :3] @ np.asarray(fdir1)
-    return float(math.atan2(direction @ across, direction @ along))
+    direction = matmul(parent.matrix()[:3, :3], fdir1)
+    return math.atan2(float(matmul(direction, across)), float(matmul(direction, along)))
 
 
 def _axis_in_link(joint: Joint, link_pose: Pose) -> Vec3:
     """A joint's axis (given in the joint frame) in its child link's frame; both poses are in the model frame."""
     assert joint.axis is not None
     rotation = (link_pose.inverse() @ joint.pose).matrix()[:3, :3]
-    x, y, z = rotation @ joint.axis.xyz
+    x, y, z = matmul(rotation, joint.axis.xyz)
     return float(x), float(y), float(z)

@@ -15,7 +15,7 @@ from simbot.sim.physics.body import Body
 from simbot.sim.physics.contacts import ContactPoint, contact_point
 from simbot.sim.physics.frames import compose, pose_to_transform, vec3
 from simbot.sim.physics.rays import Rays
-from simbot.transform import Transform, Vec3
+from simbot.transform import Transform, Vec3, matmul
 
 
 class Queries:
@@ -173,7 +173,7 @@ class Queries:
         reaction = pb.getJointState(body.id, index, physicsClientId=self.client)[2]
         com, orn = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)[:2]
         rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
-        return vec3(rotation @ reaction[:3]), vec3(rotation @ reaction[3:]), vec3(com)
+        return vec3(matmul(rotation, reaction[:3])), vec3(matmul(rotation, reaction[3:])), vec3(com)
 
     def blind_rays_to(self, model: str) -> int:
         """Gives `model` a ray group of its own (once; call it before stepping, as a sensor's setup
