@@ -20,6 +20,7 @@ from simbot.description.model import Param, Sensor
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.labels import instance_of, label_of, labelled
 from simbot.sim.system import SystemConfigError
+from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +78,7 @@ class FrameSaver:
             return
         body = frame.camera_pose
         shot = Shot(
-            self.name, frame.stamp_ns, self.intrinsics, None if body is None else body.matrix() @ OPTICAL_IN_BODY
+            self.name, frame.stamp_ns, self.intrinsics, None if body is None else matmul(body.matrix(), OPTICAL_IN_BODY)
         )
         shot.color = frame.get("color", frame.get("mono"))
         shot.depth = frame.get("depth")

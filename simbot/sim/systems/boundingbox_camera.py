@@ -35,7 +35,7 @@ from simbot.sim.render.boxes import Corners, Objects, Posed, View, draw_box, dra
 from simbot.sim.sensor_params import SdfElement
 from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Product, _Published
-from simbot.transform import Transform
+from simbot.transform import Transform, matmul
 
 VISIBLE, FULL, ORIENTED = "visible_2d", "full_2d", "3d"
 TYPES = {
@@ -123,8 +123,8 @@ def _local_box(placed: Posed) -> tuple[np.ndarray, np.ndarray]:
 
 def _oriented(label: int, placed: Posed, view: View) -> Box3D:
     centre, size = _local_box(placed)
-    in_optical = view.optical @ placed.root
-    position = in_optical[:3, :3] @ centre + in_optical[:3, 3]
+    in_optical = matmul(view.optical, placed.root)
+    position = matmul(in_optical[:3, :3], centre) + in_optical[:3, 3]
     rotation = np.eye(4)
     rotation[:3, :3] = in_optical[:3, :3]
     quaternion = pose_to_transform(Pose.from_matrix(rotation)).orientation

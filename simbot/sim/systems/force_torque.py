@@ -31,7 +31,7 @@ from simbot.description.model import Joint, Model, Sensor
 from simbot.description.poses import Pose
 from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import rotate_into
 
 FRAMES = ("child", "parent", "sensor")
 DIRECTIONS = ("child_to_parent", "parent_to_child")
@@ -94,6 +94,6 @@ class ForceTorque(FramedSensor):
         force, torque_at_com, com = (np.asarray(v) for v in self.physics.joint_wrench(self.where[0], self._joint))
         origin = np.asarray(self.physics.frame_pose(*self._origin)[0])
         torque = torque_at_com + np.cross(com - origin, force)
-        to_frame = quaternion_to_matrix(self.physics.frame_pose(*self._orientation)[1]).T
-        measured = self.noise(self._sign * np.concatenate([to_frame @ force, to_frame @ torque]))
+        turn = self.physics.frame_pose(*self._orientation)[1]
+        measured = self.noise(self._sign * np.array([*rotate_into(turn, force), *rotate_into(turn, torque)]))
         self.publish(info, messages.wrench_stamped(info.sim_time_ns, self.frame, measured[:3], measured[3:]))

@@ -31,7 +31,7 @@ from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
 from simbot.sim.system import SystemContext, UpdateInfo
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import rotate_into
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""
@@ -79,14 +79,13 @@ class Imu(Sampled):
         if not self.due(info):
             return
         (_, quat), linear_xyz, angular_xyz = self._physics.frame_motion(*self._where)
-        linear, angular = np.array(linear_xyz), np.array(angular_xyz)
+        linear = np.array(linear_xyz)
         acceleration = np.zeros(3)
         if self._last is not None and now_ns > self._last[0]:
             acceleration = (linear - self._last[1]) / ((now_ns - self._last[0]) / 1e9)
         self._last = (now_ns, linear)
-        to_imu = quaternion_to_matrix(quat).T
-        gyro = self._gyro(to_imu @ angular)
-        accel = self._accel(to_imu @ (acceleration - self._gravity))
+        gyro = self._gyro(rotate_into(quat, angular_xyz))
+        accel = self._accel(rotate_into(quat, acceleration - self._gravity))
         self._pub.put(messages.imu(now_ns, self._frame, quat, gyro, accel, self._covariances))
         self.published(now_ns)
 

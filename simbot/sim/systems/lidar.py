@@ -46,7 +46,7 @@ from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import matmul, quaternion_to_matrix
 
 
 @dataclass(frozen=True)
@@ -179,7 +179,7 @@ class Lidar(Sampled):
         quantisation, +inf for no return."""
         spec = self.params
         position, quat = self._physics.frame_pose(self._model, self._link, self._pose)
-        directions = self._fan.directions.reshape(-1, 3) @ quaternion_to_matrix(quat).T
+        directions = matmul(self._fan.directions.reshape(-1, 3), quaternion_to_matrix(quat).T)
         origin = np.asarray(position)
         fractions = self._physics.cast_rays(
             origin + directions * spec.range_min, origin + directions * spec.range_max, blind_to=self._model

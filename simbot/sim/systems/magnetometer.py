@@ -25,7 +25,7 @@ from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
 from simbot.sim.system import SystemContext, UpdateInfo
-from simbot.transform import quaternion_to_matrix
+from simbot.transform import rotate_into
 
 
 @dataclass(frozen=True)
@@ -53,5 +53,5 @@ class Magnetometer(FramedSensor):
         if not self.due(info):
             return
         _, quat = self.physics.frame_pose(*self.where)
-        local = self.noise(quaternion_to_matrix(quat).T @ self._field)
+        local = self.noise(rotate_into(quat, self._field))
         self.publish(info, messages.magnetic_field(info.sim_time_ns, self.frame, local, self.noise.variances()))

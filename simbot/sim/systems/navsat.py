@@ -36,6 +36,7 @@ from simbot.bus import messages
 from simbot.description.model import Sensor, SphericalCoordinates
 from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.transform import matmul
 
 WGS84_A = 6378137.0
 """m, the ellipsoid's equatorial radius."""
@@ -89,7 +90,7 @@ class Geodesy:
 
     def enu_to_geodetic(self, enu: Floats) -> tuple[float, float, float]:
         """(latitude°, longitude°, altitude m) of a point given east, north, up of the world origin."""
-        lat, lon, height = _to_geodetic(self._origin + self._enu_to_ecef @ enu)
+        lat, lon, height = _to_geodetic(self._origin + matmul(self._enu_to_ecef, enu))
         return math.degrees(lat), math.degrees(lon), height
 
 
@@ -129,5 +130,5 @@ class NavSat(FramedSensor):
         if not self.due(info):
             return
         position, _ = self.physics.frame_pose(*self.where)
-        fix = self._geodesy.enu_to_geodetic(self.noise(self._geodesy.world_to_enu @ np.asarray(position)))
+        fix = self._geodesy.enu_to_geodetic(self.noise(matmul(self._geodesy.world_to_enu, position)))
         self.publish(info, messages.nav_sat_fix(info.sim_time_ns, self.frame, fix, self._variances))

@@ -34,7 +34,7 @@ from simbot.sim.physics import compose, pose_to_transform
 from simbot.sim.plugin_params import number_param, param
 from simbot.sim.rates import Every
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.transform import Transform, quaternion_to_matrix, yaw_of
+from simbot.transform import Transform, rotate_into, yaw_of
 
 
 class OdometryPublisher:
@@ -78,8 +78,7 @@ class OdometryPublisher:
             twist = np.array([c * linear[0] + s * linear[1], c * linear[1] - s * linear[0], 0.0, 0.0, 0.0, angular[2]])
             xyz = (xyz[0], xyz[1], 0.0)
         else:
-            to_frame = quaternion_to_matrix(quat).T
-            twist = np.concatenate([to_frame @ linear, to_frame @ angular])
+            twist = np.array([*rotate_into(quat, linear), *rotate_into(quat, angular)])
         twist += self._rng.normal(0.0, self._noise, 6) if self._noise else 0.0
         covariance = diagonal((self._noise**2,) * 6)
         twist_xyz = (float(twist[0]), float(twist[1]), float(twist[2]))

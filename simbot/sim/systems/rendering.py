@@ -47,6 +47,7 @@ from simbot.sim.render import Annotation, BodyState, CameraSpec, Light, LightSou
 from simbot.sim.render.contract import Annotating, RenderedSensor, RenderStatus
 from simbot.sim.render.labels import MAX_INSTANCE
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
+from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
 
@@ -76,7 +77,7 @@ def _light_source(light: SdfLight) -> LightSource:
         diffuse=_scaled(light.diffuse, light.intensity),
         specular=_scaled(light.specular, light.intensity),
         position=tuple(float(v) for v in placed[:3, 3]),  # type: ignore[arg-type]
-        direction=tuple(float(v) for v in placed[:3, :3] @ light.direction),  # type: ignore[arg-type]
+        direction=tuple(float(v) for v in matmul(placed[:3, :3], light.direction)),  # type: ignore[arg-type]
         range=light.attenuation_range,
         attenuation=(light.constant, light.linear, light.quadratic),
         spot=(light.inner_angle, light.outer_angle, light.falloff),

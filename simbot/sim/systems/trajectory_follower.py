@@ -36,7 +36,7 @@ import numpy as np
 from simbot.description.model import Param, Plugin
 from simbot.sim.plugin_params import bool_param, number_param, param
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.transform import Transform, Vec3, quaternion_to_matrix
+from simbot.transform import Transform, Vec3, matmul, norm, quaternion_to_matrix, rotate_into
 
 CIRCLE_SAMPLES = 8
 """Waypoints of a `<circle>` (Gazebo's numSamples)."""
@@ -78,7 +78,8 @@ def waypoints(plugin: Plugin, start: Transform) -> list[tuple[float, float]]:
         return [(x0 + radius * math.cos(a), y0 + radius * math.sin(a)) for a in angles]
     if line is not None:
         direction, length = _number(plugin, line, "direction"), _number(plugin, line, "length")
-        end = quaternion_to_matrix(start.orientation) @ (length * math.cos(direction), length * math.sin(direction), 0)
+        step = (length * math.cos(direction), length * math.sin(direction), 0.0)
+        end = matmul(quaternion_to_matrix(start.orientation), step)
         return [(x0, y0), (x0 + float(end[0]), y0 + float(end[1]))]
     return []
 
@@ -118,21 +119,21 @@ class TrajectoryFollower:
         if info.paused or self._paused or not self._left:
             return
         pose = self._physics.frame_pose(self._model, self._link)
-        rotation = quaternion_to_matrix(pose.orientation)
-        goal = np.array([*self._left[0], 0.0])
-        local = rotation.T @ (goal - np.array([pose.position[0], pose.position[1], 0.0]))
-        if float(np.linalg.norm(local)) <= self._range:
+        goal_x, goal_y = self._left[0]
+        local = rotate_into(pose.orientation, (goal_x - pose.position[0], goal_y - pose.position[1], 0.0))
+        if norm(local) <= self._range:
             self._next()
             return
         bearing = math.degrees(math.atan2(local[1], local[0]))
         force: Vec3 = (0.0, 0.0, 0.0)
         torque: Vec3 = (0.0, 0.0, 0.0)
+        rotation = quaternion_to_matrix(pose.orientation)
         if abs(bearing) <= self._bearing:
-            force = _vec(rotation @ (self._force, 0.0, 0.0))
+            force = _vec(matmul(rotation, (self._force, 0.0, 0.0)))
             if self._zero_turn and abs(bearing) <= self._bearing * 0.5:
                 self._stop_turning()
         else:
-            torque = _vec(rotation @ (0.0, 0.0, math.copysign(self._torque, bearing)))
+            torque = _vec(matmul(rotation, (0.0, 0.0, math.copysign(self._torque, bearing))))
         self._physics.apply_wrench(self._model, self._link, force, torque)
 
     def _next(self) -> None:
@@ -147,8 +148,8 @@ class TrajectoryFollower:
     def _stop_turning(self) -> None:
         """The model's angular velocity to zero, its linear velocity kept (given in the model frame)."""
         _, linear, _ = self._physics.model_motion(self._model)
-        model_rotation = quaternion_to_matrix(self._physics.model_pose(self._model).orientation)
-        self._physics.set_model_velocity(self._model, _vec(model_rotation.T @ np.asarray(linear)), (0.0, 0.0, 0.0))
+        in_model = rotate_into(self._physics.model_pose(self._model).orientation, linear)
+        self._physics.set_model_velocity(self._model, in_model, (0.0, 0.0, 0.0))
 
     def reset(self, info: UpdateInfo) -> None:
         self._left, self._paused, self.reached = list(self._initial), False, 0
