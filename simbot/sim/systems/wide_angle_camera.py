@@ -34,12 +34,14 @@ import math
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
 from simbot.sim.render.wide_lens import FUNCTIONS, LENS_TYPES, WideLens
 from simbot.sim.sensor_params import SdfElement
 from simbot.sim.systems.camera import Camera
+from simbot.transform import norm
 
 log = logging.getLogger(__name__)
 
@@ -123,5 +125,24 @@ def info_model(lens: WideLens, width: int, height: int, hfov: float) -> tuple[st
     reach = min(lens.cutoff, FISHEYE_LIMIT, float(corner) if np.isfinite(corner) else math.pi)
     theta = np.linspace(reach / 200.0, reach, 200)
     powers = np.stack([theta ** (2 * i + 3) for i in range(4)], axis=-1)
-    k, *_ = np.linalg.lstsq(powers, lens.radius(theta, focal) / fx - theta, rcond=None)
-    return "equidistant", fx, tuple(float(v) for v in k)
+    return "equidistant", fx, _least_squares(powers, lens.radius(theta, focal) / fx - theta)
+
+
+def _least_squares(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> tuple[float, ...]:
+    """The x minimising |a·x − b|: modified Gram–Schmidt on the columns of [a | b] (as stable as a
+    QR factorisation, Björck 1967), then back-substitution. Every dot product is a `math.fsum` of
+    exactly rounded products, so D has the same bits on every CPU, where `np.linalg.lstsq` asks
+    LAPACK, whose kernels sum in an order of the CPU's."""
+    columns = [np.array(column, dtype=float) for column in np.asarray(a).T] + [np.array(b, dtype=float)]
+    n = len(columns) - 1
+    r = [[0.0] * (n + 1) for _ in range(n)]
+    for j in range(n):
+        r[j][j] = norm(columns[j])
+        columns[j] = columns[j] / r[j][j]
+        for later in range(j + 1, n + 1):
+            r[j][later] = math.fsum((columns[j] * columns[later]).tolist())
+            columns[later] = columns[later] - r[j][later] * columns[j]
+    x = [0.0] * n
+    for j in reversed(range(n)):
+        x[j] = (r[j][n] - math.fsum(r[j][i] * x[i] for i in range(j + 1, n))) / r[j][j]
+    return tuple(x)
