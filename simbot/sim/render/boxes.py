@@ -32,7 +32,7 @@ from simbot.sim.render.kinds import Intrinsics
 from simbot.sim.render.labels import MAX_INSTANCE, labelled
 from simbot.sim.render.specs import Frame, SceneBody
 from simbot.sim.render.visuals import visual_points
-from simbot.transform import Matrix, Transform
+from simbot.transform import Matrix, Transform, matmul, norm, rigid_inverse
 
 Key = tuple[int, int]
 """(instance, label): one object."""
@@ -85,7 +85,7 @@ class BodyShapes:
                 break
             for joint in ready:
                 motion = _motion(joint, positions.get(joint.name, 0.0))
-                placed[joint.child] = placed[joint.parent] @ joint.origin.matrix() @ motion
+                placed[joint.child] = matmul(matmul(placed[joint.parent], joint.origin.matrix()), motion)
             pending = [joint for joint in pending if joint.child not in placed]
         return placed
 
@@ -94,10 +94,10 @@ def _motion(joint: UrdfJoint, position: float) -> Matrix:
     """A joint's own motion at `position`: a turn about its axis, or a slide along it."""
     out = np.eye(4)
     axis = np.asarray(joint.axis, dtype=float)
-    axis = axis / (np.linalg.norm(axis) or 1.0)
+    axis = axis / (norm(axis) or 1.0)
     if joint.type in ("revolute", "continuous"):
         k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-        out[:3, :3] = np.eye(3) + np.sin(position) * k + (1.0 - np.cos(position)) * (k @ k)
+        out[:3, :3] = np.eye(3) + np.sin(position) * k + (1.0 - np.cos(position)) * matmul(k, k)
     elif joint.type == "prismatic":
         out[:3, 3] = axis * position
     return out
@@ -109,16 +109,16 @@ class View:
     def __init__(self, pose: Transform, spec: Intrinsics) -> None:
         camera = pose.matrix()
         self.optical = np.eye(4)
-        self.optical[:3, :3] = OPTICAL_FROM_CAMERA @ camera[:3, :3].T
-        self.optical[:3, 3] = -self.optical[:3, :3] @ camera[:3, 3]
+        self.optical[:3, :3] = matmul(OPTICAL_FROM_CAMERA, camera[:3, :3].T)
+        self.optical[:3, 3] = -matmul(self.optical[:3, :3], camera[:3, 3])
         self.fx = spec.fx
         self.cx, self.cy = spec.principal_point
         self.width, self.height, self.near = spec.width, spec.height, spec.near
 
     def to_optical(self, frame: Matrix, points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """Points given in `frame` (a world pose), in the optical frame."""
-        placed = self.optical @ frame
-        out: npt.NDArray[np.float64] = points @ placed[:3, :3].T + placed[:3, 3]
+        placed = matmul(self.optical, frame)
+        out: npt.NDArray[np.float64] = matmul(points, placed[:3, :3].T) + placed[:3, 3]
         return out
 
     def project(self, optical: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
@@ -196,8 +196,9 @@ class Objects:
             parts = [(links[s.link], s.points) for s in shapes.shapes if s.label == label and s.link in links]
             if not parts:
                 continue
-            root_inverse = np.linalg.inv(links[shapes.root])
-            local = np.concatenate([p @ (root_inverse @ m)[:3, :3].T + (root_inverse @ m)[:3, 3] for m, p in parts])
+            root_inverse = rigid_inverse(links[shapes.root])
+            in_root = [(matmul(root_inverse, m), p) for m, p in parts]
+            local = np.concatenate([matmul(p, m[:3, :3].T) + m[:3, 3] for m, p in in_root])
             optical = np.concatenate([view.to_optical(m, p) for m, p in parts])
             out[(instance, label)] = Posed(optical, local, links[shapes.root])
         return out

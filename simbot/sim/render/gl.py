@@ -42,7 +42,7 @@ from simbot.sim.render.scene import BulletScene, Matrix, projection_matrix, view
 from simbot.sim.render.specs import MAX_LIGHTS, CameraSpec, Light, SceneBody
 from simbot.sim.render.surfaces import Piece, Surface
 from simbot.sim.render.visuals import body_pieces
-from simbot.transform import Transform
+from simbot.transform import Transform, matmul
 
 log = logging.getLogger(__name__)
 
@@ -263,7 +263,8 @@ class GlRenderer:
     def _target(self, spec: CameraSpec) -> _Target:
         size, drawn = (spec.width, spec.height), spec.drawn()
         mono = len(drawn.get("color", ())) == 2  # an H×W colour buffer: luminance
-        projection = FLIP_Y @ projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
+        aspect = spec.width / spec.height
+        projection = matmul(FLIP_Y, projection_matrix(spec.render_vfov_deg, aspect, spec.near, spec.far))
         fbo = annotations = None
         if "color" in drawn or "depth" in drawn:
             color = self.ctx.renderbuffer(size, components=1 if mono else 3)
@@ -284,7 +285,7 @@ class GlRenderer:
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
         transforms = self._transforms()
-        view_projection = shaders.gl_matrix(target.projection @ view_matrix(pose))
+        view_projection = shaders.gl_matrix(matmul(target.projection, view_matrix(pose)))
         if target.fbo is not None:
             self._shade(target, target.fbo, pose, view_projection, transforms, drawn)
         if target.annotations is not None:
@@ -306,7 +307,7 @@ class GlRenderer:
             program.set("mono", target.mono)
         fbo.use()
         sky = self.light.background
-        fbo.clear(*((float(np.dot(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
+        fbo.clear(*((float(matmul(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
         self._draw(transforms, fbo)
         if (color := drawn.get("color")) is not None:
             fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
@@ -414,8 +415,8 @@ def _rows(piece: Piece, link_to_world: Matrix) -> Rows:
     """Interleaved rows of the piece (`ROW`), transformed by `link_to_world`; the label's uint32
     bits ride in a float32 column (copied, never computed on)."""
     rotation = link_to_world[:3, :3]
-    positions = piece.positions @ rotation.T + link_to_world[:3, 3]
-    normals = piece.normals @ rotation.T
+    positions = matmul(piece.positions, rotation.T) + link_to_world[:3, 3]
+    normals = matmul(piece.normals, rotation.T)
     count = len(piece.positions)
     label = np.full((count, 1), piece.label, dtype=np.uint32).view(np.float32)
     temperature = np.full((count, 1), -1.0 if np.isnan(piece.temperature) else piece.temperature, dtype=np.float32)

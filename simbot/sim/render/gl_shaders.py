@@ -27,6 +27,7 @@ import numpy.typing as npt
 
 from simbot.sim.render.specs import MAX_LIGHTS, Light, LightSource
 from simbot.sim.render.surfaces import Surface
+from simbot.transform import norm
 
 _VERTEX = """
 #version 330
@@ -207,7 +208,7 @@ def shaders(lighting: Light, kind: Kind) -> tuple[str, str]:
 def _towards(source: LightSource) -> npt.NDArray[np.float64]:
     """Unit vector towards a directional light (against the way it travels)."""
     direction = np.asarray(source.direction, dtype=np.float64)
-    return -direction / (np.linalg.norm(direction) or 1.0)
+    return -direction / (norm(direction) or 1.0)
 
 
 def _bumpy_directional_code(source: LightSource, shadowed: bool) -> str:

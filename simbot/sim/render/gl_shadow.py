@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from simbot.sim.render.gl_shaders import gl_matrix
 from simbot.sim.render.shapes import PLANE_HALF_SIZE
-from simbot.transform import Matrix
+from simbot.transform import Matrix, matmul, norm
 
 SIZE = 1024
 """Texels each side of each map: about 3 cm a texel over the warehouse (20 m and the margins).
@@ -56,7 +56,7 @@ class ShadowMap:
     @property
     def matrix(self) -> Matrix:
         """World → the maps' texture coordinates and depth, for the camera's shader."""
-        result: Matrix = TO_TEXTURE @ self.projection @ self.light_view
+        result: Matrix = matmul(matmul(TO_TEXTURE, self.projection), self.light_view)
         return result
 
     def fit(self, points: Iterable[npt.NDArray[np.float32]]) -> None:
@@ -64,7 +64,7 @@ class ShadowMap:
         chosen = [p for p in points if len(p) and np.ptp(p, axis=0).max() < 2.0 * PLANE_HALF_SIZE]
         if not chosen:
             chosen = [np.zeros((1, 3), dtype=np.float32)]
-        seen = np.concatenate(chosen).astype(np.float64) @ self.light_view[:3, :3].T + self.light_view[:3, 3]
+        seen = matmul(np.concatenate(chosen).astype(np.float64), self.light_view[:3, :3].T) + self.light_view[:3, 3]
         low, high = seen.min(axis=0) - MARGIN, seen.max(axis=0) + MARGIN
         centre, half = (low[:2] + high[:2]) / 2.0, (high[:2] - low[:2]).max() / 2.0
         self.projection = _orthographic(centre, half, near=-high[2], far=-low[2])
@@ -74,7 +74,7 @@ class ShadowMap:
         framebuffer = self.framebuffers[which]
         framebuffer.use()
         framebuffer.clear(depth=1.0)
-        self.program["view_projection"].write(gl_matrix(self.projection @ self.light_view))
+        self.program["view_projection"].write(gl_matrix(matmul(self.projection, self.light_view)))
         model = self.program["model"]
         self.ctx.polygon_offset = SLOPE_BIAS
         try:
@@ -95,10 +95,10 @@ class ShadowMap:
 
 def _look_along(direction: npt.NDArray[np.float64]) -> Matrix:
     """World → the sun's eye frame (it looks along `direction`, OpenGL's −z), centred on the origin."""
-    forward = direction / np.linalg.norm(direction)
+    forward = direction / norm(direction)
     up = np.array([0.0, 0.0, 1.0]) if abs(forward[2]) < 0.99 else np.array([1.0, 0.0, 0.0])
     right = np.cross(forward, up)
-    right /= np.linalg.norm(right)
+    right /= norm(right)
     true_up = np.cross(right, forward)
     view = np.eye(4)
     view[0, :3], view[1, :3], view[2, :3] = right, true_up, -forward

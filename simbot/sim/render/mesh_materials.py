@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.render.surfaces import RGB, Surface
+from simbot.transform import inverse3, matmul
 
 log = logging.getLogger(__name__)
 
@@ -87,8 +88,7 @@ def _submesh(path: str, geometry: Any, transform: F64, own_materials: bool) -> S
     faces = np.asarray(geometry.faces)
     positions = np.asarray(geometry.vertices, dtype=np.float64)[faces].reshape(-1, 3)
     normals = np.repeat(np.asarray(geometry.face_normals, dtype=np.float64), 3, axis=0)
-    turn = np.linalg.inv(transform[:3, :3]).T
-    normals = normals @ turn.T
+    normals = matmul(normals, inverse3(transform[:3, :3]))  # by the inverse transpose of the turn
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     uv = getattr(geometry.visual, "uv", None)
     has_uv = uv is not None and len(uv) == len(geometry.vertices)
@@ -98,7 +98,7 @@ def _submesh(path: str, geometry: Any, transform: F64, own_materials: bool) -> S
     except Exception as exc:  # noqa: BLE001 - a material trimesh half-read can fail anywhere
         log.warning("mesh %s: the materials cannot be read (%s); it is drawn in the visual's colour", path, exc)
         surface = None
-    return Submesh(positions @ transform[:3, :3].T + transform[:3, 3], normals, uvs, surface)
+    return Submesh(matmul(positions, transform[:3, :3].T) + transform[:3, 3], normals, uvs, surface)
 
 
 def _surface(visual: Any) -> Surface | None:

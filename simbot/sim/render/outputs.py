@@ -16,6 +16,7 @@ import numpy as np
 from simbot.sim.render import lens
 from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
 from simbot.sim.render.specs import Depths, Pixels, Points
+from simbot.transform import matmul
 
 LUMA = (0.299, 0.587, 0.114)
 """ITU-R BT.601 luminance weights, as OpenCV's RGB2GRAY and Gazebo's L8 conversion."""
@@ -35,7 +36,7 @@ def linear_depth(window: Depths, near: float, far: float) -> None:
 
 def luminance(rgb: Pixels) -> Pixels:
     weights = np.asarray(LUMA, dtype=np.float32)
-    out: Pixels = np.rint(rgb.astype(np.float32) @ weights).astype(np.uint8)
+    out: Pixels = np.rint(matmul(rgb.astype(np.float32), weights)).astype(np.uint8)
     return out
 
 

@@ -12,7 +12,7 @@ from types import ModuleType
 import numpy as np
 
 from simbot.sim.render.specs import BodyState, SceneBody
-from simbot.transform import Matrix, Transform
+from simbot.transform import Matrix, Transform, matmul, rigid_inverse
 
 
 class BulletScene:
@@ -108,7 +108,7 @@ class BulletScene:
         pb, client, body_id = self.pb, self.client, self.ids[name]
         base = Transform.of(*pb.getBasePositionAndOrientation(body_id, physicsClientId=client)).matrix()
         inertial = Transform.of(*pb.getDynamicsInfo(body_id, -1, physicsClientId=client)[3:5]).matrix()
-        frames = {-1: base @ np.linalg.inv(inertial)}  # the base pose is its centre of mass's
+        frames = {-1: matmul(base, rigid_inverse(inertial))}  # the base pose is its centre of mass's
         count = pb.getNumJoints(body_id, physicsClientId=client)
         if count:
             states = pb.getLinkStates(
@@ -126,8 +126,7 @@ def view_matrix(pose: Transform) -> Matrix:
     camera = Transform.of(*pose).matrix()
     # eye axes in the camera frame: x_eye = -y_cam (right), y_eye = z_cam (up), z_eye = -x_cam (back)
     eye_in_camera = np.array([[0.0, -1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
-    world_to_camera = np.linalg.inv(camera)
-    return eye_in_camera @ world_to_camera
+    return matmul(eye_in_camera, rigid_inverse(camera))
 
 
 def projection_matrix(vfov_deg: float, aspect: float, near: float, far: float) -> Matrix:

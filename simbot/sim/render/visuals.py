@@ -32,6 +32,7 @@ from simbot.sim.render.shapes import (
     primitive,
 )
 from simbot.sim.render.surfaces import RGB, Piece, Surface
+from simbot.transform import matmul
 
 UNCOLOURED = Surface(diffuse=(1.0, 1.0, 1.0), ambient=(1.0, 1.0, 1.0))
 """A visual without any material: white, as PyBullet draws it."""
@@ -91,9 +92,9 @@ def _visual_pieces(link: int, visual: ET.Element, materials: dict[str, ET.Elemen
 def _piece(link: int, origin: np.ndarray, tessellated: Tessellated, surface: Surface) -> Piece:
     positions, normals, uvs = tessellated
     rotation = origin[:3, :3]
-    placed = positions @ rotation.T + origin[:3, 3]
+    placed = matmul(positions, rotation.T) + origin[:3, 3]
     return Piece(
-        link, placed.astype(np.float32), (normals @ rotation.T).astype(np.float32), uvs.astype(np.float32), surface
+        link, placed.astype(np.float32), matmul(normals, rotation.T).astype(np.float32), uvs.astype(np.float32), surface
     )
 
 

@@ -14,7 +14,7 @@ from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind, Raw
 from simbot.sim.render.outputs import add_noise, luminance
 from simbot.sim.render.specs import CameraSpec
 from simbot.sim.render.wide_lens import FACES, OPTICAL_IN_CAMERA, Plan, WideLens, plan
-from simbot.transform import Matrix, Transform, quaternion_to_matrix
+from simbot.transform import Matrix, Transform, matmul, quaternion_to_matrix
 
 
 def _plan_of(spec: Intrinsics) -> tuple[WideLens, Plan]:
@@ -94,7 +94,7 @@ def views(
     faces = drawn["color"].reshape(len(drawn_plan.faces), lens.face, lens.face, 3)
     body = quaternion_to_matrix(pose.orientation)
     for slot, index in enumerate(drawn_plan.faces):
-        rotation = body @ OPTICAL_IN_CAMERA @ FACES[index] @ OPTICAL_IN_CAMERA.T
+        rotation = matmul(matmul(matmul(body, OPTICAL_IN_CAMERA), FACES[index]), OPTICAL_IN_CAMERA.T)
         yield Transform(pose.position, _quaternion(rotation)), {"color": faces[slot]}
 
 
