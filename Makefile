@@ -54,6 +54,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_ros2.py
 	$(BIN)/python benchmarks/bench_actors.py
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
+	$(BIN)/python benchmarks/bench_products.py
 
 ## An hour of the warehouse in real time, every sensor and the clients running: losses per key, RSS and CPU per process (`make soak MINUTES=2` to try it).
 MINUTES ?= 60
