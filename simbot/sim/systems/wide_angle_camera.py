@@ -131,7 +131,7 @@ def info_model(lens: WideLens, width: int, height: int, hfov: float) -> tuple[st
 def _least_squares(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> tuple[float, ...]:
     """The x minimising |a·x − b|: modified Gram–Schmidt on the columns of [a | b] (as stable as a
     QR factorisation, Björck 1967), then back-substitution. Every dot product is a `math.fsum` of
-    exactly rounded products, so D has the same bits on every CPU, where `np.linalg.lstsq` asks
+    exactly rounded products, so D has the same bits on every CPU, where numpy's least squares asks
     LAPACK, whose kernels sum in an order of the CPU's."""
     columns = [np.array(column, dtype=float) for column in np.asarray(a).T] + [np.array(b, dtype=float)]
     n = len(columns) - 1
