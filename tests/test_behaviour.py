@@ -18,7 +18,10 @@ arrived. Three promises, three tests:
    exactly, floats within the tolerance stated for their field, so a refactoring that changes a
    pose, a scan, a noise draw or an image fails here and a CPU's last bit does not. Machine-bound,
    and so compared only where it matches the recording: the pixels GL draws (llvmpipe's vector
-   width changes its rounding; `device` in recorded.json). Everything else is compared everywhere.
+   width changes its rounding; `device` in recorded.json). Everything else is compared everywhere;
+   what may still move its last bits from one machine to another (libm's and numpy's
+   transcendental functions, another build of PyBullet) is what the tolerances absorb
+   (docs/reproducibility.md).
 2. **Byte for byte, on one machine.** Two runs with one seed give identical bytes on every key,
    the cameras included: the promise docs/reproducibility.md makes.
 3. **No CPU-chosen kernel decides a bit.** The run again under every other OpenBLAS kernel this
