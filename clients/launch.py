@@ -70,8 +70,9 @@ OWN_OPTIONS = ("--world", "--listen", "--connect", "--zenoh-config", "--namespac
 STARTUP_TIMEOUT_S = 60.0
 POLL_S = 0.1
 CONNECT_TRY_S = 1.0
-GRACE_S: tuple[tuple[signal.Signals, float], ...] = ((signal.SIGINT, 3.0), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0))
-"""How a child is ended: each signal in turn, waiting its grace period for the exit."""
+GRACE_S: tuple[tuple[signal.Signals, float], ...] = ((signal.SIGINT, 5.0), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0))
+"""How a child is ended: each signal in turn, waiting its grace period for the exit. SIGINT's is
+ros2 launch's 5 s: a server closing its render workers on a loaded two-core machine took over 3 s."""
 
 _output_lock = threading.Lock()
 _output: list[TextIO] = []

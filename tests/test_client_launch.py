@@ -31,7 +31,8 @@ from simbot.clients.terminal import HOME_AND_CLEAR, LEAVE_ALTERNATE
 SERVER_ARGS = "--quiet --camera-size 160x120"
 START_TIMEOUT_S = 60.0
 EXIT_TIMEOUT_S = 20.0
-"""Launch ends its clients, then the server, each with SIGINT's 3 s grace: well within this."""
+"""Launch ends its clients, then the server, each with SIGINT's 5 s grace (then SIGTERM's 2 s and
+SIGKILL's 2 s): within this even where every grace runs out."""
 CLIENTS = ("merger", "stitcher", "monitor")
 LAUNCH = (sys.executable, "-m", "simbot.clients.launch")
 STARTED = re.compile(r"^\[launch\] started (\w+) \(pid (\d+)\)$", re.MULTILINE)
