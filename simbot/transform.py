@@ -83,10 +83,11 @@ def norm(vector: Sequence[float] | npt.NDArray[np.floating]) -> float:
 
 def rigid_inverse(matrix: Matrix) -> Matrix:
     """The inverse of a 4×4 rigid transform, (Rᵀ, −Rᵀt): exact where `np.linalg.inv` asks LAPACK."""
-    rotation = np.asarray(matrix, dtype=float)[:3, :3].T
+    given = np.asarray(matrix, dtype=float)
+    rotation = given[:3, :3].T
     out = np.eye(4)
     out[:3, :3] = rotation
-    out[:3, 3] = -matmul(rotation, np.asarray(matrix, dtype=float)[:3, 3])
+    out[:3, 3] = -matmul(rotation, given[:3, 3])
     return out
 
 

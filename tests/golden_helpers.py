@@ -15,6 +15,7 @@ the same bytes, so a published value that a CPU-chosen BLAS kernel decides fails
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import json
@@ -332,6 +333,7 @@ def numpy_dispatch_mask() -> str:
     return " ".join(feature for feature in __cpu_dispatch__ if have.get(feature))
 
 
+@functools.cache
 def kernel_environments() -> list[dict[str, str]]:
     """One environment per OpenBLAS kernel this CPU can run other than the one it picks (kernels
     that pick the same core once), each also masking numpy's dispatched SIMD paths."""
