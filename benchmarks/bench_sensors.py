@@ -60,7 +60,8 @@ from simbot.description import load_model
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
-from simbot.sim.render import BodyState, CameraSpec, Light, SceneBody, plan_pool
+from simbot.sim.render import BodyState, CameraSpec, Light, plan_pool
+from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene
@@ -152,10 +153,7 @@ def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: f
 def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float, str]:
     """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
     the same scene and views, one llvmpipe thread, pixels read back into an array."""
-    bodies = [
-        SceneBody(name, physics.urdf_of(name), physics.model_of(name).static, physics.body_state(name)[0])
-        for name in physics.body_names()
-    ]
+    bodies = [scene_body(physics, name) for name in physics.body_names()]
     scene = BulletScene(pb, bodies)
     renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
     poses = [physics.frame_pose(*where) for where in camera_mounts(physics)]

@@ -22,7 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sensors import camera_mounts, in_process_server, systems_of
 from tables import publish
 
-from simbot.sim.render import CameraSpec, RenderPool, SceneBody
+from simbot.sim.render import CameraSpec, RenderPool
+from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.systems.rendering import Rendering
 
@@ -59,10 +60,7 @@ def main() -> None:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     with in_process_server() as (server, _):
         physics = server.physics
-        bodies = [
-            SceneBody(name, physics.urdf_of(name), physics.model_of(name).static, physics.body_state(name)[0])
-            for name in physics.body_names()
-        ]
+        bodies = [scene_body(physics, name) for name in physics.body_names()]
         light = systems_of(server, Rendering)[0].light
         pose = physics.frame_pose(*camera_mounts(physics)[0])
         specs = cameras(*args.size)

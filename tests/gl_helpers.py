@@ -1,7 +1,16 @@
 """Whether the OpenGL renderer can run here (tests of `gl` skip with this reason where no EGL context
-opens), and the bodies the rendering tests draw."""
+opens), and the bodies the rendering tests draw: models made here, as the render workers get them."""
 
 from __future__ import annotations
+
+from pathlib import Path
+
+from simbot.description import model_to_urdf
+from simbot.description.model import Box, Inertial, Link, Material, Model, Visual
+from simbot.description.poses import Pose, Vec3
+from simbot.description.urdf_visuals import urdf_visuals
+from simbot.sim.render import Annotation, SceneBody
+from simbot.transform import Transform
 
 
 def _why_no_egl() -> str | None:
@@ -18,15 +27,37 @@ NO_EGL = _why_no_egl()
 """None where an EGL context opens; else the reason, for pytest.skip."""
 
 
-INERTIA = '<inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/>'
+Rgba = tuple[float, float, float, float]
+INERTIA = (0.1, 0.0, 0.0, 0.1, 0.0, 0.1)
 
 
-def box_urdf(
-    size: tuple[float, float, float], rgba: tuple[float, ...], com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-) -> str:
-    """A one-link box; `com` puts its centre of mass beside the visual."""
-    return f"""<robot name="box"><link name="box">
-      <inertial><origin xyz="{com[0]} {com[1]} {com[2]}"/><mass value="1"/>{INERTIA}</inertial>
-      <visual><geometry><box size="{size[0]} {size[1]} {size[2]}"/></geometry>
-        <material name="c"><color rgba="{" ".join(map(str, rgba))}"/></material></visual>
-    </link></robot>"""
+def body_of(
+    name: str,
+    model: Model,
+    static: bool,
+    base: Transform,
+    annotations: tuple[Annotation, ...] = (),
+    instance: int = 0,
+) -> SceneBody:
+    """`model` as the render workers get it: its URDF written as the server's physics writes it,
+    and its visuals as typed data."""
+    return SceneBody(name, model_to_urdf(model), static, base, annotations, instance, urdf_visuals(model))
+
+
+def box_model(size: Vec3, rgba: Rgba, com: Vec3 = (0.0, 0.0, 0.0), texture: Path | None = None) -> Model:
+    """A one-link box of 1 kg; `com` puts its centre of mass beside the visual."""
+    visual = Visual("box", Box(size), material=Material(diffuse=rgba, albedo_map=texture))
+    return Model("box", links=(Link("box", inertial=Inertial(1.0, Pose(com), INERTIA), visuals=(visual,)),))
+
+
+def box_body(
+    name: str,
+    size: Vec3,
+    rgba: Rgba,
+    static: bool,
+    base: Transform,
+    annotations: tuple[Annotation, ...] = (),
+    instance: int = 0,
+) -> SceneBody:
+    """A one-link box (`box_model`) as the render workers get it."""
+    return body_of(name, box_model(size, rgba), static, base, annotations, instance)

@@ -22,13 +22,13 @@ import cv2
 import numpy as np
 import pytest
 from client_helpers import bus_args, client_process, run_without_terminal
-from gl_helpers import NO_EGL, box_urdf
+from gl_helpers import NO_EGL, box_body
 from pycocotools import mask as coco_mask
 from pycocotools.coco import COCO
 from server_helpers import REPO, SimServer, left_out, running_server, wait_until
 
 from simbot.dataset import DatasetWriter, Intrinsics, Shot
-from simbot.sim.render import Annotation, CameraSpec, RenderPool, SceneBody
+from simbot.sim.render import Annotation, CameraSpec, RenderPool
 from simbot.sim.render.labels import instance_of, label_of, labelled
 
 FIXTURES = REPO / "tests" / "fixtures"
@@ -107,13 +107,9 @@ def rendered(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
         pytest.skip(NO_EGL)
     grey, red, blue = (0.5, 0.5, 0.5, 1.0), (0.9, 0.1, 0.1, 1.0), (0.1, 0.1, 0.9, 1.0)
     bodies = [
-        SceneBody("wall", box_urdf((0.1, 10.0, 4.0), grey), True, ((WALL_X + 0.05, 0, 1), (0, 0, 0, 1)), (), 1),
-        SceneBody(
-            "red", box_urdf((0.6, 0.6, 0.6), red), True, ((3.3, 0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=5),), 2
-        ),
-        SceneBody(
-            "blue", box_urdf((0.6, 0.6, 0.6), blue), True, ((3.3, -0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=9),), 3
-        ),
+        box_body("wall", (0.1, 10.0, 4.0), grey, True, ((WALL_X + 0.05, 0, 1), (0, 0, 0, 1)), (), 1),
+        box_body("red", (0.6, 0.6, 0.6), red, True, ((3.3, 0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=5),), 2),
+        box_body("blue", (0.6, 0.6, 0.6), blue, True, ((3.3, -0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=9),), 3),
     ]
     spec = CameraSpec("cam", W, H, HFOV, 0.1, 10.0, outputs=("color", "labels"))
     with RenderPool(bodies, [spec], workers=1, renderer=str(request.param)) as pool:

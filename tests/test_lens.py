@@ -33,12 +33,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 import pytest
-from gl_helpers import NO_EGL
+from gl_helpers import NO_EGL, box_body
 from server_helpers import SimServer, drawn_by, left_out
 
 from simbot.bus import messages
 from simbot.clients.stitcher import CameraModel, CylinderStitcher, Intrinsics
-from simbot.sim.render import CameraSpec, RenderPool, SceneBody
+from simbot.sim.render import CameraSpec, RenderPool
 from simbot.sim.render.lens import Distortion
 
 IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2"
@@ -286,10 +286,6 @@ def test_bad_distortion_is_one_line_naming_the_sensor_and_element(tmp_path: Path
 FOLD_K1 = -0.9
 FOLD_RADIUS = 1.0 / math.sqrt(-3.0 * FOLD_K1) * (1.0 - 1.0 / 3.0)
 """r·(1 + k1·r²) is largest at r² = −1/(3·k1): no ray lands farther than this (normalised) from the centre."""
-WALL_URDF = """<robot name="wall"><link name="wall"><inertial><mass value="1"/>
-  <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
-  <visual><geometry><box size="0.1 20 20"/></geometry><material name="g"><color rgba="0.5 0.5 0.5 1"/></material></visual>
-</link></robot>"""
 
 
 @pytest.mark.parametrize("renderer", ["gl", "tiny"])
@@ -298,7 +294,7 @@ def test_pixels_a_folding_lens_reaches_no_ray_through_read_black_inf_and_nan(ren
     if renderer == "gl" and NO_EGL:
         pytest.skip(NO_EGL)
     spec = CameraSpec("fold", 160, 120, HFOV, 0.05, 50.0, ("color", "depth", "points"), distortion=Distortion(FOLD_K1))
-    wall = SceneBody("wall", WALL_URDF, True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    wall = box_body("wall", (0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0), True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     with RenderPool([wall], [spec], workers=1, renderer=renderer) as pool:
         pool.request(0, 1, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {})
         (frame,) = pool.collect(wait_for=0, timeout=60.0)

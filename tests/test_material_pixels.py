@@ -17,7 +17,7 @@ from test_shading import AHEAD, DARK, SIZE, camera, drawing
 
 from simbot.description import load_world
 from simbot.sim.physics import Physics
-from simbot.sim.render import SceneBody
+from simbot.sim.render.bodies import scene_body
 
 pytestmark = pytest.mark.skipif(NO_EGL is not None, reason=NO_EGL or "")
 
@@ -61,7 +61,7 @@ def test_obj_and_collada_show_each_material_where_its_triangles_are(tmp_path: Pa
     physics = Physics(description)
     try:
         physics.add_model(description.models[0])
-        body = SceneBody("thing", physics.urdf_of("thing"), True, physics.body_state("thing")[0])
+        body = scene_body(physics, "thing")
     finally:
         physics.close()
     with drawing([body], replace(DARK, ambient=(1.0, 1.0, 1.0)), camera()) as draw:

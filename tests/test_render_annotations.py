@@ -11,7 +11,7 @@ import pytest
 
 from simbot.sim.render import Annotation, CameraSpec, Light, RenderPool, SceneBody
 from simbot.sim.render.labels import instance_of, label_of, labelled
-from tests.gl_helpers import NO_EGL, box_urdf
+from tests.gl_helpers import NO_EGL, box_body
 
 W, H, HFOV = 160, 120, math.radians(90.0)
 FX = (W / 2) / math.tan(HFOV / 2)
@@ -29,10 +29,10 @@ def bodies() -> list[SceneBody]:
     inner half, and a cool floor-to-ceiling wall behind, unannotated."""
     whole = (Annotation(label=7),)
     return [
-        SceneBody("crate_a", box_urdf((0.2, 1.0, 1.0), GREY), True, at(4.1, 0.8), whole, instance=3),
-        SceneBody("crate_b", box_urdf((0.2, 1.0, 1.0), GREY), True, at(4.1, -0.8), whole, instance=4),
-        SceneBody("stove", box_urdf((0.2, 0.4, 0.4), GREY), True, at(2.1, 0.3), (Annotation(temperature=350.0),), 5),
-        SceneBody("wall", box_urdf((0.2, 20.0, 2.0), GREY), True, at(8.1, 0.0, 0.0), (), 6),
+        box_body("crate_a", (0.2, 1.0, 1.0), GREY, True, at(4.1, 0.8), whole, instance=3),
+        box_body("crate_b", (0.2, 1.0, 1.0), GREY, True, at(4.1, -0.8), whole, instance=4),
+        box_body("stove", (0.2, 0.4, 0.4), GREY, True, at(2.1, 0.3), (Annotation(temperature=350.0),), 5),
+        box_body("wall", (0.2, 20.0, 2.0), GREY, True, at(8.1, 0.0, 0.0), (), 6),
     ]
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -20,9 +21,25 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
-from gl_helpers import INERTIA, NO_EGL, box_urdf
+from gl_helpers import INERTIA, NO_EGL, body_of, box_body, box_model
 from server_helpers import exited, wait_until
 
+from simbot.description.model import (
+    Axis,
+    Box,
+    Capsule,
+    Cylinder,
+    Geometry,
+    Inertial,
+    Joint,
+    Link,
+    Material,
+    Mesh,
+    Model,
+    Sphere,
+    Visual,
+)
+from simbot.description.poses import Pose
 from simbot.sim.render import (
     BodyState,
     CameraSpec,
@@ -66,14 +83,18 @@ LATE_FACE, LATE_SIZE, LATE_SIDE = 2.0, 0.4, 0.5  # their front faces 2 m ahead, 
 AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
 
 
-ARM_URDF = f"""<robot name="arm">
-  <link name="hub"><inertial><mass value="1"/>{INERTIA}</inertial></link>
-  <joint name="swing" type="revolute"><parent link="hub"/><child link="arm"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="10" velocity="10"/></joint>
-  <link name="arm"><inertial><mass value="1"/>{INERTIA}</inertial>
-    <visual><origin xyz="{ARM_REACH} 0 0"/><geometry><box size="0.2 0.2 0.2"/></geometry>
-      <material name="g"><color rgba="0 1 0 1"/></material></visual></link>
-</robot>"""
+ARM = Model(
+    "arm",
+    links=(
+        Link("hub", inertial=Inertial(1.0, inertia=INERTIA)),
+        Link(
+            "arm",
+            inertial=Inertial(1.0, inertia=INERTIA),
+            visuals=(Visual("arm", Box((0.2, 0.2, 0.2)), Pose((ARM_REACH, 0.0, 0.0)), Material(diffuse=GREEN)),),
+        ),
+    ),
+    joints=(Joint("swing", "revolute", "hub", "arm", axis=Axis((0.0, 0.0, 1.0), -3.0, 3.0, 10.0, 10.0)),),
+)
 
 
 def at(xyz: tuple[float, float, float]) -> Transform:
@@ -85,14 +106,14 @@ def yawed(xyz: tuple[float, float, float], yaw: float) -> Transform:
 
 
 def scene() -> list[SceneBody]:
-    offset_urdf = box_urdf((0.1, 0.4, 0.4), RED, com=(0.0, 0.4, 0.0))
+    offset = box_model((0.1, 0.4, 0.4), RED, com=(0.0, 0.4, 0.0))
     return [
-        SceneBody("red", box_urdf((0.1, RED_SIZE, RED_SIZE), RED), True, at((RED_FACE + 0.05, 0.0, 0.0))),
-        SceneBody("mover", box_urdf((0.1, 0.4, 0.4), GREEN), False, at((MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0))),
-        SceneBody("arm", ARM_URDF, False, at(ARM_AT)),
-        SceneBody("offset", offset_urdf, True, at((OFFSET_AT[0] + 2.05, 0.0, 0.0))),
-        SceneBody("orange", box_urdf((0.1, 1.0, 1.0), ORANGE), True, at((ORANGE_AT[0] + 2.05, 0.0, 0.0))),
-        SceneBody("grey", box_urdf((0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0)), True, at((GREY_AT[0] + 2.05, 0.0, 0.0))),
+        box_body("red", (0.1, RED_SIZE, RED_SIZE), RED, True, at((RED_FACE + 0.05, 0.0, 0.0))),
+        box_body("mover", (0.1, 0.4, 0.4), GREEN, False, at((MOVER_AT[0] + MOVER_FACE + 0.05, 0.0, 0.0))),
+        body_of("arm", ARM, False, at(ARM_AT)),
+        body_of("offset", offset, True, at((OFFSET_AT[0] + 2.05, 0.0, 0.0))),
+        box_body("orange", (0.1, 1.0, 1.0), ORANGE, True, at((ORANGE_AT[0] + 2.05, 0.0, 0.0))),
+        box_body("grey", (0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0), True, at((GREY_AT[0] + 2.05, 0.0, 0.0))),
     ]
 
 
@@ -301,22 +322,27 @@ def test_bad_requests_are_refused(pool: RenderPool) -> None:
     assert not pool.busy(RGB)
 
 
-SHAPES_URDF = """<robot name="shapes">
-  <link name="box"><visual><origin xyz="1.8 -0.9 0"/><geometry><box size="0.4 0.6 0.8"/></geometry>
-    <material name="r"><color rgba="1 0 0 1"/></material></visual></link>
-  <joint name="j1" type="fixed"><parent link="box"/><child link="cylinder"/></joint>
-  <link name="cylinder"><visual><origin xyz="1.8 -0.3 0" rpy="0.3 0 0"/><geometry><cylinder radius="0.25" length="0.8"/></geometry>
-    <material name="g"><color rgba="0 1 0 1"/></material></visual></link>
-  <joint name="j2" type="fixed"><parent link="box"/><child link="sphere"/></joint>
-  <link name="sphere"><visual><origin xyz="1.8 0.3 0"/><geometry><sphere radius="0.3"/></geometry>
-    <material name="b"><color rgba="0 0 1 1"/></material></visual></link>
-  <joint name="j3" type="fixed"><parent link="box"/><child link="capsule"/></joint>
-  <link name="capsule"><visual><origin xyz="1.8 0.9 0" rpy="0 0.4 0"/><geometry><capsule radius="0.2" length="0.5"/></geometry>
-    <material name="m"><color rgba="1 0 1 1"/></material></visual></link>
-  <joint name="j4" type="fixed"><parent link="box"/><child link="mesh"/></joint>
-  <link name="mesh"><visual><origin xyz="1.5 0 -0.55" rpy="1.5708 0 0"/><geometry><mesh filename="{mesh}" scale="0.004 0.004 0.004"/></geometry>
-    <material name="c"><color rgba="0 1 1 1"/></material></visual></link>
-</robot>"""
+def shapes_model(mesh: Path) -> Model:
+    """A red box, a green cylinder, a blue sphere, a magenta capsule and a cyan mesh, one a link, fixed together."""
+    shapes: dict[str, tuple[Geometry, Pose, tuple[float, float, float, float]]] = {
+        "box": (Box((0.4, 0.6, 0.8)), Pose((1.8, -0.9, 0.0)), (1.0, 0.0, 0.0, 1.0)),
+        "cylinder": (Cylinder(0.25, 0.8), Pose((1.8, -0.3, 0.0), (0.3, 0.0, 0.0)), (0.0, 1.0, 0.0, 1.0)),
+        "sphere": (Sphere(0.3), Pose((1.8, 0.3, 0.0)), (0.0, 0.0, 1.0, 1.0)),
+        "capsule": (Capsule(0.2, 0.5), Pose((1.8, 0.9, 0.0), (0.0, 0.4, 0.0)), (1.0, 0.0, 1.0, 1.0)),
+        "mesh": (
+            Mesh(str(mesh), (0.004,) * 3, mesh),
+            Pose((1.5, 0.0, -0.55), (1.5708, 0.0, 0.0)),
+            (0.0, 1.0, 1.0, 1.0),
+        ),
+    }
+    links = tuple(
+        Link(name, visuals=(Visual(name, geometry, pose, Material(diffuse=rgba)),))
+        for name, (geometry, pose, rgba) in shapes.items()
+    )
+    joints = tuple(Joint(f"j{k}", "fixed", "box", name) for k, name in enumerate(list(shapes)[1:], 1))
+    return Model("shapes", links=links, joints=joints)
+
+
 PRIMARIES = {"box": (0, (1, 2)), "cylinder": (1, (0, 2)), "sphere": (2, (0, 1))}
 
 
@@ -341,8 +367,8 @@ def test_gl_and_tiny_draw_every_shape_with_the_same_silhouette() -> None:
     silhouette (each pixel's centre ray against the sphere) with IoU ≥ 0.97."""
     if NO_EGL:
         pytest.skip(NO_EGL)
-    urdf = SHAPES_URDF.format(mesh=Path(__file__).resolve().parents[1] / "meshes" / "wheel.stl")
-    bodies = [SceneBody("shapes", urdf, True, at((0.0, 0.0, 0.0)))]
+    shapes = shapes_model(Path(__file__).resolve().parents[1] / "meshes" / "wheel.stl")
+    bodies = [body_of("shapes", shapes, True, at((0.0, 0.0, 0.0)))]
     camera = CameraSpec("c", 640, 480, 1.6, 0.05, 50.0)
     images = {}
     for name in ("gl", "tiny"):
@@ -379,10 +405,10 @@ def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
     assert mask(render(pool, RGB, AHEAD)["color"], 0)[H // 2, W // 2]
 
 
-def late_box(name: str, rgba: tuple[float, ...], side: float, static: bool) -> SceneBody:
+def late_box(name: str, rgba: tuple[float, float, float, float], side: float, static: bool) -> SceneBody:
     """A box for the empty region, its front face LATE_FACE ahead of the camera there, `side` m to its left."""
     size = (0.1, LATE_SIZE, LATE_SIZE)
-    return SceneBody(name, box_urdf(size, rgba), static, at((LATE_AT[0] + LATE_FACE + 0.05, side, 0.0)))
+    return box_body(name, size, rgba, static, at((LATE_AT[0] + LATE_FACE + 0.05, side, 0.0)))
 
 
 def test_bodies_added_to_a_running_pool_are_drawn_where_placed_and_removed_ones_vanish(pool: RenderPool) -> None:
@@ -494,9 +520,10 @@ def test_a_body_that_does_not_load_fails_the_next_collect_and_the_worker_goes_on
 
 
 QUIET_SCRIPT = """
-from simbot.sim.render import CameraSpec, RenderPool, SceneBody
+import pickle
+from simbot.sim.render import CameraSpec, RenderPool
 if __name__ == "__main__":
-    body = SceneBody("red", {urdf!r}, True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    body = pickle.loads({body!r})
     with RenderPool([body], [CameraSpec("c", 32, 24, 1.5, 0.05, 50.0)], workers=1, renderer="auto") as pool:
         pool.request(0, 1, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {{}})
         pool.collect(wait_for=0, timeout=10)
@@ -506,7 +533,8 @@ if __name__ == "__main__":
 def test_workers_keep_pybullet_chatter_off_stdout_and_stderr(tmp_path: Path) -> None:
     """PyBullet and Mesa print from C; none of it reaches the server's stdout or stderr."""
     script = tmp_path / "quiet.py"
-    script.write_text(QUIET_SCRIPT.format(urdf=box_urdf((0.1, 1.0, 1.0), RED)))
+    body = box_body("red", (0.1, 1.0, 1.0), RED, True, at((2.05, 0.0, 0.0)))
+    script.write_text(QUIET_SCRIPT.format(body=pickle.dumps(body)))
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert (done.stdout, done.stderr) == ("", "")

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 import pybullet
 import pytest
-from gl_helpers import NO_EGL, box_urdf
+from gl_helpers import NO_EGL, body_of, box_body, box_model
 
 from simbot.sim.render import BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody
 from simbot.sim.render.outputs import LUMA, linear_depth
@@ -49,7 +49,7 @@ Pieces = Callable[[BulletScene, str], list[Piece]]
 
 def floor() -> SceneBody:
     """A white slab, its top face at z 0."""
-    return SceneBody("floor", box_urdf((20.0, 20.0, 0.1), WHITE), True, ((0.0, 0.0, -0.05), AHEAD))
+    return box_body("floor", (20.0, 20.0, 0.1), WHITE, True, ((0.0, 0.0, -0.05), AHEAD))
 
 
 def camera(outputs: tuple[str, ...] = ("color",), near: float = 0.05) -> CameraSpec:
@@ -154,7 +154,7 @@ def test_a_box_casts_the_suns_shadow_on_the_floor_away_from_the_sun(static: bool
     sun = LightSource(diffuse=(0.5, 0.5, 0.5), direction=(1.0, 0.0, -1.0), cast_shadows=True)
     light = Light(sources=(sun,), ambient=(0.3, 0.3, 0.3), background=(0.0, 0.0, 0.0))
     cube_at = (2.0, 0.0, 0.5)
-    cube = SceneBody("cube", box_urdf((1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0)), static, ((0.0, 0.0, 0.5), AHEAD))
+    cube = box_body("cube", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), static, ((0.0, 0.0, 0.5), AHEAD))
     states = {} if static else {"cube": BodyState((cube_at, AHEAD), {})}
     x0 = 0.0 if static else cube_at[0]
     lit, shaded = 255.0 * (0.3 + 0.5 * math.cos(math.pi / 4)), 255.0 * 0.3
@@ -192,8 +192,8 @@ def test_emissive_adds_to_the_lit_colour_and_unlit_shows_its_colour_as_is() -> N
         "flat": Surface(diffuse=(0.1, 0.8, 0.3), lit=False),
     }
     bodies = [
-        SceneBody("glow", box_urdf((0.1, 1.0, 1.0), WHITE), True, ((2.0, 0.6, 0.0), AHEAD)),
-        SceneBody("flat", box_urdf((0.1, 1.0, 1.0), WHITE), True, ((2.0, -0.6, 0.0), AHEAD)),
+        box_body("glow", (0.1, 1.0, 1.0), WHITE, True, ((2.0, 0.6, 0.0), AHEAD)),
+        box_body("flat", (0.1, 1.0, 1.0), WHITE, True, ((2.0, -0.6, 0.0), AHEAD)),
     ]
     with drawing(bodies, light, camera(), dressed(surfaces)) as draw:
         image = draw(((0.0, 0.0, 0.0), AHEAD))["color"].astype(float)
@@ -211,8 +211,8 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
         "glass": Surface(diffuse=(0.0, 1.0, 0.0), lit=False, opacity=0.5),
     }
     bodies = [
-        SceneBody("wall", box_urdf((0.1, 10.0, 10.0), WHITE), True, ((3.05, 0.0, 0.0), AHEAD)),
-        SceneBody("glass", box_urdf((0.1, 1.0, 1.0), WHITE), True, ((1.5, 0.0, 0.0), AHEAD)),
+        box_body("wall", (0.1, 10.0, 10.0), WHITE, True, ((3.05, 0.0, 0.0), AHEAD)),
+        box_body("glass", (0.1, 1.0, 1.0), WHITE, True, ((1.5, 0.0, 0.0), AHEAD)),
     ]
     with drawing(bodies, DARK, camera(("color", "depth")), dressed(surfaces)) as draw:
         frame = draw(((0.0, 0.0, 0.0), AHEAD))
@@ -223,7 +223,7 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
     assert float(frame["depth"][SIZE // 2, SIZE // 2]) == pytest.approx(3.0, abs=0.005)
 
 
-PANEL = SceneBody("panel", box_urdf((0.01, 0.01, 0.01), WHITE), True, ((0.0, 0.0, 0.0), AHEAD))
+PANEL = box_body("panel", (0.01, 0.01, 0.01), WHITE, True, ((0.0, 0.0, 0.0), AHEAD))
 """A body whose pieces `panel_pieces` gives."""
 
 
@@ -270,7 +270,7 @@ def test_a_textured_panel_shows_its_image_where_its_texture_coordinates_put_it(
 @needs_gl
 @pytest.mark.parametrize("face", ["-x", "+x"])
 def test_a_textured_box_shows_its_image_upright_on_each_face_it_turns_to_a_camera(tmp_path: Path, face: str) -> None:
-    """A 1 m box whose URDF material names a texture (as the server writes an SDF albedo map): red
+    """A 1 m box whose material has an albedo map (SDF's, which the URDF writes as its texture): red
     left half, blue right half, a green top band. Seen from outside, face on, from either side,
     red lies left, blue right, green on top (not mirrored, not upside down). Lit by the scene's
     ambient alone (1): the texture's colours exactly."""
@@ -279,10 +279,8 @@ def test_a_textured_box_shows_its_image_upright_on_each_face_it_turns_to_a_camer
     image = np.zeros((32, 64, 3), dtype=np.uint8)
     image[:, :32], image[:, 32:], image[:4] = (0, 0, 255), (255, 0, 0), (0, 255, 0)  # BGR
     cv2.imwrite(str(tmp_path / "halves.png"), image)
-    urdf = box_urdf((1.0, 1.0, 1.0), WHITE).replace(
-        '<color rgba="1.0 1.0 1.0 1.0"/>', f'<color rgba="1 1 1 1"/><texture filename="{tmp_path / "halves.png"}"/>'
-    )
-    box = SceneBody("box", urdf, True, ((2.0, 0.0, 0.0), AHEAD))
+    textured = box_model((1.0, 1.0, 1.0), WHITE, texture=tmp_path / "halves.png")
+    box = body_of("box", textured, True, ((2.0, 0.0, 0.0), AHEAD))
     pose = ((0.0, 0.0, 0.0), AHEAD) if face == "-x" else ((4.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
     with drawing([box], Light(sources=(), ambient=(1.0, 1.0, 1.0)), camera()) as draw:
         seen = draw(pose)["color"]
@@ -327,8 +325,8 @@ def test_a_depth_camera_inside_its_housing_box_reads_the_scene() -> None:
     facing = (0.0, 0.0, 1.0, 0.0)  # yawed π: looking along −x
     bodies = [
         floor(),
-        SceneBody("box", box_urdf((1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0)), True, ((0.0, -1.0, 0.5), AHEAD)),
-        SceneBody("housing", box_urdf((0.1, 0.1, 0.1), (0.2, 0.2, 0.2, 1.0)), True, (eye, facing)),
+        box_body("box", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), True, ((0.0, -1.0, 0.5), AHEAD)),
+        box_body("housing", (0.1, 0.1, 0.1), (0.2, 0.2, 0.2, 1.0), True, (eye, facing)),
     ]
     spec = CameraSpec("depth_camera1", size, size, hfov, 0.1, 10.0, outputs=("depth",))
     with RenderPool(bodies, [spec], workers=1, renderer="gl") as pool:
@@ -383,7 +381,7 @@ def test_more_lights_than_the_shader_holds_are_one_warning(caplog: pytest.LogCap
     """Nine lights: the first eight shade (the ninth, a bright sun, changes nothing), one warning."""
     dim = LightSource(diffuse=(0.05, 0.05, 0.05), direction=(1.0, 0.0, 0.0))
     bright = LightSource(diffuse=(1.0, 1.0, 1.0), direction=(1.0, 0.0, 0.0))
-    wall = [SceneBody("wall", box_urdf((0.1, 10.0, 10.0), WHITE), True, ((3.05, 0.0, 0.0), AHEAD))]
+    wall = [box_body("wall", (0.1, 10.0, 10.0), WHITE, True, ((3.05, 0.0, 0.0), AHEAD))]
     with (
         caplog.at_level(logging.WARNING),
         drawing(wall, replace(DARK, sources=(dim,) * 8 + (bright,)), camera()) as draw,

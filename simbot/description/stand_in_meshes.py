@@ -2,8 +2,9 @@
 
 PyBullet's URDF loader reads OBJ, STL and COLLADA only. For any other format trimesh reads, the
 URDF names an OBJ of the file's triangles (no materials), written once to the generated-mesh
-folder under the source file's content hash; the renderers read the original file, named beside
-it (urdf_writer's `<sdf_material mesh=...>`), for its materials and textures.
+folder under the source file's content hash (and the file itself beside it, in urdf_writer's
+`<sdf_material mesh=...>`); the renderers draw the original file, which the description's visual
+names (urdf_visuals.py), with its materials and textures.
 """
 
 from __future__ import annotations

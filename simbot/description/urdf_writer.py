@@ -24,9 +24,10 @@ URDF cannot say everything SDF can, so a few things are rewritten, each keeping 
   prismatic joint's range, are written as ±UNLIMITED.
 - A visual's material: URDF's `<material>` holds its colour and its texture (the PBR albedo map);
   the rest of SDF's material and the visual's `<transparency>` and `<cast_shadows>` are attributes
-  of an `<sdf_material>` element beside it, which PyBullet and ROS's URDF readers skip and the
-  render workers read (sim/render/visuals.py). A mesh PyBullet cannot read (glTF, GLB, ...) is
-  named by an OBJ stand-in of its triangles, and the file itself by `<sdf_material mesh=...>`.
+  of an `<sdf_material>` element beside it, which PyBullet and ROS's URDF readers skip. A mesh
+  PyBullet cannot read (glTF, GLB, ...) is named by an OBJ stand-in of its triangles, and the file
+  itself by `<sdf_material mesh=...>`. (The render workers read no URDF visual: they get the same
+  visuals as typed data from `urdf_visuals.py`, which places them with this module's functions.)
 Sensors, plugins and friction, which URDF has no place for, stay in the parsed model.
 """
 
@@ -36,7 +37,7 @@ import logging
 import os
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -66,7 +67,7 @@ from simbot.description.model import (
     Sphere,
     Visual,
 )
-from simbot.description.poses import IDENTITY, Pose, matrix_to_rpy
+from simbot.description.poses import IDENTITY, Pose, Vec3, matrix_to_rpy
 from simbot.description.stand_in_meshes import needs_stand_in, stand_in
 from simbot.transform import matmul, norm
 
@@ -89,6 +90,16 @@ def _fmt(value: float) -> str:
 
 def _fmts(values: tuple[float, ...] | np.ndarray) -> str:
     return " ".join(_fmt(v) for v in values)
+
+
+def as_written(pose: Pose) -> Pose:
+    """`pose` as a reader of the URDF gets it back: each number to the digits `_fmt` writes."""
+    return Pose(_read_back(pose.xyz), _read_back(pose.rpy))
+
+
+def _read_back(values: Vec3) -> Vec3:
+    x, y, z = (float(_fmt(v)) for v in values)
+    return (x, y, z)
 
 
 @dataclass
@@ -117,7 +128,7 @@ class _Urdf:
         if link is None:
             self.add_inertial(element, IDENTITY, massless)
             return
-        to_link = frame.inverse() @ link.pose
+        to_link = in_urdf_link(link)
         inertial = link.inertial or massless
         self.add_inertial(element, to_link @ inertial.pose, inertial)
         for visual in link.visuals:
@@ -139,10 +150,7 @@ class _Urdf:
         element = ET.SubElement(link, kind, name=shape.name)
         if kind == "collision" and self.model.static and isinstance(shape.geometry, Polyline):
             element.set("concave", "yes")
-        pose = to_link @ shape.pose
-        if isinstance(shape.geometry, Plane):
-            pose = pose @ _plane_offset(shape.geometry)
-        self.origin(element, pose)
+        self.origin(element, shape_origin(to_link, shape))
         self.add_geometry(ET.SubElement(element, "geometry"), shape.geometry)
         if isinstance(shape, Visual):
             self.add_material(element, f"{link.get('name')}__{shape.name}", shape)
@@ -177,7 +185,7 @@ class _Urdf:
         elif isinstance(geometry, Sphere):
             ET.SubElement(parent, "sphere", radius=_fmt(geometry.radius))
         elif isinstance(geometry, Plane):
-            ET.SubElement(parent, "box", size=_fmts((*geometry.size, PLANE_THICKNESS)))
+            self.add_geometry(parent, plane_box(geometry))
         elif isinstance(geometry, Capsule):
             ET.SubElement(parent, "capsule", radius=_fmt(geometry.radius), length=_fmt(geometry.length))
         elif isinstance(geometry, Mesh):
@@ -224,6 +232,18 @@ class _Urdf:
         _add_limit(element, kind, axis)
         if axis.damping or axis.friction:
             ET.SubElement(element, "dynamics", damping=_fmt(axis.damping), friction=_fmt(axis.friction))
+
+
+def shape_origin(to_link: Pose, shape: Visual | Collision) -> Pose:
+    """A visual's or collision's `<origin>` in its URDF link (`to_link`: `in_urdf_link`); a
+    plane's is its box's (`plane_box`)."""
+    pose = to_link @ shape.pose
+    return pose @ _plane_offset(shape.geometry) if isinstance(shape.geometry, Plane) else pose
+
+
+def plane_box(plane: Plane) -> Box:
+    """The thin box a plane is written as: its top face is the plane where `shape_origin` puts it."""
+    return Box((*plane.size, PLANE_THICKNESS))
 
 
 def _original_mesh(visual: Visual, filename: Callable[[Path], str]) -> dict[str, str]:
@@ -353,15 +373,33 @@ def link_frame(link: Link) -> Pose:
     return link.pose @ own[0].pose if len(own) == 1 else link.pose
 
 
-def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[Joint]], parent: str) -> None:
+def in_urdf_link(link: Link) -> Pose:
+    """The SDF link's frame in its URDF link's (`link_frame`): what re-expresses everything it holds."""
+    return link_frame(link).inverse() @ link.pose
+
+
+def urdf_links(model: Model) -> list[str]:
+    """The model's links in the order its URDF lists them: the root ("world" where the model is
+    fixed to it), then down the joints, each link before those below it (frame links left out)."""
+    root, children = _tree(model)
+    return [root, *(joint.child for joint in _descending(children, root))]
+
+
+def _descending(children: dict[str, list[Joint]], parent: str) -> Iterator[Joint]:
+    """The joints below `parent`, each before those below its child."""
     for joint in children.get(parent, []):
+        yield joint
+        yield from _descending(children, joint.child)
+
+
+def _add_subtree(urdf: _Urdf, links: dict[str, Link], children: dict[str, list[Joint]], root: str) -> None:
+    for joint in _descending(children, root):
         child = links[joint.child]
         if joint.type == "fixed":
             urdf.add_link(child.name, link_frame(child), child)
-            urdf.add_joint(joint.name, "fixed", parent, child.name)
+            urdf.add_joint(joint.name, "fixed", joint.parent, child.name)
         else:
             _add_movable(urdf, joint, child)
-        _add_subtree(urdf, links, children, child.name)
 
 
 def _add_movable(urdf: _Urdf, joint: Joint, child: Link) -> None:
@@ -425,7 +463,7 @@ def _build(model: Model, mesh_dir: Path | None, generated_dir: Path | None, mesh
     """The URDF's element tree (see `model_to_urdf`)."""
     root, children = _tree(model)
     links = {link.name: link for link in model.links}
-    generated = generated_dir or mesh_dir or Path(tempfile.gettempdir()) / "simbot-meshes"
+    generated = generated_folder(generated_dir or mesh_dir)
     urdf = _Urdf(model, mesh_dir, generated, mesh_uris)
     if root == "world":
         urdf.robot.append(ET.Element("link", name="world"))
@@ -440,6 +478,11 @@ def _build(model: Model, mesh_dir: Path | None, generated_dir: Path | None, mesh
         )
     ET.indent(urdf.robot)
     return urdf.robot
+
+
+def generated_folder(folder: Path | None = None) -> Path:
+    """Where the meshes of shapes URDF lacks are written: `folder`, else one in the system's temporary directory."""
+    return folder or Path(tempfile.gettempdir()) / "simbot-meshes"
 
 
 def _text(model: Model, robot: ET.Element) -> str:

@@ -6,10 +6,10 @@ no box), keyed by (instance, label); only objects seen in the frame get a box, a
 - Visible 2D box: the extent of the object's pixels in the `labels` buffer (`labels.py`), so what
   hides part of it (labelled or not) shrinks it; corners are pixel indices (ROS's pixel-centre
   coordinates).
-- Full 2D box: the object's visual vertices (`visuals.visual_points`), posed where the frame's body
-  states put them, projected through the pinhole model (u = fx·x/z + cx, v = fx·y/z + cy in the
-  optical frame) and clipped to the image; occlusion does not shrink it. Vertices nearer than the
-  near clip are left out.
+- Full 2D box: the object's visual vertices (`visuals.visual_points` of `SceneBody.visuals`),
+  posed where the frame's body states put them, projected through the pinhole model
+  (u = fx·x/z + cx, v = fx·y/z + cy in the optical frame) and clipped to the image; occlusion does
+  not shrink it. Vertices nearer than the near clip are left out.
 - 3D box: the axis-aligned box of the object's vertices in its body's root link frame, posed in
   the camera's optical frame (x right, y down, z forward; simbot's camera frame id): centre,
   orientation and size in metres. (Gazebo writes it in Ogre's camera frame, x right, y up, z back.)
@@ -20,7 +20,6 @@ continuous turn about their axis, prismatic slide along it), so each box shows t
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -62,14 +61,12 @@ class BodyShapes:
 
     @staticmethod
     def of(body: SceneBody) -> BodyShapes:
-        robot = ET.fromstring(body.urdf)
+        """The labelled visuals' vertices; the joints of the URDF, as the render workers pose the links."""
         shapes = []
-        for link in robot.findall("link"):
-            name = link.get("name", "")
-            for visual in link.findall("visual"):
-                label, _ = body.annotated(name, visual.get("name", ""))
-                if label:
-                    shapes.append(Shape(name, label, visual_points(visual).astype(np.float64)))
+        for drawn in body.visuals:
+            label, _ = body.annotated(drawn.link, drawn.visual.name)
+            if label:
+                shapes.append(Shape(drawn.link, label, visual_points(drawn.visual).astype(np.float64)))
         tree = KinematicTree.of_urdf(body.urdf)
         children = {joint.child for joint in tree.joints}
         root = next(link for link in tree.links if link not in children)

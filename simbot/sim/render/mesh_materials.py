@@ -5,9 +5,9 @@ Textures: trimesh hands over decoded images, not their files, so each image a me
 holds is written once as a PNG to a cache folder (`texture_cache`), named by the hash of its
 pixels: a worker (or a second worker) finding it there reads it, a texture shared by submeshes is
 one file, and an edited texture (a mesh file's MTL or image changes, not the mesh file) gets a
-new name. Bad input is one warning naming the file, never an exception: a mesh
-that cannot be read is not drawn; materials that cannot be read leave the mesh uncoloured; a
-texture that is missing or that OpenCV cannot decode leaves its material's colour.
+new name. Bad input is one warning naming the file, never an exception: a mesh that cannot be
+read, or in which trimesh finds no triangle, is not drawn; materials that cannot be read leave the
+mesh uncoloured; a texture that is missing or that OpenCV cannot decode leaves its material's colour.
 """
 
 from __future__ import annotations
@@ -81,6 +81,8 @@ def submeshes(path: str) -> tuple[Submesh, ...]:
         geometry = scene.geometry[name]
         if isinstance(geometry, trimesh.Trimesh) and len(geometry.faces):
             parts.append(_submesh(path, geometry, np.asarray(transform, dtype=np.float64), own_materials))
+    if not parts:
+        log.warning("mesh %s holds no triangle that can be read; it is not drawn", path)
     return tuple(parts)
 
 

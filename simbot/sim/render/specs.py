@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.urdf_visuals import UrdfVisual
 from simbot.sim.render.kinds import Array, OutputKind, Raw, resolve
 from simbot.sim.render.lens import Distortion, principal_point, render_focal
 from simbot.sim.render.wide_lens import WideLens
@@ -34,11 +35,13 @@ class Annotation:
 
 @dataclass(frozen=True)
 class SceneBody:
-    """A body as the server loaded it, for the workers to load the same way."""
+    """A body as the server loaded it, for the workers to load the same way (`bodies.scene_body`)
+    and to draw."""
 
     name: str
     urdf: str
-    """URDF text as PyBullet loaded it in the server (mesh paths absolute)."""
+    """URDF text as PyBullet loaded it in the server (mesh paths absolute): what a worker's PyBullet
+    copy loads, for the link poses (and TinyRenderer's drawing)."""
     static: bool
     """loadURDF(useFixedBase=static): a static body never moves, so GL bakes it into the world's buffer."""
     base: Transform
@@ -47,6 +50,9 @@ class SceneBody:
     """In the order they apply: a later one overrides an earlier one where both say something."""
     instance: int = 0
     """The body's instance number for segmentation (1..65535; the same in every worker)."""
+    visuals: tuple[UrdfVisual, ...] = ()
+    """Its visuals as typed data from the description, each on its URDF link (`urdf_visuals`):
+    what the OpenGL renderer draws (`visuals.py`) and bounding boxes are fitted to (`boxes.py`)."""
 
     def annotated(self, link: str, visual: str) -> tuple[int | None, float | None]:
         """(label, temperature) of one visual: the body's annotations, then the visual's own."""

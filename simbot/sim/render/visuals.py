@@ -1,60 +1,50 @@
-"""Each body's visuals as the pieces a renderer shades (`surfaces.py`), read from the body's URDF.
+"""Each body's visuals as the pieces a renderer shades (`surfaces.py`), from the typed visuals the
+server sent with the body (`SceneBody.visuals`: the description's, as its URDF places them).
 
-The URDF is the one the server wrote (description/urdf_writer.py): each `<visual>` has its origin,
-geometry and URDF `<material>` (a colour, a texture, or a name of a robot-level material), and an
-`<sdf_material>` beside it with the rest of the SDF material. PyBullet is asked only which index
-each link has. A mesh file gives one piece per material it holds, unless the visual has a
-material of its own, which replaces them all (as in Gazebo). A texture that cannot be read is a
-warning and the visual keeps its colour.
+PyBullet is asked only which index each URDF link has. A visual's material is the description's
+(`Material`, with the visual's transparency and shadows); a primitive is tessellated as PyBullet
+draws it. A mesh file gives one piece per material it holds, unless the visual has a material of
+its own, which replaces them all (as in Gazebo). What cannot be read is one warning naming the
+file, and the rest is drawn: a texture keeps its visual's colour, a mesh file is left out
+(`mesh_materials.py`).
 """
 
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from simbot.description.kinematics import urdf_origin
-from simbot.description.resources import resolve
+from simbot.description.model import RGBA, Box, Capsule, Cylinder, Geometry, Material, Mesh, Sphere, Visual
 from simbot.sim.render.labels import pack
 from simbot.sim.render.mesh_materials import pbr_specular, readable_image, scaled, submeshes
 from simbot.sim.render.scene import BulletScene
-from simbot.sim.render.shapes import (
-    GEOM_BOX,
-    GEOM_CAPSULE,
-    GEOM_CYLINDER,
-    GEOM_PLANE,
-    GEOM_SPHERE,
-    Tessellated,
-    primitive,
-)
+from simbot.sim.render.shapes import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE, Tessellated, primitive
 from simbot.sim.render.surfaces import RGB, Piece, Surface
 from simbot.transform import matmul
 
 UNCOLOURED = Surface(diffuse=(1.0, 1.0, 1.0), ambient=(1.0, 1.0, 1.0))
 """A visual without any material: white, as PyBullet draws it."""
+WHITE: RGBA = (1.0, 1.0, 1.0, 1.0)
+BLACK: RGBA = (0.0, 0.0, 0.0, 1.0)
 
 
 def body_pieces(scene: BulletScene, name: str) -> list[Piece]:
     """The body's visuals in their URDF link frames, one piece per material, each with its
     visual's label and temperature (`SceneBody.annotated`)."""
     body = scene.bodies[name]
-    robot = ET.fromstring(body.urdf)
-    materials = {m.get("name", ""): m for m in robot.findall("material")}
     indices = link_indices(scene, name)
     pieces = []
-    for link in robot.findall("link"):
-        link_name = link.get("name", "")
-        for visual in link.findall("visual"):
-            label, temperature = body.annotated(link_name, visual.get("name", ""))
-            annotated: dict[str, Any] = {
-                "label": pack(label, body.instance),
-                "temperature": math.nan if temperature is None else temperature,
-            }
-            pieces += [replace(p, **annotated) for p in _visual_pieces(indices[link_name], visual, materials)]
+    for drawn in body.visuals:
+        label, temperature = body.annotated(drawn.link, drawn.visual.name)
+        annotated: dict[str, Any] = {
+            "label": pack(label, body.instance),
+            "temperature": math.nan if temperature is None else temperature,
+        }
+        pieces += [replace(p, **annotated) for p in _visual_pieces(indices[drawn.link], drawn.visual)]
     return pieces
 
 
@@ -67,25 +57,20 @@ def link_indices(scene: BulletScene, name: str) -> dict[str, int]:
     return indices
 
 
-def visual_points(visual: ET.Element) -> np.ndarray:
-    """The vertices a URDF visual is drawn with, in its link's frame (N×3): what a bounding box of
-    it is fitted to (simbot/sim/render/boxes.py)."""
-    pieces = _visual_pieces(-1, visual, {})
+def visual_points(visual: Visual) -> np.ndarray:
+    """The vertices a visual is drawn with, in its link's frame (N×3): what a bounding box of it is
+    fitted to (simbot/sim/render/boxes.py)."""
+    pieces = _visual_pieces(-1, visual)
     return np.concatenate([p.positions for p in pieces]) if pieces else np.zeros((0, 3), np.float32)
 
 
-def _visual_pieces(link: int, visual: ET.Element, materials: dict[str, ET.Element]) -> list[Piece]:
-    origin = urdf_origin(visual).matrix()
-    surface = _surface(visual, materials)
-    shape = visual.find("geometry/*")
-    if shape is None:
-        return []
-    if shape.tag == "mesh":
-        original = visual.find("sdf_material[@mesh]")
-        filename = shape.get("filename", "") if original is None else original.get("mesh", "")
-        parts = _mesh_parts(filename, _numbers(shape.get("scale"), (1.0, 1.0, 1.0)))
+def _visual_pieces(link: int, visual: Visual) -> list[Piece]:
+    origin = visual.pose.matrix()
+    surface = _surface(visual)
+    if isinstance(visual.geometry, Mesh):
+        parts = _mesh_parts(visual.geometry)
         return [_piece(link, origin, part, surface or own or UNCOLOURED) for part, own in parts]
-    tessellated = primitive(_GEOMETRY.get(shape.tag, -1), _dimensions(shape))
+    tessellated = _primitive(visual.geometry)
     return [] if tessellated is None else [_piece(link, origin, tessellated, surface or UNCOLOURED)]
 
 
@@ -98,83 +83,67 @@ def _piece(link: int, origin: np.ndarray, tessellated: Tessellated, surface: Sur
     )
 
 
-def _numbers(text: str | None, default: tuple[float, ...]) -> tuple[float, ...]:
-    return default if text is None else tuple(float(word) for word in text.split())
+def _primitive(geometry: Geometry) -> Tessellated | None:
+    """A box, sphere, cylinder or capsule tessellated (`shapes.primitive`, PyBullet's sizes: length
+    before radius); None for a shape the URDF draws as a mesh or not at all."""
+    if isinstance(geometry, Box):
+        return primitive(GEOM_BOX, geometry.size)
+    if isinstance(geometry, Sphere):
+        return primitive(GEOM_SPHERE, (geometry.radius,))
+    if isinstance(geometry, Cylinder):
+        return primitive(GEOM_CYLINDER, (geometry.length, geometry.radius))
+    if isinstance(geometry, Capsule):
+        return primitive(GEOM_CAPSULE, (geometry.length, geometry.radius))
+    return None
 
 
-_GEOMETRY = {
-    "box": GEOM_BOX,
-    "sphere": GEOM_SPHERE,
-    "cylinder": GEOM_CYLINDER,
-    "capsule": GEOM_CAPSULE,
-    "plane": GEOM_PLANE,
-}
-
-
-def _dimensions(shape: ET.Element) -> tuple[float, ...]:
-    """The sizes as `shapes.primitive` takes them (PyBullet's order: length before radius)."""
-    if shape.tag == "box":
-        return _numbers(shape.get("size"), (1.0, 1.0, 1.0))
-    radius = float(shape.get("radius", "1"))
-    return (radius,) if shape.tag == "sphere" else (float(shape.get("length", "1")), radius)
-
-
-def _mesh_parts(filename: str, scale: tuple[float, ...]) -> list[tuple[Tessellated, Surface | None]]:
+def _mesh_parts(mesh: Mesh) -> list[tuple[Tessellated, Surface | None]]:
     """The mesh file's submeshes, scaled as the visual says, each with its own material."""
-    path = resolve(filename).path
-    if path is None:
+    if mesh.path is None:
         return []
-    return [((*scaled(p.positions, p.normals, scale), p.uvs), p.surface) for p in submeshes(str(path))]
+    parts = submeshes(str(mesh.path.resolve()))
+    return [((*scaled(p.positions, p.normals, mesh.scale), p.uvs), p.surface) for p in parts]
 
 
-def _surface(visual: ET.Element, materials: dict[str, ET.Element]) -> Surface | None:
-    """The visual's own material (URDF `<material>` and `<sdf_material>`), None when it has none."""
-    material = visual.find("material")
-    if material is not None and material.find("color") is None and material.find("texture") is None:
-        material = materials.get(material.get("name", ""), material)  # a robot-level material named here
-    sdf = visual.find("sdf_material")
-    attrs = {} if sdf is None else {key: value for key, value in sdf.attrib.items() if key != "mesh"}
-    if material is None and not attrs:
+def _surface(visual: Visual) -> Surface | None:
+    """The visual's own material; None where the visual says nothing of it (no material field
+    written, no transparency, casting shadows): a mesh then keeps its own. Where only one of ambient
+    and diffuse is written it stands for the other; without either, white."""
+    material = visual.material or Material()
+    if material == Material() and not visual.transparency and visual.cast_shadows:
         return None
-    color = _numbers(None if material is None else _attr(material, "color", "rgba"), (1.0, 1.0, 1.0, 1.0))
-    diffuse = _numbers(attrs.get("diffuse") or attrs.get("ambient"), color)
-    ambient = _numbers(attrs.get("ambient") or attrs.get("diffuse"), color)
-    specular, shininess = _specular(attrs, _rgb(diffuse))
+    diffuse = material.diffuse or material.ambient or WHITE
+    ambient = material.ambient or material.diffuse or WHITE
+    specular, shininess = _specular(material, _rgb(diffuse))
     return Surface(
         diffuse=_rgb(diffuse),
         ambient=_rgb(ambient),
         specular=specular,
         shininess=shininess,
-        emissive=_rgb(_numbers(attrs.get("emissive"), (0.0, 0.0, 0.0))),
-        opacity=(1.0 - float(attrs.get("transparency", "0"))) * (diffuse[3] if len(diffuse) > 3 else 1.0),
-        lit=attrs.get("lighting", "true") != "false",
-        albedo_map=_image(None if material is None else _attr(material, "texture", "filename")),
-        normal_map=_image(attrs.get("normal_map")),
-        cast_shadows=attrs.get("cast_shadows", "true") != "false",
+        emissive=_rgb(material.emissive or BLACK),
+        opacity=(1.0 - visual.transparency) * diffuse[3],
+        lit=material.lighting,
+        albedo_map=_image(material.albedo_map),
+        normal_map=_image(material.normal_map),
+        cast_shadows=visual.cast_shadows,
     )
 
 
-def _specular(attrs: dict[str, str], diffuse: RGB) -> tuple[RGB, float]:
+def _specular(material: Material, diffuse: RGB) -> tuple[RGB, float]:
     """SDF's `<specular>` and `<shininess>` where written; else what PBR's metalness and roughness
     stand for; else none."""
-    pbr = pbr_specular(diffuse, float(attrs.get("metalness", "0")), float(attrs.get("roughness", "1")))
-    written = attrs.get("specular")
-    specular = _rgb(_numbers(written, (0.0, 0.0, 0.0))) if written or "roughness" not in attrs else pbr[0]
-    shininess = float(attrs["shininess"]) if float(attrs.get("shininess", "0")) > 0 else None
-    return specular, shininess or (pbr[1] if "roughness" in attrs else Surface.shininess)
+    shininess = material.shininess if (material.shininess or 0.0) > 0.0 else None
+    if material.roughness is None:
+        return _rgb(material.specular or BLACK), shininess or Surface.shininess
+    pbr, exponent = pbr_specular(diffuse, material.metalness or 0.0, material.roughness)
+    return pbr if material.specular is None else _rgb(material.specular), shininess or exponent
 
 
-def _attr(element: ET.Element, child: str, name: str) -> str | None:
-    found = element.find(child)
-    return None if found is None else found.get(name)
-
-
-def _image(filename: str | None) -> str | None:
-    """The texture's path where it resolves and decodes (a warning names it where not)."""
-    if not filename:
+def _image(path: Path | None) -> str | None:
+    """The texture's absolute path where it decodes (a warning names it where not)."""
+    if path is None:
         return None
-    path = resolve(filename).path
-    found = filename if path is None else str(path)
+    found = str(path.resolve())
     return found if readable_image(found) else None
 
 

@@ -44,6 +44,7 @@ import threading
 
 from simbot.description.model import SdfLight, World
 from simbot.sim.render import Annotation, BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody, plan_pool
+from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.contract import Annotating, RenderedSensor, RenderStatus
 from simbot.sim.render.labels import MAX_INSTANCE
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
@@ -187,15 +188,7 @@ class Rendering:
 
     def _scene_body(self, name: str) -> SceneBody:
         """A body as the physics loaded it, where it is now, with its annotations."""
-        static = self.physics.model_of(name).static
-        return SceneBody(
-            name,
-            self.physics.urdf_of(name),
-            static,
-            self.physics.body_state(name)[0],
-            self._annotations.get(name, ()),
-            self._instances.get(name, 0),
-        )
+        return scene_body(self.physics, name, self._annotations.get(name, ()), self._instances.get(name, 0))
 
     # --- the update
 
