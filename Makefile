@@ -46,6 +46,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_fleet.py
 	$(BIN)/python benchmarks/bench_sensors.py
 	$(BIN)/python benchmarks/bench_looks.py
+	$(BIN)/python benchmarks/bench_cameras.py
 	$(BIN)/python benchmarks/bench_wide_angle.py
 	$(BIN)/python benchmarks/bench_vo.py
 	$(BIN)/python benchmarks/bench_merger.py

@@ -36,6 +36,8 @@ import argparse
 import logging
 import math
 import os
+import shlex
+import signal
 import statistics
 import subprocess
 import sys
@@ -72,6 +74,7 @@ from simbot.sim.systems.camera import Camera, CameraParams
 from simbot.sim.systems.imu import Imu
 from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
 from simbot.sim.systems.rendering import Rendering
+from simbot.transform import Transform
 
 log = logging.getLogger("bench_sensors")
 
@@ -153,21 +156,32 @@ def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: f
 def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float, str]:
     """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
     the same scene and views, one llvmpipe thread, pixels read back into an array."""
-    bodies = [scene_body(physics, name) for name in physics.body_names()]
-    scene = BulletScene(pb, bodies)
+    with gl_on(physics, views, light) as (renderer, poses):
+        return (*gl_frames(renderer, poses, seconds), renderer.device)
+
+
+@contextmanager
+def gl_on(physics: Physics, views: Sequence[View], light: Light) -> Iterator[tuple[GlRenderer, list[Transform]]]:
+    """The OpenGL renderer (one llvmpipe thread) on a copy of the server's scene, with the views'
+    camera poses."""
+    scene = BulletScene(pb, [scene_body(physics, name) for name in physics.body_names()])
     renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
-    poses = [physics.frame_pose(*where) for where in camera_mounts(physics)]
-    drawn: dict[Raw, Any] = {"color": np.zeros(views[0].spec.drawn()["color"], dtype=np.uint8)}
     try:
-        renderer.render(0, poses[0], drawn)
-        frames, start, cpu = 0, time.perf_counter(), time.process_time()
-        while time.perf_counter() - start < seconds or frames % len(views):
-            renderer.render(frames % len(views), poses[frames % len(views)], drawn)
-            frames += 1
-        return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu), renderer.device
+        yield renderer, [physics.frame_pose(*where) for where in camera_mounts(physics)]
     finally:
         renderer.close()
         scene.close()
+
+
+def gl_frames(renderer: GlRenderer, poses: Sequence[Transform], seconds: float) -> tuple[float, float]:
+    """(frames per wall second, frames per CPU second) of the views in turn, read back into an array."""
+    drawn: dict[Raw, Any] = {"color": np.zeros(renderer.targets[0].spec.drawn()["color"], dtype=np.uint8)}
+    renderer.render(0, poses[0], drawn)
+    frames, start, cpu = 0, time.perf_counter(), time.process_time()
+    while time.perf_counter() - start < seconds or frames % len(poses):
+        renderer.render(frames % len(poses), poses[frames % len(poses)], drawn)
+        frames += 1
+    return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu)
 
 
 def camera_mounts(physics: Physics) -> list[tuple[str, str, Any]]:
@@ -499,15 +513,21 @@ def run_server(
     extra: Sequence[str] = (),
     drive: bool = False,
     world: str = WORLD,
+    clients: Sequence[str] | None = None,
 ) -> Run:
     """`simbot-server` on a fresh loopback port and namespace, `topics` subscribed; measured over
     `seconds` of wall time once every subscribed topic has delivered and the loop has settled.
-    `world`: a name or an SDF path whose `<world>` is named warehouse (world control's key)."""
+    `world`: a name or an SDF path whose `<world>` is named warehouse (world control's key).
+    `clients`: the server started by `simbot launch` with these clients, as `make run` starts it."""
     endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    command = [sys.executable, "-m", "simbot.sim.server", "--world", world, "--mode", mode, "--quiet"]
-    proc = subprocess.Popen(
-        [*command, *extra, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL
-    )
+    server = ["--mode", mode, "--quiet", *extra]
+    if clients is None:
+        command = [sys.executable, "-m", "simbot.sim.server", "--world", world, *server]
+    else:
+        launch = ["launch", "--world", world, "--clients", ",".join(clients), f"--server-args={shlex.join(server)}"]
+        command = [sys.executable, "-m", "simbot.cli", *launch]
+    bus = ["--listen", endpoint, "--namespace", namespace]
+    proc = subprocess.Popen([*command, *bus], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         with _connect(endpoint, namespace, proc) as node:
             _wait_ready(node)
@@ -516,10 +536,23 @@ def run_server(
                 node.publisher("cmd_vel", drop=False).put(messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.1)))
             _wait_first(counters, topics, proc)
             time.sleep(SETTLE_S)
-            return _measure(node, proc.pid, counters, seconds)
+            return _measure(node, proc.pid if clients is None else _server_pid(proc.pid), counters, seconds)
     finally:
-        proc.terminate()
-        proc.wait(10)
+        proc.send_signal(signal.SIGINT)  # launch ends its children on Ctrl-C; the server ends on it too
+        try:
+            proc.wait(20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _server_pid(launch: int) -> int:
+    """The server among launch's children."""
+    for pid in children(launch):
+        with open(f"/proc/{pid}/cmdline", "rb") as file:
+            if b"simbot.sim.server" in file.read():
+                return pid
+    raise RuntimeError(f"launch (pid {launch}) runs no simbot.sim.server")
 
 
 SAMPLE_S = 0.5

@@ -597,18 +597,18 @@ def test_a_scene_that_does_not_load_fails_the_start() -> None:
 
 
 @pytest.mark.parametrize(
-    ("cores", "asked", "plan"),
+    ("cores", "asked", "threads", "plan"),
     [
-        (2, None, PoolPlan(1, 1)),  # this machine: the physics keeps one core, one worker with one rasterizer thread
-        (1, None, PoolPlan(1, 1)),  # one core: still one worker (at nice 10, the physics wins)
-        (16, None, PoolPlan(6, 2)),  # a worker per camera, the 15 cores left shared out: 6 × 2 ≤ 15
-        (8, None, PoolPlan(6, 1)),
-        (16, 2, PoolPlan(2, 7)),  # --render-workers 2: each worker rasterizes on 7 threads
-        (4, 10, PoolPlan(6, 1)),  # never more workers than cameras
+        (2, None, None, PoolPlan(3, 1)),  # this machine: three one-thread workers, measured best (docs/speed.md)
+        (1, None, None, PoolPlan(2, 1)),  # one core: a second worker draws while the first waits for its set
+        (16, None, None, PoolPlan(6, 2)),  # a worker per camera, the 15 cores the physics leaves shared out: 6 × 2
+        (8, None, None, PoolPlan(6, 1)),
+        (16, 2, None, PoolPlan(2, 7)),  # --render-workers 2: each worker rasterizes on 7 threads
+        (4, 10, None, PoolPlan(6, 1)),  # never more workers than cameras
+        (2, 1, 2, PoolPlan(1, 2)),  # --render-workers 1 --render-threads 2
     ],
 )
-def test_workers_times_threads_fit_every_core_but_the_physics_one(
-    cores: int, asked: int | None, plan: PoolPlan
+def test_workers_fill_the_cores_and_their_threads_those_the_physics_leaves(
+    cores: int, asked: int | None, threads: int | None, plan: PoolPlan
 ) -> None:
-    assert plan_pool(6, asked, cores) == plan
-    assert plan.workers * plan.gl_threads <= max(1, cores - 1) or asked is not None
+    assert plan_pool(6, asked, cores, threads) == plan

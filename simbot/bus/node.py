@@ -110,14 +110,18 @@ class Publisher:
         drop: bool,
         typename: str | None = None,
         frame_prefix: str = "",
+        announced: bool = True,
     ) -> None:
+        """`announced=False`: the key's owner announces it on the graph (a server's render worker
+        puts what the server's own publisher announces)."""
         self.key = key
         self.frame_prefix = frame_prefix
         """Every frame id the messages carry goes out under it (`frames.with_frame_prefix`)."""
         self.latched = latched
         self.typename = typename
         self._session = session
-        self._announcement = Announcement(session, "pub", typename, key) if typename else None
+        self._announced = announced
+        self._announcement = Announcement(session, "pub", typename, key) if typename and announced else None
         congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
         self._encodings: dict[str, zenoh.Encoding] = {}
         self._latest: tuple[bytes, zenoh.Encoding] | None = None
@@ -147,19 +151,21 @@ class Publisher:
     def put(self, msg: Any) -> None:
         """Encode `msg` as CDR and put it."""
         data = encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg)
-        if self._announcement is None:
+        if self._announcement is None and self._announced:
             self._announcement = Announcement(self._session, "pub", msg.__msgtype__, self.key)
         self._put(data, self._encoding(msg.__msgtype__))
 
-    def put_raw(self, data: bytes) -> None:
+    def put_raw(self, data: bytes | bytearray) -> None:
         """Put bytes as they are, as CDR of the publisher's type if it was given one: a recording played
-        back goes out unchanged, and tests send garbage this way."""
-        self._put(bytes(data), self._encoding(self.typename) if self.typename else CDR_ENCODING)
+        back goes out unchanged, a render worker's image encoded in place, and tests send garbage
+        this way. (A latched publisher keeps a copy of its own.)"""
+        kept = bytes(data) if self.latched else data
+        self._put(kept, self._encoding(self.typename) if self.typename else CDR_ENCODING)
 
-    def _put(self, data: bytes, encoding: zenoh.Encoding) -> None:
+    def _put(self, data: bytes | bytearray, encoding: zenoh.Encoding) -> None:
         if self.latched:
             with self._lock:
-                self._latest = (data, encoding)
+                self._latest = (bytes(data), encoding)
         self._publisher.put(data, encoding=encoding)
 
     def _serve_latest(self, query: zenoh.Query) -> None:
@@ -355,6 +361,16 @@ class Queryable:
         _undeclare(self._queryable)
 
 
+class Answering:
+    """A queryable that answers `{}` at once on Zenoh's thread (`Node.answering`); off the graph."""
+
+    def __init__(self, session: zenoh.Session, key: str) -> None:
+        self._queryable = session.declare_queryable(key, _answer_empty)
+
+    def close(self) -> None:
+        _undeclare(self._queryable)
+
+
 def _undeclare(entity: _Undeclarable | None) -> None:
     if entity is None:
         return
@@ -427,6 +443,12 @@ class Node:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""
         return self._keep(Queryable(self.session, self.key("/" + key_suffix.lstrip("/")), capacity))
 
+    def answering(self, key_suffix: str) -> None:
+        """A queryable at `key_suffix` (in the namespace) that answers `{}` at once, on Zenoh's thread:
+        a process that publishes on this bus asks it to know that what it put before has been routed
+        by this session (its samples and its query share one link, in order)."""
+        self._keep(Answering(self.session, self.key("/" + key_suffix.lstrip("/"))))
+
     def call(self, key_suffix: str, payload: Mapping[str, Any] | bytes, timeout: float = 5.0) -> dict[str, Any]:
         """Ask the JSON service at `key_suffix` (a world's, in the bus's namespace); a dict is sent as JSON,
         bytes as they are."""
@@ -460,6 +482,11 @@ class Node:
 
     def __exit__(self, *_exc: object) -> None:
         self.close()
+
+
+def _answer_empty(query: zenoh.Query) -> None:
+    with query:
+        query.reply(query.key_expr, b"{}", encoding=JSON_ENCODING)
 
 
 def _parse_reply(key: str, data: bytes) -> dict[str, Any]:

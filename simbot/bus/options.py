@@ -109,6 +109,29 @@ class BusOptions:
         )
 
 
+def helper_options(options: BusOptions) -> BusOptions:
+    """The bus options of a process the server starts to publish for it (a render worker): a client
+    of the server itself, at the endpoints it listens on (a wildcard address as the loopback one),
+    or, for a server that listens on none, where it connects; in the server's namespace."""
+    config = zenoh_config(options, "server")
+    listening = tuple(_local(endpoint) for endpoint in _endpoints(config, "listen/endpoints"))
+    connect = listening or _endpoints(config, "connect/endpoints")
+    return BusOptions(connect=connect, namespace=options.namespace, connect_timeout=options.connect_timeout)
+
+
+def _endpoints(config: zenoh.Config, key: str) -> tuple[str, ...]:
+    """The endpoints at `key`: a list, or a map of them by Zenoh mode."""
+    value = json.loads(config.get_json(key) or "[]")
+    if isinstance(value, dict):
+        value = value.get("peer", [])
+    return tuple(str(endpoint) for endpoint in value)
+
+
+def _local(endpoint: str) -> str:
+    """A listening endpoint as a process on the same machine connects to it."""
+    return endpoint.replace("/0.0.0.0:", "/127.0.0.1:").replace("/[::]:", "/[::1]:")
+
+
 def _load_file(path: Path) -> zenoh.Config:
     if not path.is_file():
         raise BusConfigError(f"{path}: no such Zenoh config file")

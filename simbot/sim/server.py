@@ -2,7 +2,7 @@
 
     simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
                   [--mode realtime|fast|lockstep] [--physics dynamic|kinematic] [--seed N] [--renderer auto|gl|tiny]
-                  [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--listen E] [--connect E] [--zenoh-config F]
+                  [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--render-threads N] [--listen E] [--connect E] [--zenoh-config F]
 
 `--robot none` runs the world alone, with the models it holds or includes. `--add` (repeatable)
 puts the models and actors of another SDF file into the world as if its file held them: SDF has
@@ -226,7 +226,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
     parser.add_argument(
-        "--render-workers", type=_whole(64), metavar="N", help="camera render processes (default: every core but one)"
+        "--render-workers",
+        type=_whole(64),
+        metavar="N",
+        help="camera render processes (default: one more than the cores, as docs/speed.md measured)",
+    )
+    parser.add_argument(
+        "--render-threads",
+        type=_whole(64),
+        metavar="N",
+        help="llvmpipe rasteriser threads of each render process (default: as docs/speed.md's measurement chose)",
     )
     parser.add_argument("--quiet", action="store_true", help="no status line")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
@@ -282,6 +291,7 @@ def _config(args: argparse.Namespace) -> ServerConfig:
         for key, value in (
             ("rendering.renderer", args.renderer),
             ("rendering.workers", args.render_workers),
+            ("rendering.threads", args.render_threads),
             ("camera.size", args.camera_size),
             ("camera.rate", args.camera_rate),
         )

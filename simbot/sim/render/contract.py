@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from simbot.description.poses import Pose
+from simbot.sim.render.publishing import Publication
 from simbot.sim.render.specs import Annotation, CameraSpec, Frame
 from simbot.sim.system import UpdateInfo
 
@@ -37,6 +38,8 @@ class RenderedSensor(Protocol):
     """(model, link, pose in the link): where the camera is, looking along its +x with z up."""
     skipped: int
     status: RenderStatus
+    publication: Publication | None
+    """What the render worker publishes of its frames (`publishing.py`); None: `publish` does."""
 
     def due(self, info: UpdateInfo) -> bool: ...
 
@@ -54,7 +57,8 @@ class RenderedSensor(Protocol):
         ...
 
     def publish(self, frame: Frame) -> None:
-        """The frame's messages and its camera_info, under the frame's stamp."""
+        """A frame done: its messages and its camera_info under the frame's stamp (where its worker
+        did not publish them), and what else the sensor does with a frame."""
         ...
 
 

@@ -3,9 +3,11 @@ llvmpipe on the CPU where there is not).
 
 The scene comes from the worker's PyBullet copy (`BulletScene`) as each body's pieces
 (`visuals.py::body_pieces`: triangles with one `Surface` each), read once when the body loads.
-Bodies that never move are baked into world-frame vertex buffers, one per surface (one draw per
-material); each (link, surface) of a moving body is one buffer in its link frame, drawn with the
-link's transform of the request. A body added or removed at run time adds or drops its parts; a
+Bodies that never move are baked into world-frame vertex buffers, one per surface and cell of the
+floor plan (`culling.py`); each (link, surface) of a moving body is one buffer in its link frame,
+drawn with the link's transform of the request. Each view draws only the parts whose bounding
+sphere reaches into its frustum, the opaque ones nearest first; the label and temperature pass
+draws the same ones. A body added or removed at run time adds or drops its parts; a
 static one re-bakes the world's buffers from the static bodies' vertices, which are kept for that.
 Textures (albedo and normal maps) are read and uploaded (mipmapped, sampled from the nearest texel of the nearest level) once per
 worker, the first time a piece names them; an image that cannot be read is one warning and the
@@ -34,6 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.render import culling
 from simbot.sim.render import gl_shaders as shaders
 from simbot.sim.render.gl_shadow import ShadowMap
 from simbot.sim.render.kinds import Array, Raw
@@ -55,6 +58,8 @@ SHADED_ROW, DEPTH_ROW, ANNOTATION_ROW = "3f 3f 2f 8x", "3f 28x", "3f 20x 1u 1f"
 ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 
 Rows = npt.NDArray[np.float32]
+_Drawn = tuple["_Part", bytes]
+"""A part with its model matrix (GLSL bytes)."""
 
 
 @dataclass
@@ -75,6 +80,11 @@ class _Part:
     texture: Any | None
     normal_map: Any | None
     program: shaders.Program
+    material: shaders.Material
+    """Its surface's uniforms, packed once."""
+    centre: npt.NDArray[np.float64]
+    """Its bounding sphere's centre, in its own frame (the world's, or its link's), and radius (`culling.py`)."""
+    radius: float
 
     def release(self) -> None:
         for item in (self.vao, self.depth_vao, self.annotation_vao, self.buffer):
@@ -140,6 +150,8 @@ class GlRenderer:
         self._textures: dict[str, Any | None] = {}
         self._posed = -1
         self._model_matrices: list[bytes] = []
+        self._centres: npt.NDArray[np.float64] = np.zeros((0, 3))
+        self._radii: npt.NDArray[np.float64] = np.zeros(0)
         for body in scene.bodies.values():
             self._load(body)
         self._bake()
@@ -202,11 +214,12 @@ class GlRenderer:
             if part.body is None:
                 part.release()
         moving = [part for part in self.parts if part.body is not None]
-        batches: dict[Surface, list[Rows]] = {}
+        batches: dict[tuple[Surface, culling.Cell], list[Rows]] = {}
         for pieces in self._static.values():
             for surface, rows in pieces:
-                batches.setdefault(surface, []).append(rows)
-        static = [self._part(_stack(rows), None, -1, surface) for surface, rows in batches.items()]
+                if len(rows):
+                    batches.setdefault((surface, culling.cell_of(rows[:, :3])), []).append(rows)
+        static = [self._part(_stack(rows), None, -1, surface) for (surface, _), rows in batches.items()]
         self.parts = [part for part in static if part.vao.vertices] + moving
         self._posed = -1
         if self.shadow is not None:
@@ -237,7 +250,23 @@ class GlRenderer:
         depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, DEPTH_ROW, "in_position")])
         annotated = [(buffer, ANNOTATION_ROW, "in_position", "in_label", "in_temperature")]
         annotation_vao = self.ctx.vertex_array(self.annotation_program, annotated)
-        return _Part(buffer, vao, depth_vao, annotation_vao, body, link, surface, texture, normal_map, program)
+        centre, radius = culling.sphere(data[:, :3])
+        material = program.material(surface)
+        return _Part(
+            buffer,
+            vao,
+            depth_vao,
+            annotation_vao,
+            body,
+            link,
+            surface,
+            texture,
+            normal_map,
+            program,
+            material,
+            centre,
+            radius,
+        )
 
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
@@ -285,11 +314,23 @@ class GlRenderer:
         depth (float32, 0..1) straight into the given buffers."""
         target = self.targets[camera]
         transforms = self._transforms()
-        view_projection = shaders.gl_matrix(matmul(target.projection, view_matrix(pose)))
+        view_projection = matmul(target.projection, view_matrix(pose))
+        seen = self._seen(view_projection, np.asarray(pose[0], dtype=np.float64), transforms)
         if target.fbo is not None:
-            self._shade(target, target.fbo, pose, view_projection, transforms, drawn)
+            self._shade(target, target.fbo, pose, shaders.gl_matrix(view_projection), seen, drawn)
         if target.annotations is not None:
-            self._annotate(target.annotations, view_projection, transforms, drawn)
+            self._annotate(target.annotations, shaders.gl_matrix(view_projection), seen, drawn)
+
+    def _seen(self, view_projection: Matrix, eye: npt.NDArray[np.float64], transforms: list[bytes]) -> list[_Drawn]:
+        """The parts the view can show with their transforms: the opaque ones nearest first, then
+        the translucent ones in the scene's order (`culling.py`)."""
+        inside = culling.visible(culling.frustum_planes(view_projection), self._centres, self._radii)
+        offsets = self._centres - eye
+        distance = (offsets * offsets).sum(axis=1)
+        opaque = [i for i in np.flatnonzero(inside) if self.parts[i].surface.opacity >= 1.0]
+        opaque.sort(key=lambda i: (distance[i], i))
+        translucent = [i for i in np.flatnonzero(inside) if self.parts[i].surface.opacity < 1.0]
+        return [(self.parts[i], transforms[i]) for i in (*opaque, *translucent)]
 
     def _shade(
         self,
@@ -297,7 +338,7 @@ class GlRenderer:
         fbo: Any,
         pose: Transform,
         view_projection: bytes,
-        transforms: list[bytes],
+        seen: list[_Drawn],
         drawn: Mapping[Raw, Array],
     ) -> None:
         """What the camera sees in the world's light: colour, and window depth."""
@@ -308,20 +349,20 @@ class GlRenderer:
         fbo.use()
         sky = self.light.background
         fbo.clear(*((float(matmul(sky, LUMA)),) * 3 if target.mono else sky), 1.0, depth=1.0)
-        self._draw(transforms, fbo)
+        self._draw(seen, fbo)
         if (color := drawn.get("color")) is not None:
             fbo.read_into(color, components=1 if target.mono else 3, alignment=1)
         if (depth := drawn.get("depth")) is not None:
             fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
-    def _annotate(self, fbo: Any, view_projection: bytes, transforms: list[bytes], drawn: Mapping[Raw, Array]) -> None:
+    def _annotate(self, fbo: Any, view_projection: bytes, seen: list[_Drawn], drawn: Mapping[Raw, Array]) -> None:
         """Each pixel's label and temperature, every surface drawn opaque and unshaded; 0 where
         nothing is (the sky)."""
         program = self.annotation_program
         program["view_projection"].write(view_projection)
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        for part, transform in zip(self.parts, transforms, strict=True):
+        for part, transform in seen:
             program["model"].write(transform)
             part.annotation_vao.render()
         if (labels := drawn.get("labels")) is not None:
@@ -329,17 +370,16 @@ class GlRenderer:
         if (temperature := drawn.get("temperature")) is not None:
             fbo.read_into(temperature, components=1, attachment=1, dtype="f4", alignment=1)
 
-    def _draw(self, transforms: list[bytes], fbo: Any) -> None:
+    def _draw(self, seen: list[_Drawn], fbo: Any) -> None:
         """The opaque parts, then the translucent ones blended over them without writing depth.
         (A depth pre-pass, to shade each pixel once, cost more on llvmpipe than it saved: the
         vertices, drawn twice, are the larger part of a frame.)"""
         import moderngl
 
-        drawn = list(zip(self.parts, transforms, strict=True))
-        for part, transform in drawn:
+        for part, transform in seen:
             if part.surface.opacity >= 1.0:
                 self._draw_part(part, transform)
-        translucent = [(part, transform) for part, transform in drawn if part.surface.opacity < 1.0]
+        translucent = [(part, transform) for part, transform in seen if part.surface.opacity < 1.0]
         if not translucent:
             return
         self.ctx.enable(moderngl.BLEND)
@@ -352,25 +392,26 @@ class GlRenderer:
             self.ctx.disable(moderngl.BLEND)
 
     def _draw_part(self, part: _Part, transform: bytes) -> None:
-        part.program.write("model", transform)
-        part.program.surface(part.surface)
         if part.texture is not None:
             part.texture.use(ALBEDO_UNIT)
         if part.normal_map is not None:
             part.normal_map.use(NORMAL_UNIT)
-        part.vao.render()
+        part.program.draw(part.material, transform, part.vao)
 
     def _transforms(self) -> list[bytes]:
-        """Each part's model matrix for the scene's current pose, and the sun's moving map, worked
-        out once per pose (the cameras of a set share them)."""
+        """Each part's model matrix for the scene's current pose, its bounding sphere's centre in
+        the world, and the sun's moving map, worked out once per pose (the cameras of a set share them)."""
         if self._posed != self.scene.version:
             frames = {
                 body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}
             }
             identity = np.eye(4)
-            self._model_matrices = [
-                shaders.gl_matrix(identity if p.body is None else frames[p.body][p.link]) for p in self.parts
-            ]
+            matrices = [identity if p.body is None else frames[p.body][p.link] for p in self.parts]
+            self._model_matrices = [shaders.gl_matrix(m) for m in matrices]
+            self._centres = np.array(
+                [matmul(m[:3, :3], p.centre) + m[:3, 3] for p, m in zip(self.parts, matrices, strict=True)]
+            ).reshape(-1, 3)
+            self._radii = np.array([p.radius for p in self.parts], dtype=np.float64)
             self._posed = self.scene.version
             self._shadow_moving()
         return self._model_matrices

@@ -306,6 +306,10 @@ void main() {
 """
 
 
+Material = tuple[tuple[Any, bytes], ...]
+"""A surface's uniforms (member, packed value), as `Program.material` makes them."""
+
+
 def gl_matrix(m: npt.NDArray[np.float64]) -> bytes:
     """A 4×4 matrix as GLSL's column-major float32 bytes."""
     return np.ascontiguousarray(m.T, dtype=np.float32).tobytes()
@@ -318,6 +322,7 @@ class Program:
     def __init__(self, ctx: Any, lighting: Light, kind: Kind, samplers: dict[str, int]) -> None:
         vertex, fragment = shaders(lighting, kind)
         self.program = ctx.program(vertex_shader=vertex, fragment_shader=fragment)
+        self.model: Any = self.program["model"]
         self.kind = kind
         for name, unit in samplers.items():
             self.set(name, unit)
@@ -330,14 +335,29 @@ class Program:
         if (member := self.program.get(name, None)) is not None:
             member.write(data)
 
-    def surface(self, surface: Surface) -> None:
-        """A piece's material, before its draw."""
-        self.set("m_ambient", surface.ambient)
-        self.set("m_diffuse", surface.diffuse)
-        self.set("m_specular", surface.specular)
-        self.set("m_emissive", surface.emissive)
-        self.set("m_shininess", max(surface.shininess, 1e-3))
-        self.set("m_opacity", surface.opacity)
+    def material(self, surface: Surface) -> Material:
+        """A piece's material as the uniform writes before its draw, packed once: a draw writes
+        bytes (packing the values at every draw took a tenth of a frame)."""
+        values = {
+            "m_ambient": surface.ambient,
+            "m_diffuse": surface.diffuse,
+            "m_specular": surface.specular,
+            "m_emissive": surface.emissive,
+            "m_shininess": (max(surface.shininess, 1e-3),),
+            "m_opacity": (surface.opacity,),
+        }
+        return tuple(
+            (member, np.asarray(value, dtype=np.float32).tobytes())
+            for name, value in values.items()
+            if (member := self.program.get(name, None)) is not None
+        )
+
+    def draw(self, material: Material, model: bytes, vao: Any) -> None:
+        """One draw: its model matrix and material, then its vertices."""
+        self.model.write(model)
+        for member, data in material:
+            member.write(data)
+        vao.render()
 
     def release(self) -> None:
         self.program.release()

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from simbot.sim.render.publishing import Publication
 from simbot.sim.render.specs import BodyState, CameraSpec, SceneBody
 from simbot.transform import Transform
 
@@ -47,6 +48,8 @@ class AddCamera:
     spec: CameraSpec
     shm_name: str
     """The camera's shared memory block, created by the pool."""
+    publication: Publication | None = None
+    """What the worker publishes of its frames; None: the server publishes them."""
 
     def __str__(self) -> str:
         return f"add_camera {self.index!r}"

@@ -18,6 +18,9 @@
   move; the worker sets its copy of the scene to them and renders. The camera's outputs (colour,
   depth, points: `kinds.py`) go back through shared memory, one block per camera; only a small message goes
   through the pipe.
+- A camera given a `Publication` is published by its worker (`publishing.py`), which joins the
+  bus as `bus` says: its pixels go from the worker's memory to the bus, and the frame handed over
+  here is for what the server still does with it (counting it, `<save>`, bounding boxes).
 - One request per camera may be outstanding: its shared memory holds one frame. Whether to skip a
   frame while the camera is busy (real time: the physics never waits) or to wait for it
   (lockstep: `collect(wait_for=i)`) is the caller's choice.
@@ -58,6 +61,7 @@ from simbot.sim.render.pipe import (
     StartError,
     Stop,
 )
+from simbot.sim.render.publishing import Bus, Publication
 from simbot.sim.render.specs import BodyState, CameraSpec, Frame, Light, SceneBody
 from simbot.sim.render.worker import RENDERERS, CameraBuffers, WorkerPlan, worker_main
 from simbot.transform import Transform
@@ -82,13 +86,18 @@ def usable_cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def plan_pool(cameras: int, asked_workers: int | None = None, cores: int | None = None) -> PoolPlan:
-    """Workers × llvmpipe threads fit the cores the pool may use: every core but one, which the
-    physics keeps. One worker per camera at most; the cores left over go to each worker's
-    rasterizer threads (on a GPU they are idle and cost nothing)."""
-    pool_cores = max(1, (cores or usable_cores()) - 1)
-    workers = max(1, min(cameras, asked_workers or pool_cores))
-    return PoolPlan(workers, max(1, pool_cores // workers))
+def plan_pool(
+    cameras: int, asked_workers: int | None = None, cores: int | None = None, asked_threads: int | None = None
+) -> PoolPlan:
+    """One worker more than there are cores (a worker per camera at most), each with the rasterizer
+    threads that every core but the physics' leaves it (on a GPU they are idle and cost nothing).
+    Measured on two cores (benchmarks/bench_cameras.py, docs/speed.md): a worker's Python and
+    vertex work is serial and a set of frames is asked for only when all of it is out, so more
+    workers fill the cores where more llvmpipe threads wait; at nice 10 the physics keeps real time.
+    The workers and threads asked for, where asked."""
+    usable = cores or usable_cores()
+    workers = max(1, min(cameras, asked_workers or usable + 1))
+    return PoolPlan(workers, asked_threads or max(1, (usable - 1) // workers))
 
 
 @dataclass
@@ -120,9 +129,14 @@ class RenderPool:
         light: Light | None = None,
         start_timeout: float = START_TIMEOUT_S,
         gl_threads: int | None = None,
+        bus: Bus | None = None,
+        publications: Sequence[Publication | None] = (),
     ) -> None:
+        """`publications`: what the workers publish of each camera (none: the caller publishes its frames)."""
         _check_config(bodies, cameras, workers, renderer)
         self.cameras = tuple(cameras)
+        self._bus = bus
+        self._publications = [*publications, *[None] * (len(self.cameras) - len(publications))]
         self._bodies: Mapping[str, SceneBody] = MappingProxyType({body.name: body for body in bodies})
         """Replaced, never changed, as bodies come and go: a frame keeps the scene it was requested in."""
         self._requested: dict[int, tuple[Transform, Mapping[str, BodyState], Mapping[str, SceneBody]]] = {}
@@ -176,7 +190,7 @@ class RenderPool:
         self._broadcast(RemoveBody(name))
         self._bodies = MappingProxyType({n: b for n, b in self._bodies.items() if n != name})
 
-    def add_camera(self, spec: CameraSpec) -> int:
+    def add_camera(self, spec: CameraSpec, publication: Publication | None = None) -> int:
         """A camera for the running pool, on the worker with the fewest cameras; its index (the next one)."""
         self._check_open()
         if not self._workers:
@@ -189,7 +203,8 @@ class RenderPool:
         self._buffers.append(CameraBuffers(spec, shm))
         self._worker_of.append(worker.index)
         worker.cameras.append(index)
-        self._send(worker, AddCamera(index, spec, shm.name))
+        self._publications.append(publication)
+        self._send(worker, AddCamera(index, spec, shm.name, publication))
         return index
 
     def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
@@ -258,11 +273,11 @@ class RenderPool:
         ctx = multiprocessing.get_context("spawn")
         for index in range(n):
             mine = [i for i, w in enumerate(self._worker_of) if w == index]
-            jobs = {i: (self.cameras[i], self._shms[i].name) for i in mine}
+            jobs = {i: (self.cameras[i], self._shms[i].name, self._publications[i]) for i in mine}
             parent_end, child_end = ctx.Pipe()
             process = ctx.Process(
                 target=worker_main,
-                args=(child_end, WorkerPlan(tuple(bodies), jobs, renderer, light, gl_threads)),
+                args=(child_end, WorkerPlan(tuple(bodies), jobs, renderer, light, gl_threads, self._bus)),
                 name=f"simbot-render-{index}",
                 daemon=True,
             )

@@ -6,7 +6,9 @@ pool's messages (typed: `pipe.py`) in order until told to stop or the server is 
 requests, and the changes of a world that runs (a body added or removed, a camera added), each
 before any request sent after it. Each frame is drawn straight into the camera's shared memory
 and finished there (each output kind's finishing step, `kinds.py`); only a small message goes
-back. A change that fails is reported (`SceneFailed`) and the worker goes on.
+back. A camera the server gave a publication has its frame published from here
+(`publishing.py`) before the frame is reported done. A change that fails is reported
+(`SceneFailed`) and the worker goes on.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from simbot.sim.render.pipe import (
     StartError,
     Stop,
 )
+from simbot.sim.render.publishing import Bus, FramePublisher, Publication
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody
 from simbot.sim.render.wide_angle import views
@@ -72,12 +75,14 @@ class WorkerPlan:
     """What a worker is asked to do."""
 
     bodies: tuple[SceneBody, ...]
-    jobs: dict[int, tuple[CameraSpec, str]]
-    """Camera index → (spec, shared memory name)."""
+    jobs: dict[int, tuple[CameraSpec, str, Publication | None]]
+    """Camera index → (spec, shared memory name, what the worker publishes of it)."""
     renderer: str
     light: Light
     gl_threads: int | None
     """LP_NUM_THREADS for Mesa's llvmpipe (None: Mesa's default, one per core)."""
+    bus: Bus | None = None
+    """Where the worker publishes; None: it publishes nothing (every frame goes back to the server)."""
 
 
 class CameraBuffers:
@@ -117,9 +122,11 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         from simbot.sim.bullet import pb
 
         scene = BulletScene(pb, plan.bodies)
-        specs = {i: spec.rendered for i, (spec, _) in plan.jobs.items()}
+        specs = {i: spec.rendered for i, (spec, _, _) in plan.jobs.items()}
         renderer, fallback = open_renderer(plan.renderer, scene, plan.light, specs, plan.gl_threads)
-        held = _Held(scene, renderer, {i: _camera(i, spec, name) for i, (spec, name) in plan.jobs.items()})
+        held = _Held(scene, renderer, {}, None if plan.bus is None else FramePublisher(plan.bus))
+        for index, (spec, name, publication) in plan.jobs.items():
+            held.take_camera(index, spec, name, publication)
     except Exception as exc:
         conn.send(StartError(_reason(exc)))
         return
@@ -128,6 +135,8 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         _serve(conn, held)
     finally:
         renderer.close()
+        if held.publisher is not None:
+            held.publisher.close()
         for camera in held.cameras.values():
             camera.buffers.release()
             camera.buffers.shm.close()
@@ -166,6 +175,21 @@ class _Held:
     scene: BulletScene
     renderer: Renderer
     cameras: dict[int, _Camera]
+    publisher: FramePublisher | None
+    """The worker's session on the bus, where it publishes its cameras' frames."""
+
+    def take_camera(self, index: int, spec: CameraSpec, shm_name: str, publication: Publication | None) -> None:
+        """A camera to render (its buffers in the pool's shared memory), and to publish where the server says."""
+        self.cameras[index] = _camera(index, spec, shm_name)
+        if publication is not None:
+            if self.publisher is None:
+                raise RuntimeError(f"camera {spec.name!r}: a publication, but no bus to publish it on")
+            self.publisher.add(index, publication)
+
+    def publish(self, index: int, stamp_ns: int) -> None:
+        """The frame just finished, on the bus (a camera without a publication: nothing)."""
+        if self.publisher is not None:
+            self.publisher.publish(index, stamp_ns, self.cameras[index].buffers.arrays)
 
     def change(self, change: SceneChange) -> None:
         """A change of the world that runs, each before any request sent after it."""
@@ -176,8 +200,8 @@ class _Held:
             case RemoveBody(name):
                 self.renderer.remove_body(name)
                 self.scene.remove(name)
-            case AddCamera(index, spec, shm_name):
-                self.cameras[index] = _camera(index, spec, shm_name)
+            case AddCamera(index, spec, shm_name, publication):
+                self.take_camera(index, spec, shm_name, publication)
                 self.renderer.add_camera(index, spec.rendered)
 
 
@@ -201,6 +225,7 @@ def _render_request(held: _Held, request: RenderRequest) -> FrameDone | RenderFa
     start = time.perf_counter()
     try:
         render(held.scene, held.renderer, held.cameras[request.camera], request.pose, request.states)
+        held.publish(request.camera, request.stamp_ns)
     except Exception as exc:
         return RenderFailed(request.camera, request.stamp_ns, f"{type(exc).__name__}: {exc}")
     return FrameDone(request.camera, request.stamp_ns, time.perf_counter() - start)

@@ -64,6 +64,8 @@ class BoundingBoxCamera(Camera):
 
     products = (Product("image", "color"),)
     kind = "boundingbox"
+    published_by_worker = False
+    """Its image carries the boxes, worked out from the world's geometry the server holds."""
 
     def __init__(self, ctx: SystemContext) -> None:
         self.box_type = box_type(ctx.require_sensor()[2])

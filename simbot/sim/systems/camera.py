@@ -13,7 +13,10 @@ it), as ROS expects of camera data. Its image key is `<topic>`, else Gazebo's
 `world/<w>/model/<m>/link/<l>/sensor/<s>/image` (`.../depth_image` for a depth camera). Every
 frame goes out with its `camera_info` under the same stamp (image_transport's CameraSubscriber,
 RViz and exact-time synchronisers pair them by stamp); while only camera_info is subscribed, it
-goes out at the camera's rate without rendering. camera_info holds the camera's true intrinsics:
+goes out at the camera's rate without rendering. A frame's messages are put on the bus by the
+render worker that drew it (`publication`, simbot/sim/render/publishing.py): the physics process
+never carries its pixels; a camera whose messages need what only the server holds (bounding boxes:
+the world's geometry) says `published_by_worker = False` and publishes them here. camera_info holds the camera's true intrinsics:
 fx = fy = (w/2)/tan(hfov/2), principal point at the image centre ((w−1)/2, (h−1)/2 in ROS's
 pixel-centre coordinates, where the symmetric frustum puts it), distortion_model `plumb_bob` with
 D = [k1, k2, p1, p2, k3] of `<distortion>` (all zero without one). A lens that bends the image
@@ -47,7 +50,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from simbot.bus import Publisher, messages
-from simbot.bus.frames import optical_frame
+from simbot.bus.frames import optical_frame, with_frame_prefix
 from simbot.description.model import Sensor
 from simbot.sim.bus_view import SimBus
 from simbot.sim.camera_save import frame_saver
@@ -56,6 +59,7 @@ from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.contract import RenderStatus
 from simbot.sim.render.lens import Distortion
+from simbot.sim.render.publishing import Publication, Route
 from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
@@ -172,6 +176,8 @@ class Camera(Sampled):
     """The output that renders a `color` product, by SDF image format."""
     widest = math.pi
     """The horizontal field of view it cannot reach."""
+    published_by_worker = True
+    """Its frames' messages are put on the bus by the render worker that drew them (`publication`)."""
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
@@ -202,6 +208,8 @@ class Camera(Sampled):
             for product, output in zip(self.products, outputs, strict=True)
         ]
         self._info = ctx.bus.publisher(self.info_key(topic), messages.CameraInfo)
+        self.publication = self._publication(ctx.bus) if self.published_by_worker else None
+        """What its render worker publishes of each frame; None: the server publishes them (`send`)."""
         self.status = RenderStatus()
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
@@ -222,6 +230,12 @@ class Camera(Sampled):
         key = f"{topic}/{product.key}" if product.key else topic
         return _Published(bus.publisher(key, message.type), output, message.build)
 
+    def _publication(self, bus: SimBus) -> Publication:
+        """Its products and camera_info as a render worker puts them, frame ids in the model's namespace."""
+        routes = tuple(Route(o.publisher.key, o.publisher.typename or "", o.output, o.build) for o in self.outputs)
+        info = with_frame_prefix(self.camera_info(0), self._info.frame_prefix)
+        return Publication(bus.frame(self.frame_id), routes, self._info.key, info)
+
     def info_key(self, topic: str) -> str:
         return camera_info_key(topic)
 
@@ -229,10 +243,11 @@ class Camera(Sampled):
         return self.saver is not None or any(output.publisher.has_subscribers for output in self.outputs)
 
     def publish(self, frame: Frame) -> None:
-        """Its products, then camera_info, all under the frame's stamp (the sim time it shows); and
-        the frame to disk where `<save>` says."""
-        self.send(frame)
-        self.publish_info(frame.stamp_ns)
+        """A frame done: its products, then camera_info, all under the frame's stamp (the sim time it
+        shows), unless its worker published them; counted; and to disk where `<save>` says."""
+        if self.publication is None:
+            self.send(frame)
+            self.publish_info(frame.stamp_ns)
         self.published(frame.stamp_ns)
         if self.saver is not None:
             self.saver.save(frame)
@@ -245,13 +260,15 @@ class Camera(Sampled):
 
     def publish_info(self, stamp_ns: int) -> None:
         if self._info.has_subscribers:
-            spec = self.spec
-            cx, cy = spec.principal_point
-            self._info.put(
-                messages.camera_info(
-                    stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy, spec.distortion.d
-                )
-            )
+            self._info.put(self.camera_info(stamp_ns))
+
+    def camera_info(self, stamp_ns: int) -> Any:
+        """sensor_msgs/CameraInfo of its true intrinsics (the module docstring)."""
+        spec = self.spec
+        cx, cy = spec.principal_point
+        return messages.camera_info(
+            stamp_ns, self.frame_id, spec.width, spec.height, spec.fx, spec.fx, cx, cy, spec.distortion.d
+        )
 
     def report(self) -> dict[str, Any]:
         figures = super().report() | {"skipped": self.skipped, "size": [self.spec.width, self.spec.height]}

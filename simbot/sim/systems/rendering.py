@@ -32,6 +32,12 @@ created model takes the next index and renders like the others; a removed model'
 the scenes, and its cameras stop (their slots stay empty, so the others keep their places).
 When the last camera leaves, the pool closes; a camera created later starts a fresh one.
 
+The images leave from the workers (simbot/sim/render/publishing.py): each joins the bus as a
+client of the server and publishes the frames of the cameras that give it a publication; the
+frames come back here only to be counted (and saved, and boxed). In lockstep the workers wait at
+the server's barrier queryable (`BARRIER`) until their samples are routed, so a step's images
+arrive before its clock, as when the server published them.
+
 A render worker that dies, or a pool that does not start, stops the cameras (an error in the log
 and in each camera's world state), never the simulation.
 """
@@ -42,11 +48,13 @@ import logging
 import sys
 import threading
 
+from simbot.bus.options import helper_options
 from simbot.description.model import SdfLight, World
-from simbot.sim.render import Annotation, BodyState, CameraSpec, Light, LightSource, RenderPool, SceneBody, plan_pool
+from simbot.sim.render import Annotation, BodyState, Light, LightSource, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.contract import Annotating, RenderedSensor, RenderStatus
 from simbot.sim.render.labels import MAX_INSTANCE
+from simbot.sim.render.publishing import Bus
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import matmul
 
@@ -54,6 +62,8 @@ log = logging.getLogger(__name__)
 
 LOCKSTEP_TIMEOUT_S = 120.0
 """How long lockstep waits for one frame before it gives the cameras up as broken."""
+BARRIER = "simbot/render_barrier"
+"""The queryable a lockstep worker asks after its puts (in the server's namespace)."""
 
 
 def world_light(world: World) -> Light:
@@ -94,7 +104,8 @@ class Rendering:
     """Schedules the cameras and owns their render pool; see the module docstring.
 
     Command-line parameters (`RunOptions.overrides`): `rendering.renderer` (auto | gl | tiny,
-    default auto), `rendering.workers` (render processes; default every core but one)."""
+    default auto), `rendering.workers` (render processes) and `rendering.threads` (llvmpipe threads
+    of each; defaults: `plan_pool`'s measured policy)."""
 
     name = "Rendering"
 
@@ -103,7 +114,13 @@ class Rendering:
         self.lockstep = ctx.options.lockstep
         self.renderer_asked: str = ctx.override("rendering.renderer") or "auto"
         self.workers: int | None = ctx.override("rendering.workers")
+        self.threads: int | None = ctx.override("rendering.threads")
         self.light = world_light(ctx.world)
+        node = ctx.bus.node
+        if self.lockstep:
+            node.answering(BARRIER)
+        self.bus = Bus(helper_options(node.options), BARRIER if self.lockstep else None)
+        """Where the render workers publish."""
         self.status = RenderStatus()
         self.cameras: list[RenderedSensor] = []
         self.pool: RenderPool | None = None
@@ -174,7 +191,7 @@ class Rendering:
                 else:
                     self.pool.remove_body(change)
             for camera in self.cameras[len(self.pool.cameras) :]:
-                self.pool.add_camera(camera.spec)
+                self.pool.add_camera(camera.spec, camera.publication)
         except RuntimeError as exc:
             self.fail(str(exc))
 
@@ -224,21 +241,30 @@ class Rendering:
             return False
         if self._starting is None:  # the snapshot of the world: what changes after it goes to `_changes`
             bodies = [self._scene_body(name) for name in self.physics.body_names()]
-            specs = [camera.spec for camera in self.cameras]
+            cameras = list(self.cameras)
             self._starting = threading.Thread(
-                target=self._start, args=(bodies, specs), name="render-pool-start", daemon=True
+                target=self._start, args=(bodies, cameras), name="render-pool-start", daemon=True
             )
             self._starting.start()
         if self.lockstep:
             self._starting.join()
         return self.pool is not None
 
-    def _start(self, bodies: list[SceneBody], specs: list[CameraSpec]) -> None:
+    def _start(self, bodies: list[SceneBody], cameras: list[RenderedSensor]) -> None:
         """Runs in a thread (PyBullet is not touched here): spawning workers and loading the scene
         takes seconds the loop must not wait."""
-        plan = plan_pool(len(specs), self.workers)
+        plan = plan_pool(len(cameras), self.workers, asked_threads=self.threads)
         try:
-            pool = RenderPool(bodies, specs, plan.workers, self.renderer_asked, self.light, gl_threads=plan.gl_threads)
+            pool = RenderPool(
+                bodies,
+                [camera.spec for camera in cameras],
+                plan.workers,
+                self.renderer_asked,
+                self.light,
+                gl_threads=plan.gl_threads,
+                bus=self.bus,
+                publications=[camera.publication for camera in cameras],
+            )
         except (OSError, RuntimeError, ValueError) as exc:
             self.status.failure = f"the camera render workers did not start: {exc}"
             log.error("%s; no images will be published", self.status.failure)

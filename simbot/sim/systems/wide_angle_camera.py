@@ -97,12 +97,8 @@ class WideAngleCamera(Camera):
     def wide_lens(self, sensor: Sensor) -> WideLens:
         return read_lens(sensor)
 
-    def publish_info(self, stamp_ns: int) -> None:
-        """camera_info as the module docstring says: exact where a ROS model is, else a fit."""
-        if self._info.has_subscribers:
-            self._info.put(self.camera_info(stamp_ns))
-
     def camera_info(self, stamp_ns: int) -> Any:
+        """camera_info as the module docstring says: exact where a ROS model is, else a fit."""
         spec = self.spec
         assert spec.wide is not None
         model, fx, d = info_model(spec.wide, spec.width, spec.height, spec.hfov)
