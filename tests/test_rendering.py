@@ -599,8 +599,8 @@ def test_a_scene_that_does_not_load_fails_the_start() -> None:
 @pytest.mark.parametrize(
     ("cores", "asked", "threads", "plan"),
     [
-        (2, None, None, PoolPlan(3, 1)),  # this machine: three one-thread workers, measured best (docs/speed.md)
-        (1, None, None, PoolPlan(2, 1)),  # one core: a second worker draws while the first waits for its set
+        (2, None, None, PoolPlan(2, 1)),  # this machine: two one-thread workers, measured best (docs/speed.md)
+        (1, None, None, PoolPlan(1, 1)),  # one core: one worker (at nice 10, the physics wins)
         (16, None, None, PoolPlan(6, 2)),  # a worker per camera, the 15 cores the physics leaves shared out: 6 × 2
         (8, None, None, PoolPlan(6, 1)),
         (16, 2, None, PoolPlan(2, 7)),  # --render-workers 2: each worker rasterizes on 7 threads

@@ -229,7 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--render-workers",
         type=_whole(64),
         metavar="N",
-        help="camera render processes (default: one more than the cores, as docs/speed.md measured)",
+        help="camera render processes (default: one per core, as docs/speed.md measured)",
     )
     parser.add_argument(
         "--render-threads",

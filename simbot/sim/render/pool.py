@@ -89,14 +89,15 @@ def usable_cores() -> int:
 def plan_pool(
     cameras: int, asked_workers: int | None = None, cores: int | None = None, asked_threads: int | None = None
 ) -> PoolPlan:
-    """One worker more than there are cores (a worker per camera at most), each with the rasterizer
-    threads that every core but the physics' leaves it (on a GPU they are idle and cost nothing).
-    Measured on two cores (benchmarks/bench_cameras.py, docs/speed.md): a worker's Python and
-    vertex work is serial and a set of frames is asked for only when all of it is out, so more
-    workers fill the cores where more llvmpipe threads wait; at nice 10 the physics keeps real time.
+    """A worker per core (a worker per camera at most), each with the rasterizer threads that every
+    core but the physics' leaves it (on a GPU they are idle and cost nothing). Measured on two
+    cores (benchmarks/bench_cameras.py, docs/speed.md): a worker's Python and vertex work is
+    serial, so a second worker fills the core the physics leaves idle where a second llvmpipe
+    thread waits on it; a third drew more in the warehouse alone but fewer in the main job, where
+    the server and the clients want their share. At nice 10 the physics keeps real time.
     The workers and threads asked for, where asked."""
     usable = cores or usable_cores()
-    workers = max(1, min(cameras, asked_workers or usable + 1))
+    workers = max(1, min(cameras, asked_workers or usable))
     return PoolPlan(workers, asked_threads or max(1, (usable - 1) // workers))
 
 
