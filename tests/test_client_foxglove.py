@@ -207,6 +207,14 @@ def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:
     }
 
 
+def images_counted(sim: SimServer, camera: str, received: int) -> dict[str, int]:
+    """Each camera's images once world state counts the `received` images of `camera` a subscriber
+    got: its render worker publishes a frame before it reports it done, so the server's count may
+    follow what a subscriber has by a step of its loop."""
+    wait_until(lambda: camera_images(sim)[1][camera] >= received, WAIT_S, f"world state to count {received} images")
+    return camera_images(sim)[1]
+
+
 def wait_camera_stopped(sim: SimServer, camera: str) -> None:
     """Until `camera` publishes no image over half a second of sim time (15 of its 30 Hz periods), however
     slowly a loaded machine runs the world."""
@@ -342,7 +350,7 @@ def test_cameras_render_only_while_watched(sim: SimServer, app: Viewer) -> None:
     assert before and not any(before.values()), f"cameras rendered with no viewer: {before}"
     subscription = app.subscribe("/camera_front")
     frames = app.received(subscription, 3, timeout=60.0)  # the render worker starts on the first subscription
-    _, during = camera_images(sim)
+    during = images_counted(sim, "camera_front", len(frames))
     image = decode_with(app.channels()["/camera_front"], frames[-1].payload)
     assert (image.width, image.height, image.encoding, len(image.data)) == (160, 120, "rgb8", 160 * 120 * 3)
     assert during["camera_front"] >= 3 and not any(n for name, n in during.items() if name != "camera_front"), during

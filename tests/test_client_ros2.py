@@ -45,7 +45,7 @@ from server_helpers import (
     running_server,
     wait_until,
 )
-from test_client_foxglove import camera_images, wait_camera_stopped
+from test_client_foxglove import camera_images, images_counted, wait_camera_stopped
 
 from simbot.bus import messages
 from simbot.bus.codec import decode
@@ -359,7 +359,7 @@ def test_a_camera_renders_only_while_a_ros_node_subscribes(sim: SimServer, ros: 
     images, unsubscribe = ros.subscribe(Image, topic(sim, "camera_front"))
     image = images.wait_count(3, 60.0, "images")[-1]  # the render worker starts on the first subscription
     assert (image.width, image.height, image.encoding, len(image.data)) == (160, 120, "rgb8", 160 * 120 * 3)
-    _, during = camera_images(sim)
+    during = images_counted(sim, "camera_front", 3)
     assert during["camera_front"] >= 3 and not any(n for name, n in during.items() if name != "camera_front"), during
     unsubscribe()
     wait_camera_stopped(sim, "camera_front")
