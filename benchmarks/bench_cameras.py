@@ -39,26 +39,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_looks import resources_from, write_variant
-from bench_sensors import (
-    CAMERAS,
-    RTF_TARGET,
-    Rendering,
-    Run,
-    camera_fps,
-    describe,
-    gl_frames,
-    gl_on,
-    in_process_server,
-    robot_views,
-    run_server,
-    systems_of,
-    verdict,
-)
+from in_process import gl_frames, gl_on, in_process_server, robot_views, systems_of
+from live_runs import CAMERAS, RTF_TARGET, Run, camera_fps, describe, run_server, verdict
 from tables import publish
 
 from simbot.sim.render import gl_shaders as shaders
 from simbot.sim.render import plan_pool
 from simbot.sim.render.gl import ALBEDO_UNIT, SHADED_ROW, GlRenderer
+from simbot.sim.systems.camera_rendering import Rendering
 
 log = logging.getLogger("bench_cameras")
 

@@ -28,8 +28,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench_sensors import count_topics
 from bench_server import free_port
+from live_runs import count_topics
 from tables import publish
 
 from simbot.bus import BusOptions, Node

@@ -36,8 +36,8 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
-from bench_sensors import cpu_seconds
 from bench_server import free_port
+from live_runs import cpu_seconds
 from tables import publish
 
 from simbot.bus import BusOptions, Node

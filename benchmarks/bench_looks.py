@@ -6,8 +6,8 @@ that `model://` finds the copies first through SIMBOT_RESOURCE_PATH): with and w
 shadows (`<scene><shadows>`; the shipped world has them off), each with and without textures
 (every `<pbr>` albedo map taken out, so each surface shows its colour); without either is the
 baseline. Each copy is drawn first by the OpenGL renderer alone in this process, the robot's six
-views in turn (bench_sensors.py's bare loop: CPU per frame, the figure least moved by a busy
-machine), then run under `simbot-server` as bench_sensors.py runs it (`run_server`): each
+views in turn (in_process.py's bare loop: CPU per frame, the figure least moved by a busy
+machine), then run under `simbot-server` as live_runs.py runs it (`run_server`): each
 camera's images per wall second, the real-time factor, and the render workers' CPU per image.
 The costs are also given as ratios to the baseline measured in the same run.
 
@@ -29,25 +29,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sensors import (
-    CAMERAS,
-    IMU,
-    LIDARS,
-    RTF_TARGET,
-    Rendering,
-    Run,
-    bare_gl_fps,
-    camera_fps,
-    describe,
-    in_process_server,
-    robot_views,
-    run_server,
-    systems_of,
-    verdict,
-)
+from in_process import bare_gl_fps, in_process_server, robot_views, systems_of
+from live_runs import CAMERAS, IMU, LIDARS, RTF_TARGET, Run, camera_fps, describe, run_server, verdict
 from tables import publish
 
 from simbot.description.resources import asset
+from simbot.sim.systems.camera_rendering import Rendering
 
 log = logging.getLogger("bench_looks")
 

@@ -31,7 +31,9 @@ from unittest import mock
 
 import numpy as np
 import numpy.typing as npt
-from bench_sensors import IMU, LIDARS, Costs, count_topics, imu_costs, in_process_server, lidar_costs
+from bench_sensors import Costs, imu_costs, lidar_costs
+from in_process import in_process_server
+from live_runs import IMU, LIDARS, count_topics
 from tables import publish
 from timing import per_call_ms
 

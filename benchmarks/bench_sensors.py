@@ -36,184 +36,49 @@ import argparse
 import logging
 import math
 import os
-import shlex
-import signal
 import statistics
-import subprocess
 import sys
-import threading
 import time
-import uuid
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from tables import publish
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_server import bare_loop, free_port
+from bench_server import bare_loop
+from in_process import bare_gl_fps, bare_render_fps, in_process_server, robot_views, systems_of
+from live_runs import (
+    CAMERAS,
+    FIRST_FRAME_TIMEOUT_S,
+    IMU,
+    LIDARS,
+    RTF_TARGET,
+    Run,
+    camera_fps,
+    count_topics,
+    describe,
+    run_server,
+    verdict,
+)
 from timing import per_call_ms
 
-from simbot.bus import BusOptions, Node, messages
-from simbot.description import load_model
-from simbot.description.resources import asset
 from simbot.sim.bullet import pb
-from simbot.sim.physics import Physics
-from simbot.sim.render import BodyState, CameraSpec, Light, plan_pool
-from simbot.sim.render.bodies import scene_body
-from simbot.sim.render.gl import GlRenderer
-from simbot.sim.render.kinds import Raw
-from simbot.sim.render.scene import BulletScene
-from simbot.sim.render.tiny import tiny_lighting
-from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
-from simbot.sim.simulation import Mode
-from simbot.sim.systems.camera import Camera, CameraParams
+from simbot.sim.render import BodyState, plan_pool
+from simbot.sim.server import ROBOT_NAME, Server
+from simbot.sim.systems.camera import Camera
+from simbot.sim.systems.camera_rendering import Rendering
 from simbot.sim.systems.imu import Imu
 from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
-from simbot.sim.systems.rendering import Rendering
-from simbot.transform import Transform
 
 log = logging.getLogger("bench_sensors")
 
-WORLD = "warehouse"
-CAMERAS = tuple(s.name for _, s in load_model(asset("urdf/flexley_tug.sdf")).sensors() if s.type == "camera")
-"""The tug's six cameras, read from its SDF (each publishes on its own name)."""
-LIDARS = ("lidar_front", "lidar_back")
-IMU = "imu_scan"
 CAMERA_TARGET_HZ = 30.0
-RTF_TARGET = 0.98
 CAPACITY_TARGET = 0.85
 FAST_TARGET = 4.0
-FIRST_FRAME_TIMEOUT_S = 90.0
-"""The render worker loads the warehouse before the first frame (seconds on a small machine)."""
-SETTLE_S = 2.0
-"""After the last camera's first frame: the real-time pacer and the pool settle."""
-TICKS = os.sysconf("SC_CLK_TCK")
 
 
 # --------------------------------------------------------------------------- baselines in-process
-
-
-@dataclass(frozen=True)
-class View:
-    """One camera of the robot as the worker renders it: view and projection matrices."""
-
-    name: str
-    spec: CameraSpec
-    view: Sequence[float]
-    projection: Sequence[float]
-
-
-def robot_views(physics: Physics, size: tuple[int, int]) -> list[View]:
-    """The robot's cameras at `size`, from their world poses now: the scene content the server's
-    workers render, so the bare loop draws the same triangles."""
-    views = []
-    for link, sensor in physics.model_of(ROBOT_NAME).sensors():
-        if sensor.type != "camera":
-            continue
-        cam = CameraParams.from_sdf(sensor)
-        spec = CameraSpec(sensor.name, size[0], size[1], cam.horizontal_fov, cam.near, cam.far)
-        position, quat = physics.frame_pose(ROBOT_NAME, link.name, sensor.pose)
-        rotation = np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
-        target = np.asarray(position) + rotation[:, 0]  # the worker's convention: looks along +x, z up
-        view = pb.computeViewMatrix(list(position), target.tolist(), rotation[:, 2].tolist())
-        projection = pb.computeProjectionMatrixFOV(
-            fov=spec.vfov_deg, aspect=size[0] / size[1], nearVal=cam.near, farVal=cam.far
-        )
-        views.append(View(sensor.name, spec, view, projection))
-    return views
-
-
-def bare_render(client: int, view: View, light: Light) -> None:
-    """The render call alone, with the arguments the worker passes (rendering.py `_Scene.render`)."""
-    pb.getCameraImage(
-        view.spec.width,
-        view.spec.height,
-        view.view,
-        view.projection,
-        renderer=pb.ER_TINY_RENDERER,
-        flags=pb.ER_NO_SEGMENTATION_MASK,
-        shadow=0,
-        physicsClientId=client,
-        **tiny_lighting(light),
-    )
-
-
-def bare_render_fps(client: int, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float]:
-    """(frames per wall second, frames per CPU second) of TinyRenderer alone, the six cameras in
-    turn. Per CPU second as well: on a shared machine the wall figure depends on the neighbours."""
-    bare_render(client, views[0], light)  # first call builds TinyRenderer's buffers
-    frames, start, cpu = 0, time.perf_counter(), time.process_time()
-    while time.perf_counter() - start < seconds or frames % len(views):
-        bare_render(client, views[frames % len(views)], light)
-        frames += 1
-    return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu)
-
-
-def bare_gl_fps(physics: Physics, views: Sequence[View], light: Light, seconds: float) -> tuple[float, float, str]:
-    """(frames per wall second, frames per CPU second, GL device) of the OpenGL renderer alone on
-    the same scene and views, one llvmpipe thread, pixels read back into an array."""
-    with gl_on(physics, views, light) as (renderer, poses):
-        return (*gl_frames(renderer, poses, seconds), renderer.device)
-
-
-@contextmanager
-def gl_on(physics: Physics, views: Sequence[View], light: Light) -> Iterator[tuple[GlRenderer, list[Transform]]]:
-    """The OpenGL renderer (one llvmpipe thread) on a copy of the server's scene, with the views'
-    camera poses."""
-    scene = BulletScene(pb, [scene_body(physics, name) for name in physics.body_names()])
-    renderer = GlRenderer(scene, light, {i: v.spec for i, v in enumerate(views)}, threads=1)
-    try:
-        yield renderer, [physics.frame_pose(*where) for where in camera_mounts(physics)]
-    finally:
-        renderer.close()
-        scene.close()
-
-
-def gl_frames(renderer: GlRenderer, poses: Sequence[Transform], seconds: float) -> tuple[float, float]:
-    """(frames per wall second, frames per CPU second) of the views in turn, read back into an array."""
-    drawn: dict[Raw, Any] = {"color": np.zeros(renderer.targets[0].spec.drawn()["color"], dtype=np.uint8)}
-    renderer.render(0, poses[0], drawn)
-    frames, start, cpu = 0, time.perf_counter(), time.process_time()
-    while time.perf_counter() - start < seconds or frames % len(poses):
-        renderer.render(frames % len(poses), poses[frames % len(poses)], drawn)
-        frames += 1
-    return frames / (time.perf_counter() - start), frames / (time.process_time() - cpu)
-
-
-def camera_mounts(physics: Physics) -> list[tuple[str, str, Any]]:
-    """(model, link, pose) of each of the robot's cameras, in SDF order."""
-    return [(ROBOT_NAME, link.name, s.pose) for link, s in physics.model_of(ROBOT_NAME).sensors() if s.type == "camera"]
-
-
-class Counter:
-    """Samples on one key, counted on Zenoh's thread without decoding (see the module docstring)."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self.count = 0
-        self.subscriber: object = None
-        """Kept so that the subscriber lives as long as the counter."""
-
-    def __call__(self, _sample: Any) -> None:
-        with self._lock:
-            self.count += 1
-
-    def value(self) -> int:
-        with self._lock:
-            return self.count
-
-
-def count_topics(node: Node, topics: Sequence[str]) -> dict[str, Counter]:
-    """A counting subscriber per topic (it also makes the server see a subscriber: cameras render)."""
-    counters = {}
-    for topic in topics:
-        counter = counters[topic] = Counter()
-        counter.subscriber = node.session.declare_subscriber(node.key(topic), counter)
-    return counters
 
 
 @dataclass
@@ -240,30 +105,6 @@ class Costs:
     gl_device: str = "none"
     renderer: str = "tiny"
     fallback: str | None = None
-
-
-@contextmanager
-def in_process_server(world: str = WORLD) -> Iterator[tuple[Server, Node]]:
-    """A `Server` built as simbot-server builds it (lockstep, so that starting the render pool
-    waits), on its own loopback port, and a client node on it."""
-    endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    config = ServerConfig(
-        world_path(world),
-        asset("urdf/flexley_tug.sdf"),
-        mode=Mode.LOCKSTEP,
-        overrides={"camera.size": (640, 480)},
-    )
-    with Node(BusOptions(listen=(endpoint,), namespace=namespace), "server") as node:
-        server = Server(config, node)
-        try:
-            with Node(BusOptions(connect=(endpoint,), namespace=namespace), "client") as client:
-                yield server, client
-        finally:
-            server.close()
-
-
-def systems_of(server: Server, kind: type) -> list[Any]:
-    return [s for s in server.sim.systems if isinstance(s, kind)]
 
 
 def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
@@ -377,290 +218,6 @@ def measure_in_process(seconds: float) -> Costs:
 
 
 # --------------------------------------------------------------------------- the server process
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of one process so far (/proc/<pid>/stat utime, stime)."""
-    try:
-        with open(f"/proc/{pid}/stat", encoding="ascii") as file:
-            fields = file.read().rsplit(")", 1)[1].split()
-    except OSError:
-        return math.nan
-    return (int(fields[11]) + int(fields[12])) / TICKS
-
-
-def schedstat(pid: int) -> tuple[float, float]:
-    """(seconds on a CPU, seconds runnable but waiting for one) of one thread so far
-    (/proc/<pid>/schedstat; the process id names its main thread, where the physics loop runs)."""
-    try:
-        with open(f"/proc/{pid}/schedstat", encoding="ascii") as file:
-            on_cpu, waiting = file.read().split()[:2]
-    except (OSError, ValueError):
-        return math.nan, math.nan
-    return int(on_cpu) / 1e9, int(waiting) / 1e9
-
-
-def children(pid: int) -> dict[int, str]:
-    """The server's child processes (render workers, multiprocessing's resource tracker), by role."""
-    found = {}
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry}/stat", encoding="ascii") as file:
-                ppid = int(file.read().rsplit(")", 1)[1].split()[1])
-            if ppid != pid:
-                continue
-            with open(f"/proc/{entry}/cmdline", "rb") as file:
-                cmdline = file.read().replace(b"\0", b" ").decode(errors="replace")
-        except (OSError, ValueError, IndexError):
-            continue
-        found[int(entry)] = "resource tracker" if "resource_tracker" in cmdline else "render worker"
-    return found
-
-
-def machine_busy() -> tuple[float, float]:
-    """(busy, total) jiffies of all cores so far (/proc/stat): how saturated the machine was."""
-    with open("/proc/stat", encoding="ascii") as file:
-        values = [int(v) for v in file.readline().split()[1:]]
-    idle = values[3] + values[4]
-    return sum(values) - idle, sum(values)
-
-
-@dataclass
-class Run:
-    """What one server run achieved over its measuring window."""
-
-    wall_s: float
-    rtf: float
-    """Sim seconds advanced per wall second over the window."""
-    state_rtf: float
-    """The server's own one-second real-time factor at the end of the window."""
-    received: dict[str, int]
-    """Samples the client received per topic in the window."""
-    sensors: dict[str, dict[str, float]]
-    """Per sensor: messages and skipped in the window (world state), and its reported rate_hz."""
-    server_cpu: float
-    """CPU seconds per wall second of the server process (physics thread + Zenoh threads)."""
-    loop_cpu: float
-    """CPU seconds per wall second of the server's main thread (the simulation loop)."""
-    loop_wait: float
-    """Seconds per wall second the main thread was runnable but had no CPU."""
-    worker_cpu: float
-    """CPU seconds per wall second of all render workers together."""
-    worker_wait: float
-    """Seconds per wall second the render workers were runnable but had no CPU."""
-    client_cpu: float
-    """CPU seconds per wall second of this benchmark process (the counting client)."""
-    machine_busy: float
-    """Busy fraction of all cores."""
-    cores: int
-    intervals: list[float]
-    """Real-time factor of each half second of the window: whether time was lost evenly or in stalls."""
-    renderer: str | None = None
-
-    @property
-    def others_cpu(self) -> float:
-        """Cores' worth of CPU that processes outside this benchmark took (a shared machine)."""
-        return self.machine_busy * self.cores - self.server_cpu - self.worker_cpu - self.client_cpu
-
-    def per_second(self, topic: str) -> float:
-        return self.received.get(topic, 0) / self.wall_s
-
-
-def _connect(endpoint: str, namespace: str, proc: subprocess.Popen[bytes]) -> Node:
-    deadline = time.monotonic() + 30
-    while True:
-        if proc.poll() is not None:
-            raise RuntimeError(f"simbot-server exited with code {proc.returncode} at start")
-        try:
-            return Node(BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=1.0), "client")
-        except OSError:
-            if time.monotonic() > deadline:
-                raise
-
-
-def _state(node: Node) -> dict[str, Any]:
-    return node.call(f"world/{WORLD}/state", {}, timeout=5.0)
-
-
-def _wait_ready(node: Node) -> None:
-    deadline = time.monotonic() + 30
-    while True:
-        try:
-            if _state(node).get("ok"):
-                return
-        except (TimeoutError, RuntimeError):
-            pass
-        if time.monotonic() > deadline:
-            raise RuntimeError("the server's world control did not answer within 30 s")
-        time.sleep(0.05)
-
-
-def _wait_first(counters: dict[str, Counter], topics: Sequence[str], proc: subprocess.Popen[bytes]) -> None:
-    deadline = time.monotonic() + FIRST_FRAME_TIMEOUT_S
-    while not all(counters[t].value() for t in topics):
-        if proc.poll() is not None or time.monotonic() > deadline:
-            missing = [t for t in topics if not counters[t].value()]
-            raise RuntimeError(f"no message on {missing} within {FIRST_FRAME_TIMEOUT_S:.0f} s")
-        time.sleep(0.1)
-
-
-def run_server(
-    mode: str,
-    topics: Sequence[str],
-    seconds: float,
-    extra: Sequence[str] = (),
-    drive: bool = False,
-    world: str = WORLD,
-    clients: Sequence[str] | None = None,
-) -> Run:
-    """`simbot-server` on a fresh loopback port and namespace, `topics` subscribed; measured over
-    `seconds` of wall time once every subscribed topic has delivered and the loop has settled.
-    `world`: a name or an SDF path whose `<world>` is named warehouse (world control's key).
-    `clients`: the server started by `simbot launch` with these clients, as `make run` starts it."""
-    endpoint, namespace = f"tcp/127.0.0.1:{free_port()}", f"bench_{uuid.uuid4().hex[:8]}"
-    server = ["--mode", mode, "--quiet", *extra]
-    if clients is None:
-        command = [sys.executable, "-m", "simbot.sim.server", "--world", world, *server]
-    else:
-        launch = ["launch", "--world", world, "--clients", ",".join(clients), f"--server-args={shlex.join(server)}"]
-        command = [sys.executable, "-m", "simbot.cli", *launch]
-    bus = ["--listen", endpoint, "--namespace", namespace]
-    proc = subprocess.Popen([*command, *bus], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        with _connect(endpoint, namespace, proc) as node:
-            _wait_ready(node)
-            counters = count_topics(node, topics)
-            if drive:
-                node.publisher("cmd_vel", drop=False).put(messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.1)))
-            _wait_first(counters, topics, proc)
-            time.sleep(SETTLE_S)
-            return _measure(node, proc.pid if clients is None else _server_pid(proc.pid), counters, seconds)
-    finally:
-        proc.send_signal(signal.SIGINT)  # launch ends its children on Ctrl-C; the server ends on it too
-        try:
-            proc.wait(20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-def _server_pid(launch: int) -> int:
-    """The server among launch's children."""
-    for pid in children(launch):
-        with open(f"/proc/{pid}/cmdline", "rb") as file:
-            if b"simbot.sim.server" in file.read():
-                return pid
-    raise RuntimeError(f"launch (pid {launch}) runs no simbot.sim.server")
-
-
-SAMPLE_S = 0.5
-
-
-def _sample(node: Node, seconds: float) -> tuple[dict[str, Any], list[float]]:
-    """The world state at the end of `seconds`, and the real-time factor of each half second."""
-    state, wall = _state(node), time.perf_counter()
-    end, intervals = wall + seconds, []
-    while wall < end:
-        time.sleep(max(0.0, min(SAMPLE_S, end - wall)))
-        now_state, now = _state(node), time.perf_counter()
-        intervals.append((now_state["sim_time"] - state["sim_time"]) / (now - wall))
-        state, wall = now_state, now
-    return state, intervals
-
-
-def _sched(pids: Sequence[int]) -> tuple[float, float]:
-    stats = [schedstat(p) for p in pids]
-    return sum(s[0] for s in stats), sum(s[1] for s in stats)
-
-
-def _measure(node: Node, pid: int, counters: dict[str, Counter], seconds: float) -> Run:
-    workers = [p for p, role in children(pid).items() if role == "render worker"]
-    before = _state(node)
-    counts0 = {t: c.value() for t, c in counters.items()}
-    cpu0, wcpu0, me0, busy0 = (
-        cpu_seconds(pid),
-        sum(cpu_seconds(w) for w in workers),
-        time.process_time(),
-        machine_busy(),
-    )
-    loop0, wsched0 = schedstat(pid), _sched(workers)
-    wall0 = time.perf_counter()
-    after, intervals = _sample(node, seconds)
-    wall = time.perf_counter() - wall0
-    cpu1, wcpu1, me1, busy1 = (
-        cpu_seconds(pid),
-        sum(cpu_seconds(w) for w in workers),
-        time.process_time(),
-        machine_busy(),
-    )
-    loop1, wsched1 = schedstat(pid), _sched(workers)
-    counts = {t: c.value() - counts0[t] for t, c in counters.items()}
-    sensors = {}
-    for name, figures in after["sensors"].items():
-        old = before["sensors"].get(name, {})
-        sensors[name] = {
-            "messages": figures.get("messages", 0) - old.get("messages", 0),
-            "skipped": figures.get("skipped", 0) - old.get("skipped", 0),
-            "rate_hz": figures.get("rate_hz", 0.0),
-        }
-    renderer = next((f["renderer"] for f in after["sensors"].values() if "renderer" in f), None)
-    return Run(
-        wall_s=wall,
-        rtf=(after["sim_time"] - before["sim_time"]) / wall,
-        state_rtf=after["real_time_factor"],
-        received=counts,
-        sensors=sensors,
-        server_cpu=(cpu1 - cpu0) / wall,
-        loop_cpu=(loop1[0] - loop0[0]) / wall,
-        loop_wait=(loop1[1] - loop0[1]) / wall,
-        worker_cpu=(wcpu1 - wcpu0) / wall,
-        worker_wait=(wsched1[1] - wsched0[1]) / wall,
-        client_cpu=(me1 - me0) / wall,
-        machine_busy=(busy1[0] - busy0[0]) / max(1, busy1[1] - busy0[1]),
-        cores=len(os.sched_getaffinity(0)),
-        intervals=intervals,
-        renderer=renderer,
-    )
-
-
-# --------------------------------------------------------------------------- report
-
-
-def camera_fps(run: Run) -> float:
-    """Images per wall second the client received, all cameras together."""
-    return sum(run.per_second(c) for c in CAMERAS)
-
-
-def verdict(ok: bool) -> str:
-    return "PASS" if ok else "NOT REACHED"
-
-
-def describe(label: str, run: Run) -> None:
-    """The raw figures of one run."""
-    print(
-        f"\n{label}: {run.wall_s:.1f} s wall, rtf {run.rtf:.3f} (server's 1 s window {run.state_rtf:.3f}), "
-        f"renderer {run.renderer}"
-    )
-    slow = [f"{r:.2f}" for r in run.intervals if r < RTF_TARGET]
-    print(
-        f"  half-second real-time factors: min {min(run.intervals):.3f}, median {statistics.median(run.intervals):.3f}; "
-        f"{len(slow)} of {len(run.intervals)} below {RTF_TARGET}: {' '.join(slow) or '-'}"
-    )
-    print(
-        f"  CPU per wall second: server {run.server_cpu:.2f} (its loop thread {run.loop_cpu:.2f}, runnable without a CPU "
-        f"{run.loop_wait:.3f}), render workers {run.worker_cpu:.2f} (runnable without a CPU {run.worker_wait:.2f}), "
-        f"this client {run.client_cpu:.2f}, other processes on the machine {run.others_cpu:.2f}; "
-        f"machine busy {run.machine_busy:.0%} of {run.cores} cores"
-    )
-    for topic, count in run.received.items():
-        figures = run.sensors.get(topic.replace("imu_scan", "imu_sensor"), {})
-        print(
-            f"  {topic:20s} received {count:5d} ({count / run.wall_s:6.2f}/s wall); server: "
-            f"{figures.get('messages', 0):5.0f} published, {figures.get('skipped', 0):5.0f} skipped, "
-            f"rate {figures.get('rate_hz', 0):.2f} Hz sim"
-        )
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,7 @@ def tug_cameras() -> dict[str, CameraModel]:
     fx = (WIDTH / 2) / math.tan(HFOV / 2)
     models = {}
     for name, (x, y, yaw) in MOUNTS.items():
-        intrinsics = Intrinsics(optical_frame(name), WIDTH, HEIGHT, fx, fx, (WIDTH - 1) / 2, (HEIGHT - 1) / 2)
+        intrinsics = Intrinsics(WIDTH, HEIGHT, fx, fx, (WIDTH - 1) / 2, (HEIGHT - 1) / 2, frame_id=optical_frame(name))
         pose = Pose((x, y, CAMERA_Z), (0.0, 0.0, yaw)).matrix() @ Pose(rpy=OPTICAL_RPY).matrix()
         models[name] = CameraModel.of(intrinsics, pose)
     return models

@@ -4,7 +4,7 @@ in the same run, as a ratio (the figure a shared, noisy machine moves least).
 A copy of the warehouse gets a rig in its aisle holding two cameras at one pose, 640×480 (the size
 the tug's cameras run at): `eye`, a colour camera, and `heat`, an L16 thermal camera (the Thermal
 system on the rig's own box, so the scene holds an annotated visual). An in-process `Server` built
-as simbot-server builds it (bench_sensors.py's `in_process_server`) renders them in turn through
+as simbot-server builds it (in_process.py's `in_process_server`) renders them in turn through
 its render pool; each frame's worker time (`Frame.render_s`: scene update, draw, read-back and the
 finishing steps: the thermal counts) and the server's message build (rgb8 against mono16) are
 taken, medians over the rounds.
@@ -25,14 +25,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_looks import resources_from
-from bench_sensors import FIRST_FRAME_TIMEOUT_S, in_process_server, systems_of
+from in_process import in_process_server, systems_of
+from live_runs import FIRST_FRAME_TIMEOUT_S
 from tables import publish
 
 from simbot.description.resources import asset
 from simbot.sim.render import BodyState
 from simbot.sim.server import Server
 from simbot.sim.systems.camera import Camera
-from simbot.sim.systems.rendering import Rendering
+from simbot.sim.systems.camera_rendering import Rendering
 
 log = logging.getLogger("bench_thermal")
 

@@ -19,13 +19,13 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sensors import camera_mounts, in_process_server, systems_of
+from in_process import camera_mounts, in_process_server, systems_of
 from tables import publish
 
 from simbot.sim.render import CameraSpec, RenderPool
 from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.wide_lens import WideLens
-from simbot.sim.systems.rendering import Rendering
+from simbot.sim.systems.camera_rendering import Rendering
 
 log = logging.getLogger("bench_wide_angle")
 

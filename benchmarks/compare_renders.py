@@ -39,7 +39,7 @@ def draw(folder: Path) -> None:
     from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
     from simbot.sim.simulation import Mode
     from simbot.sim.systems.camera import CameraParams
-    from simbot.sim.systems.rendering import world_light
+    from simbot.sim.systems.camera_rendering import world_light
 
     config = ServerConfig(world_path("warehouse"), asset("urdf/flexley_tug.sdf"), mode=Mode.LOCKSTEP)
     with Node(BusOptions(listen=("tcp/127.0.0.1:0",)), "server") as node:

@@ -45,8 +45,8 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sensors import Counter, _connect, _wait_ready, children, count_topics, cpu_seconds, machine_busy
 from bench_server import free_port
+from live_runs import Counter, children, connect, count_topics, cpu_seconds, machine_busy, wait_ready
 
 from simbot.bus import Node, messages
 from simbot.clients.merger import FIXED_TOPICS, MERGED_TOPIC
@@ -333,8 +333,8 @@ def soak(minutes: float, tmp: Path) -> tuple[list[str], bool]:
     owed = expectations(tug)
     with ExitStack() as stack:
         procs = stack.enter_context(started(tmp, endpoint, namespace))
-        node = stack.enter_context(_connect(endpoint, namespace, procs["server"]))
-        _wait_ready(node)
+        node = stack.enter_context(connect(endpoint, namespace, procs["server"]))
+        wait_ready(node)
         teleop = Circle(node)
         keys = wait_for_keys(node, owed, procs)
         owed |= {

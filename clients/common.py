@@ -35,7 +35,7 @@ from typing import Any, Generic, TypeVar
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, Subscription, add_bus_arguments, messages
 from simbot.bus.frames import frame_prefix, prefixed_frame
 from simbot.bus.sync import StampSync
-from simbot.bus.transforms import Matrix, TransformTree
+from simbot.bus.tf_tree import Matrix, TransformTree
 
 logger = logging.getLogger(__name__)
 

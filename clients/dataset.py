@@ -1,5 +1,5 @@
 """`simbot dataset --out DIR [--cameras KEY…] [--every N] [--count N]`: synchronised camera frames
-as a training set, in the layout of simbot/dataset.py (PNGs, COCO annotations.json, manifest.json).
+as a training set, in the layout of simbot/dataset_format.py (PNGs, COCO annotations.json, manifest.json).
 
 Each KEY names a camera by its key (relative to `--robot-namespace`), and is one of:
 - an image key (sensor_msgs/Image): rgb8, bgr8 or mono8 → `rgb` PNG; 32FC1 depth → `depth` PNG (mm);
@@ -40,9 +40,10 @@ import numpy as np
 
 from simbot.bus import Node, messages
 from simbot.bus.frames import OPTICAL_SUFFIX
+from simbot.bus.intrinsics import BadInput, Intrinsics
 from simbot.bus.sync import StampSync
-from simbot.bus.transforms import Matrix
-from simbot.dataset import OPTICAL_IN_BODY, Box, DatasetWriter, Intrinsics, Shot
+from simbot.bus.tf_tree import Matrix
+from simbot.dataset_format import OPTICAL_IN_BODY, Box, DatasetWriter, Shot
 from simbot.transform import Transform, matmul, norm
 
 from .common import (
@@ -202,10 +203,13 @@ def blend(a: Transform, b: Transform, f: float) -> Matrix:
     return Transform.of(p.tolist(), (q / norm(q)).tolist()).matrix()
 
 
-def intrinsics_of(info: Any) -> Intrinsics:
-    k = [float(v) for v in info.k]
-    d = tuple(float(v) for v in info.d)
-    return Intrinsics(int(info.width), int(info.height), k[0], k[4], k[2], k[5], str(info.distortion_model), d)
+def intrinsics_of(info: Any) -> Intrinsics | None:
+    """What the camera_info states; None (the shot goes without) where it describes no camera."""
+    try:
+        return Intrinsics.from_info(info)
+    except BadInput as exc:
+        logger.warning("camera_info of %s left out of the shot: %s", info.header.frame_id, exc)
+        return None
 
 
 def fill(shot: Shot, source: Source, msg: Any) -> None:
@@ -305,7 +309,7 @@ class Collector:
         for source in self.sources:
             msg = ready[source.camera]
             info = ready.get(source.info) if source.info else None
-            shot = Shot(source.camera, stamp, intrinsics_of(info) if info is not None else None)
+            shot = Shot(source.camera, stamp, None if info is None else intrinsics_of(info))
             shot.pose = self.pose(msg.header.frame_id, stamp)
             fill(shot, source, msg)
             shots.append(shot)

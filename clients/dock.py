@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from simbot.bus import Node, Publisher, messages
-from simbot.bus.transforms import planar_pose
+from simbot.bus.tf_tree import planar_pose
 
 from .common import (
     POLL_S,

@@ -46,7 +46,7 @@ import numpy.typing as npt
 
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
-from simbot.bus.transforms import Matrix
+from simbot.bus.tf_tree import Matrix
 from simbot.transform import matmul
 
 from .common import ClockSubscriber, StampedSets, StaticTransforms, client_parser, number, run_client

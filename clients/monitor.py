@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from simbot.bus import Node, ServiceError, messages
-from simbot.bus.transforms import planar_pose
+from simbot.bus.tf_tree import planar_pose
 
 from .common import ClockSubscriber, Mailbox, client_parser, followed_model, number, run_client
 from .terminal import FullScreen

@@ -39,7 +39,7 @@ import numpy.typing as npt
 
 from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
-from simbot.bus.transforms import planar_pose
+from simbot.bus.tf_tree import planar_pose
 from simbot.transform import matmul
 
 from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client

@@ -77,10 +77,11 @@ import numpy.typing as npt
 
 from simbot.bus import Node, messages
 from simbot.bus.frames import optical_frame
+from simbot.bus.intrinsics import BadInput, Intrinsics
 from simbot.bus.node import RateLimitedWarnings
-from simbot.bus.transforms import Matrix
+from simbot.bus.tf_tree import Matrix
 
-from .camera_model import BadInput, Intrinsics
+from .camera_model import pixels, undoable
 from .common import ClockSubscriber, Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
 
 logger = logging.getLogger("simbot.stitcher")
@@ -290,7 +291,7 @@ class CylinderStitcher:
             oz = r[0, 2] * dx + r[1, 2] * dy + r[2, 2] * dz
             ahead = oz > 1e-9
             depth = np.where(ahead, oz, 1.0)
-            u, v = k.pixels(ox / depth, oy / depth)
+            u, v = pixels(k, ox / depth, oy / depth)
             cosine = oz / np.sqrt(dx * dx + dy * dy + dz * dz)
             take = ahead & (u >= -0.5) & (u <= k.width - 0.5) & (v >= -0.5) & (v <= k.height - 0.5) & (cosine > best)
             best[take] = cosine[take]
@@ -338,7 +339,7 @@ class StitcherNode:
         while (item := self._infos.get(0.0)) is not None:
             name, info = item
             try:
-                self._intrinsics[name] = Intrinsics.from_info(info)
+                self._intrinsics[name] = undoable(info)
             except BadInput as exc:
                 self._warnings.warn(f"{name}/camera_info", f"ignored: {exc}")
         if ready is not None:

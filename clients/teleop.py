@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.bus import Node, messages
-from simbot.bus.transforms import Matrix
+from simbot.bus.tf_tree import Matrix
 from simbot.transform import matmul
 
 from .common import POLL_S, ClockSubscriber, Recent, SimTicker, StaticTransforms, client_parser, number, run_client

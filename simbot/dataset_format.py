@@ -39,6 +39,8 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from simbot.bus.intrinsics import Intrinsics
+
 log = logging.getLogger(__name__)
 
 MANIFEST = "manifest.json"
@@ -53,29 +55,6 @@ Matrix = npt.NDArray[np.float64]
 OPTICAL_IN_BODY: Matrix = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.0], [0, 0, 0, 1.0]])
 """A camera's optical frame (z forward, x right, y down) in its body frame (x forward, z up):
 simbot.bus.frames.OPTICAL_RPY as a matrix."""
-
-
-@dataclass(frozen=True)
-class Intrinsics:
-    """A pinhole camera's size, focal lengths and principal point (ROS's pixel-centre coordinates), and its lens."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    distortion_model: str = "plumb_bob"
-    d: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "width": self.width,
-            "height": self.height,
-            "K": [[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]],
-            "distortion_model": self.distortion_model,
-            "D": list(self.d),
-        }
 
 
 @dataclass(frozen=True)

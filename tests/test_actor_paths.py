@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from simbot.description import load_sdf
-from simbot.description.actors import ActorModel
+from simbot.description.actor_scripts import ActorModel
 from simbot.sim.actor_paths import ScriptPath
 from simbot.transform import yaw_of
 

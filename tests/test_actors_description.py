@@ -1,4 +1,4 @@
-"""`<actor>` read as Gazebo reads it (simbot.description.actors), and a bad script as one line.
+"""`<actor>` read as Gazebo reads it (simbot.description.actor_scripts), and a bad script as one line.
 
 Each bad script is run through `simbot describe` as a user would: exit 2, one line on standard
 error naming the file, the line, the element and the actor, no traceback. A skin that cannot be
@@ -17,7 +17,7 @@ from conftest import REPO, run_cli
 from golden_helpers import Tolerance, text_differences
 
 from simbot.description import load_sdf
-from simbot.description.actors import PROXY_HEIGHT, PROXY_RADIUS, ActorModel
+from simbot.description.actor_scripts import PROXY_HEIGHT, PROXY_RADIUS, ActorModel
 from simbot.description.model import Box, Capsule, Mesh
 
 SCRIPT_OK = """<waypoint><time>0</time><pose>0 0 0 0 0 0</pose></waypoint>

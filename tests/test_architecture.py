@@ -1,5 +1,7 @@
-"""The shape of the package, held: no import cycles inside simbot/, no module over 500 lines, and
-`simbot/sim/systems/` holding exactly the registered systems (issue 22's measures).
+"""The shape of the package, held: no import cycles inside simbot/, the layers (the render workers'
+and the physics' code never import the simulation loop or its systems; the client programs import
+only the bus, the description and the shared leaves), no module of simbot/, clients/ or
+benchmarks/ over 500 lines, and `simbot/sim/systems/` holding exactly the registered systems.
 
 The import graph is read from the source (every `import` and `from ... import` of a simbot
 module, at any depth, those under `if TYPE_CHECKING:` included: a cycle that typing hides is still
@@ -95,9 +97,45 @@ def test_the_cycle_finder_finds_a_cycle() -> None:
     assert sorted(_cycles(graph)) == [["a", "b"], ["c", "d", "e"]]
 
 
-def test_no_module_of_simbot_is_over_500_lines() -> None:
-    sizes = {str(path.relative_to(REPO)): len(path.read_text().splitlines()) for path in PACKAGE.rglob("*.py")}
+def test_no_module_of_simbot_clients_or_benchmarks_is_over_500_lines() -> None:
+    paths = [path for folder in (PACKAGE, REPO / "clients", REPO / "benchmarks") for path in folder.rglob("*.py")]
+    sizes = {str(path.relative_to(REPO)): len(path.read_text().splitlines()) for path in paths}
+    assert len(sizes) > 150, f"only {len(sizes)} modules found"
     assert {name: lines for name, lines in sizes.items() if lines > MAX_LINES} == {}
+
+
+LOOP = ("simbot.sim.loop", "simbot.sim.systems", "simbot.sim.server")
+"""The simulation loop, its systems and the server: what the render workers and the physics never import."""
+CLIENT_MAY_IMPORT = ("simbot.bus", "simbot.description", "simbot.transform", "simbot.dataset_format")
+"""The layers a client program stands on: the bus, the description, and the leaves every layer shares."""
+
+
+def _under(module: str, packages: tuple[str, ...]) -> bool:
+    return any(module == package or module.startswith(package + ".") for package in packages)
+
+
+def test_the_render_workers_and_the_physics_never_import_the_loop() -> None:
+    graph = _graph()
+    lower = {name for name in graph if _under(name, ("simbot.sim.render", "simbot.sim.physics"))}
+    assert len(lower) > 30, f"only {len(lower)} render and physics modules found"
+    found = {name: sorted(m for m in graph[name] if _under(m, LOOP)) for name in sorted(lower)}
+    assert {name: imported for name, imported in found.items() if imported} == {}
+
+
+def test_the_clients_import_only_the_bus_the_description_and_the_shared_leaves() -> None:
+    simbot_modules = set(_graph())
+    found = {}
+    for path in sorted((REPO / "clients").glob("*.py")):
+        imported = {m for m in _imports(path, simbot_modules | {"simbot"}) if m.startswith("simbot")}
+        if others := sorted(m for m in imported if not _under(m, CLIENT_MAY_IMPORT)):
+            found[path.name] = others
+    assert found == {}
+
+
+def test_the_layer_checks_find_a_wrong_import() -> None:
+    assert _under("simbot.sim.loop.world", LOOP) and _under("simbot.sim.server", LOOP)
+    assert not _under("simbot.sim.loopy", LOOP)
+    assert not _under("simbot.sim.kit.rates", CLIENT_MAY_IMPORT)
 
 
 def test_the_systems_folder_holds_exactly_the_registered_systems() -> None:

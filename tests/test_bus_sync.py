@@ -9,7 +9,7 @@ import pytest
 
 from simbot.bus import messages as m
 from simbot.bus.sync import StampSync
-from simbot.bus.transforms import TransformTree, planar_pose
+from simbot.bus.tf_tree import TransformTree, planar_pose
 
 MS = 1_000_000
 

@@ -1,4 +1,4 @@
-"""simbot dataset and a camera's `<save>`: frames on disk in one layout (simbot/dataset.py), read back
+"""simbot dataset and a camera's `<save>`: frames on disk in one layout (simbot/dataset_format.py), read back
 by outside readers (OpenCV for the PNGs, pycocotools for the COCO annotations), their pixels, depths,
 intrinsics and poses where the geometry of the fixture room puts them.
 
@@ -27,9 +27,10 @@ from pycocotools import mask as coco_mask
 from pycocotools.coco import COCO
 from server_helpers import REPO, SimServer, left_out, running_server, wait_until
 
-from simbot.dataset import DatasetWriter, Intrinsics, Shot
+from simbot.bus.intrinsics import Intrinsics
+from simbot.dataset_format import DatasetWriter, Shot
 from simbot.sim.render import Annotation, CameraSpec, RenderPool
-from simbot.sim.render.labels import instance_of, label_of, labelled
+from simbot.sim.render.label_bits import instance_of, label_of, labelled
 
 FIXTURES = REPO / "tests" / "fixtures"
 ROOM = FIXTURES / "dataset_room.sdf"

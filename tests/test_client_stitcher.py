@@ -43,7 +43,7 @@ from conftest import REPO, ROBOT_SDF
 from server_helpers import TF_MESSAGE, SimServer, running_server, stamp_ns
 
 from simbot.bus import messages
-from simbot.bus.transforms import TransformTree
+from simbot.bus.tf_tree import TransformTree
 from simbot.clients.stitcher import (
     CAMERA_INFO,
     CAMERAS,

@@ -1,4 +1,4 @@
-"""Labels and temperatures as both renderers draw them (`labels.py`, the `labels` and
+"""Labels and temperatures as both renderers draw them (`label_bits.py`, the `labels` and
 `temperature` outputs): what segmentation, bounding-box and thermal cameras are made from."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from simbot.sim.render import Annotation, CameraSpec, Light, RenderPool, SceneBody
-from simbot.sim.render.labels import instance_of, label_of, labelled
+from simbot.sim.render.label_bits import instance_of, label_of, labelled
 from tests.gl_helpers import NO_EGL, box_body
 
 W, H, HFOV = 160, 120, math.radians(90.0)

@@ -32,7 +32,7 @@ from gz_examples import gazebo_example
 from server_helpers import SimServer, drawn_by, running_server
 
 from simbot.sim.render import CameraSpec
-from simbot.sim.render.thermal import ThermalScale, ThermalSpec, counts8, counts16
+from simbot.sim.render.thermal_counts import ThermalScale, ThermalSpec, counts8, counts16
 from simbot.sim.systems.thermal_camera import ambient_band
 
 IMAGE = "sensor_msgs/msg/Image"

@@ -361,7 +361,7 @@ def test_the_worlds_sdf_lights_and_scene_become_the_renderers_lighting(tmp_path:
     point light's `<attenuation>` block absent: range 10, constant 1, linear 1, quadratic 0);
     `<scene><shadows>` false leaves no shadow caster."""
     from simbot.description import load_world
-    from simbot.sim.systems.rendering import world_light
+    from simbot.sim.systems.camera_rendering import world_light
 
     path = tmp_path / "lit.sdf"
     path.write_text(WORLD_SDF)

@@ -17,7 +17,7 @@ import pytest
 from server_helpers import POSE_STAMPED, REPO, SimServer, pose_of, running_server
 
 from simbot.description import load_world
-from simbot.description.actors import ActorModel
+from simbot.description.actor_scripts import ActorModel
 from simbot.sim.actor_paths import ScriptPath
 
 PEOPLE = REPO / "worlds" / "additions" / "warehouse_people.sdf"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from simbot.description import Model, World, load_model, load_world
-from simbot.description.actors import PROXY_RADIUS, ActorModel
+from simbot.description.actor_scripts import PROXY_RADIUS, ActorModel
 from simbot.description.model import RGBA, Box, Cylinder, Geometry, Plane, Sphere
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import RESOURCE_PATH_VARIABLES

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from simbot.description.actors import read_actor
+from simbot.description.actor_scripts import read_actor
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
 from simbot.description.model import (
@@ -420,7 +420,7 @@ def _read_light(reader: Reader, element: Element) -> SdfLight:
 
 
 def _read_actor(reader: Reader, element: Element) -> Model:
-    """An `<actor>` (simbot.description.actors): its links framed as a model's are, relative to the actor."""
+    """An `<actor>` (simbot.description.actor_scripts): its links framed as a model's are, relative to the actor."""
     links = element.findall("link")
     frames = _model_frames(reader, element, links, [])
     plugins = tuple(_read_plugin(reader, e) for e in element.findall("plugin"))

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-from simbot.description.actors import Script, Trajectory
+from simbot.description.actor_scripts import Script, Trajectory
 from simbot.description.poses import Pose
 from simbot.transform import Transform
 

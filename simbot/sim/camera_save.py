@@ -1,5 +1,5 @@
 """Gazebo's `<save enabled="true"><path>P</path></save>` of a camera (under `<camera>`): every
-frame the camera renders is written to P in simbot's dataset layout (simbot/dataset.py, the same
+frame the camera renders is written to P in simbot's dataset layout (simbot/dataset_format.py, the same
 as `simbot dataset` writes), a relative P relative to the server's working directory, as Gazebo
 does. Cameras saving to one folder share its manifest, their frames grouped by stamp.
 
@@ -15,10 +15,11 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from simbot.dataset import OPTICAL_IN_BODY, DatasetWriter, Intrinsics, Shot, open_shared, release
+from simbot.bus.intrinsics import Intrinsics
+from simbot.dataset_format import OPTICAL_IN_BODY, DatasetWriter, Shot, open_shared, release
 from simbot.description.model import Param, Sensor
 from simbot.sim.render import CameraSpec, Frame
-from simbot.sim.render.labels import instance_of, label_of, labelled
+from simbot.sim.render.label_bits import instance_of, label_of, labelled
 from simbot.sim.system import SystemConfigError
 from simbot.transform import matmul
 

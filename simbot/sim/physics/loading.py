@@ -8,7 +8,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from simbot.description.actors import is_actor
+from simbot.description.actor_scripts import is_actor
 from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Link, Model, Sphere
 from simbot.description.poses import Pose

@@ -3,7 +3,7 @@
 
 An object is one body's visuals of one label (`SceneBody.annotated`; label 0 is background and has
 no box), keyed by (instance, label); only objects seen in the frame get a box, as in Gazebo.
-- Visible 2D box: the extent of the object's pixels in the `labels` buffer (`labels.py`), so what
+- Visible 2D box: the extent of the object's pixels in the `labels` buffer (`label_bits.py`), so what
   hides part of it (labelled or not) shrinks it; corners are pixel indices (ROS's pixel-centre
   coordinates).
 - Full 2D box: the object's visual vertices (`visuals.visual_points` of `SceneBody.visuals`),
@@ -28,7 +28,7 @@ import numpy.typing as npt
 
 from simbot.description.kinematics import KinematicTree, UrdfJoint
 from simbot.sim.render.kinds import Intrinsics
-from simbot.sim.render.labels import MAX_INSTANCE, labelled
+from simbot.sim.render.label_bits import MAX_INSTANCE, labelled
 from simbot.sim.render.specs import Frame, SceneBody
 from simbot.sim.render.visuals import visual_points
 from simbot.transform import Matrix, Transform, matmul, norm, rigid_inverse

@@ -1,7 +1,7 @@
 """What a camera-type sensor and the rendering system agree on, so that neither imports the other.
 
 A sensor that renders implements `RenderedSensor`; the world's rendering system
-(simbot/sim/systems/rendering.py) finds such sensors among the systems of each model that enters
+(simbot/sim/systems/camera_rendering.py) finds such sensors among the systems of each model that enters
 the world, schedules them, and tells them how rendering goes through their `status`. A system
 that says what cameras see of a model's visuals (Label, Thermal) implements `Annotating`: the
 rendering system hands its annotation to the render workers with the model's bodies.

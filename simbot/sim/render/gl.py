@@ -52,7 +52,7 @@ log = logging.getLogger(__name__)
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 ROW = "3f 3f 2f 1u 1f"
 """A vertex: position, normal, texture coordinates (float32), its visual's packed label (uint32,
-`labels.py`) and temperature (float32, K; below zero: none): 40 bytes."""
+`label_bits.py`) and temperature (float32, K; below zero: none): 40 bytes."""
 SHADED_ROW, DEPTH_ROW, ANNOTATION_ROW = "3f 3f 2f 8x", "3f 28x", "3f 20x 1u 1f"
 """What each program reads of a vertex."""
 ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3

@@ -287,7 +287,7 @@ void main() {
     height = placed.z;
 }
 """
-"""What annotated cameras see: each fragment's label (`labels.py`) and temperature."""
+"""What annotated cameras see: each fragment's label (`label_bits.py`) and temperature."""
 
 ANNOTATION_FRAGMENT = """
 #version 330

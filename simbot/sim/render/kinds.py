@@ -33,7 +33,7 @@ GROUP = "simbot.camera_outputs"
 Array = npt.NDArray[Any]
 Raw = Literal["color", "depth", "labels", "temperature"]
 """The buffers a renderer draws: uint8 colour (H×W×3 rgb, or H×W luminance), window depth (float32,
-0..1), each pixel's label and instance (uint32, `labels.py`), its temperature (float32, K)."""
+0..1), each pixel's label and instance (uint32, `label_bits.py`), its temperature (float32, K)."""
 Finish = Callable[[Array, Mapping[str, Array]], None]
 """Finishes an output in place, given its array and every output of the camera by name."""
 

@@ -120,6 +120,6 @@ DEPTH = OutputKind("depth", np.float32, 1, encoding="32FC1", draws="depth", fini
 POINTS = OutputKind("points", np.float32, 4, needs=("color", "depth"), finisher=points)
 """x y z rgb float32 per pixel in the optical frame: the layout of an organised PointCloud2."""
 LABELS = OutputKind("labels", np.uint32, 1, draws="labels")
-"""Each pixel's label and instance, packed (`labels.py`): what segmentation and bounding boxes are read from."""
+"""Each pixel's label and instance, packed (`label_bits.py`): what segmentation and bounding boxes are read from."""
 TEMPERATURE = OutputKind("temperature", np.float32, 1, draws="temperature")
 """Each pixel's temperature in kelvin (the Thermal system's, else the atmosphere's at that height)."""

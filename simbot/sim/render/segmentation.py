@@ -1,4 +1,4 @@
-"""Segmentation outputs (`kinds.py`), finished from the packed `labels` buffer (`labels.py`) in the
+"""Segmentation outputs (`kinds.py`), finished from the packed `labels` buffer (`label_bits.py`) in the
 render worker: the labels map and the colored map of Gazebo's segmentation camera, rgb8 each.
 
 Labels map, per pixel in message byte order (gz-rendering's Ogre2SegmentationCamera):
@@ -32,7 +32,7 @@ SCALE = (MIN_CHANNEL + np.arange(256) * (255 - MIN_CHANNEL) // 255).astype(np.ui
 """A hash byte → a channel in 32..255."""
 LABEL_BYTE = 2
 """Of a packed pixel's four bytes in memory (little-endian: instance low, instance high, label,
-flags), the label's: the layout of `labels.py` is nearly the panoptic labels map already."""
+flags), the label's: the layout of `label_bits.py` is nearly the panoptic labels map already."""
 
 Keys = npt.NDArray[np.uint32]
 

@@ -59,6 +59,6 @@ class Piece:
     source has none."""
     surface: Surface
     label: int = 0
-    """The label and instance of its visual, packed (`labels.py`)."""
+    """The label and instance of its visual, packed (`label_bits.py`)."""
     temperature: float = float("nan")
     """Its temperature (K) from the Thermal system; NaN: the atmosphere's where it is."""

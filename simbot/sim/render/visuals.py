@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from simbot.description.model import RGBA, Box, Capsule, Cylinder, Geometry, Material, Mesh, Sphere, Visual
-from simbot.sim.render.labels import pack
+from simbot.sim.render.label_bits import pack
 from simbot.sim.render.mesh_materials import pbr_specular, readable_image, scaled, submeshes
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.shapes import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE, Tessellated, primitive

@@ -1,6 +1,6 @@
 """Camera (SDF `camera`): images rendered by the rendering system, stamped with the sim time they show.
 
-The world's one `Rendering` system (simbot/sim/systems/rendering.py) finds the camera by its
+The world's one `Rendering` system (simbot/sim/systems/camera_rendering.py) finds the camera by its
 `RenderedSensor` contract (simbot/sim/render/contract.py), schedules it and renders it in worker
 processes. This module says what a camera renders
 and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same camera with

@@ -53,7 +53,7 @@ from simbot.description.model import SdfLight, World
 from simbot.sim.render import Annotation, BodyState, Light, LightSource, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.contract import Annotating, RenderedSensor, RenderStatus
-from simbot.sim.render.labels import MAX_INSTANCE
+from simbot.sim.render.label_bits import MAX_INSTANCE
 from simbot.sim.render.publishing import Bus
 from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import matmul

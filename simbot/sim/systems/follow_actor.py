@@ -26,7 +26,7 @@ from __future__ import annotations
 import logging
 import math
 
-from simbot.description.actors import is_actor
+from simbot.description.actor_scripts import is_actor
 from simbot.sim.physics import compose
 from simbot.sim.plugin_params import number_param, param
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo

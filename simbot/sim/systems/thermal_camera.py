@@ -4,7 +4,7 @@ temperature of what each pixel sees as a `mono16` (L16) or `mono8` (L8) sensor_m
 The same camera as `camera` (its `<camera>` elements, its image on `<topic>`, else Gazebo's
 `world/<w>/model/<m>/link/<l>/sensor/<s>/image`, camera_info beside it under the same stamp),
 rendering the `temperature` buffer (simbot/sim/render/outputs.py) and counting it
-(simbot/sim/render/thermal.py): count = rint(clamp(T, min_temp, max_temp) / resolution). What it
+(simbot/sim/render/thermal_counts.py): count = rint(clamp(T, min_temp, max_temp) / resolution). What it
 sees:
 
 - a visual (or a model) with Gazebo's Thermal system (simbot/sim/systems/thermal.py): its `<temperature>`;
@@ -47,7 +47,7 @@ from simbot.bus import messages
 from simbot.description.model import Atmosphere, Param, Sensor
 from simbot.sim.render.lens import Distortion
 from simbot.sim.render.specs import CameraSpec
-from simbot.sim.render.thermal import DEFAULT_RESOLUTION, ThermalScale, ThermalSpec
+from simbot.sim.render.thermal_counts import DEFAULT_RESOLUTION, ThermalScale, ThermalSpec
 from simbot.sim.sensor_params import SdfElement
 from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Message, Product
