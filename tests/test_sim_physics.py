@@ -16,6 +16,8 @@ from simbot.description.model import Box, Collision, Inertial, Link, Model, Sphe
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
+from simbot.sim.physics.kinematic import KINEMATIC_STEP_S, KinematicStepper, kinematic
+from simbot.sim.physics.stepping import DynamicStepper, stepper
 from simbot.transform import yaw_of
 
 G = 9.8
@@ -47,6 +49,16 @@ def _drive(sim: Physics, left: float, right: float) -> None:
     for joint in WHEELS:
         speed = left if "left" in joint else right
         sim.set_joint_velocity("flexley_tug", joint, speed / RADIUS, 10000.0)
+
+
+def test_the_world_asks_for_its_stepping_once() -> None:
+    """Dynamic unless the world's physics is kinematic, which steps at the kinematic world's step."""
+    world = load_world(asset("worlds/empty.sdf"))
+    client = pb.connect(pb.DIRECT)
+    dynamic, kinematic_ = stepper(world, client), stepper(kinematic(world), client)
+    pb.disconnect(client)
+    assert isinstance(dynamic, DynamicStepper)
+    assert isinstance(kinematic_, KinematicStepper) and kinematic_.dt == KINEMATIC_STEP_S
 
 
 def test_model_pose_is_the_model_frame_not_the_centre_of_mass() -> None:

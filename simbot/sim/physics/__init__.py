@@ -7,6 +7,8 @@ reports a body's centre of mass; the offset is undone here once).
 - `loading`: an SDF model's trees of joints into PyBullet bodies (`Body`), with `dynamics` (friction,
   wheels, castors) and `heightfields`;
 - `world`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
+- `stepping`: what differs between dynamic and kinematic stepping (`Stepper`), chosen once per world;
+  `kinematic`: the kinematic fleet mode's stepper;
 - `queries` and `commands`: its read and command halves, by name; `protocols`: the same as systems see them;
 - `frames`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`: the parts.
 

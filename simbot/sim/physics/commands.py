@@ -10,8 +10,8 @@ import numpy as np
 from simbot.sim.bullet import pb
 from simbot.sim.physics.frames import compose, invert, vec3
 from simbot.sim.physics.guard import changes_world
-from simbot.sim.physics.kinematic import Kinematics
 from simbot.sim.physics.queries import Queries
+from simbot.sim.physics.stepping import Stepper
 from simbot.transform import Transform, Vec3, matmul
 
 FIXED_CONSTRAINT_FORCE = 1e6
@@ -22,7 +22,7 @@ class Commands(Queries):
     """Changing the world; the state it changes is `Physics`'s."""
 
     read_only: bool
-    _kinematics: Kinematics | None
+    _stepper: Stepper
 
     @changes_world
     def set_model_pose(self, model: str, pose: Transform) -> None:
@@ -46,26 +46,16 @@ class Commands(Queries):
 
     @changes_world
     def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:
-        """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo."""
+        """Drives a joint at `velocity` with at most `max_effort` (N·m or N), as a velocity servo
+        (a kinematic world turns it at `velocity`: see `stepping`)."""
         body = self.body(model)
-        if self._kinematics is not None:
-            self._kinematics.joint_velocity(body.id, body.joint_index(joint), velocity)
-            return
-        pb.setJointMotorControl2(
-            body.id,
-            body.joint_index(joint),
-            pb.VELOCITY_CONTROL,
-            targetVelocity=velocity,
-            force=max_effort,
-            physicsClientId=self.client,
-        )
+        self._stepper.joint_velocity(body.id, body.joint_index(joint), velocity, max_effort)
 
     @changes_world
     def drive_base(self, model: str, forward: float, lateral: float, turn: float) -> None:
         """The planar twist a drive commands of the model frame (m/s along x and y, rad/s about z):
         in kinematic mode the base moves by it; a dynamic world moves it through the wheels instead."""
-        if self._kinematics is not None:
-            self._kinematics.drive(self.body(model), self.bodies.values(), forward, lateral, turn)
+        self._stepper.drive(self.body(model), self.bodies.values(), forward, lateral, turn)
 
     @changes_world
     def set_joint_force(self, model: str, joint: str, force: float) -> None:
@@ -104,8 +94,7 @@ class Commands(Queries):
         )  # fmt: skip
         pb.changeConstraint(cid, maxForce=FIXED_CONSTRAINT_FORCE, physicsClientId=self.client)
         self.constraints[cid] = (parent[0], child[0])
-        if self._kinematics is not None:
-            self._kinematics.carry(cid, pbody, cbody)
+        self._stepper.carry(cid, pbody, cbody)
         return cid
 
     def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
@@ -122,5 +111,4 @@ class Commands(Queries):
         """Removes a joint made by `attach`."""
         if self.constraints.pop(constraint, None) is not None:
             pb.removeConstraint(constraint, physicsClientId=self.client)
-            if self._kinematics is not None:
-                self._kinematics.release(constraint)
+            self._stepper.release(constraint)

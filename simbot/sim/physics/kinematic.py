@@ -19,6 +19,8 @@ and casts rays. Each step:
 Contacts whose normal is within 45° of vertical are the floor's (a wheel on the ground, a castor).
 Free bodies that no robot carries stay where they are. The step is `KINEMATIC_STEP_S` unless the
 world's is longer: IMUs and other sensors above 200 Hz are capped at the step rate.
+
+`KinematicStepper` is this mode's `Stepper` (`stepping`, which chooses it when the world asks).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from simbot.description.model import World
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.frames import compose, invert
+from simbot.sim.physics.wheel_friction import WheelFriction
 from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
@@ -75,10 +78,12 @@ class Carried:
 
 
 @dataclass
-class Kinematics:
-    """The kinematic stepping of one PyBullet world (see the module docstring)."""
+class KinematicStepper:
+    """The kinematic stepping of one PyBullet world (see the module docstring), a `stepping.Stepper`."""
 
     client: int
+    dt: float
+    """The step (the world's step size, s)."""
     driven: dict[int, Driven] = field(default_factory=dict)
     joints: dict[int, dict[int, float]] = field(default_factory=dict)
     """Per body: joint index → the velocity it turns at."""
@@ -108,7 +113,8 @@ class Kinematics:
             (x, y, z), quat = pb.getBasePositionAndOrientation(body, physicsClientId=self.client)
             pb.resetBasePositionAndOrientation(body, (x, y, z - min(gaps)), quat, physicsClientId=self.client)
 
-    def joint_velocity(self, body: int, joint: int, velocity: float) -> None:
+    def joint_velocity(self, body: int, joint: int, velocity: float, max_effort: float) -> None:
+        """The joint turns at `velocity` from now on, whatever `max_effort`: no force is computed."""
         self.joints.setdefault(body, {})[joint] = velocity
 
     def carry(self, constraint: int, parent: int, child: int) -> None:
@@ -120,6 +126,9 @@ class Kinematics:
         """The joint `carry` followed is gone: its child stays where it is."""
         self.carried.pop(constraint, None)
 
+    def add(self, body: int, wheels: WheelFriction | None) -> None:
+        """Nothing: a body is stepped once a drive or a joint command names it; wheels turn, never roll."""
+
     def forget(self, body: int) -> None:
         """A body left the world."""
         self.driven.pop(body, None)
@@ -127,16 +136,16 @@ class Kinematics:
         self._parked.discard(body)
         self.carried = {c: k for c, k in self.carried.items() if body not in (k.parent, k.child)}
 
-    def step(self, bodies: dict[str, Body], dt: float) -> None:
+    def step(self, bodies: dict[str, Body]) -> None:
         """One step of every driven body, turning joint and carried body (module docstring)."""
         by_id = {body.id: body for body in bodies.values()}
         before = {
-            body: self._move(by_id[body], driven.twist, dt)
+            body: self._move(by_id[body], driven.twist, self.dt)
             for body, driven in self.driven.items()
             if body in by_id and driven.twist != (0.0, 0.0, 0.0)
         }
         for body, velocities in self.joints.items():
-            self._turn(body, velocities, dt)
+            self._turn(body, velocities, self.dt)
         for carried in self.carried.values():
             pb.resetBasePositionAndOrientation(
                 carried.child, *compose(self._base(carried.parent), carried.relative), physicsClientId=self.client

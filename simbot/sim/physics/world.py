@@ -16,10 +16,9 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.commands import Commands
 from simbot.sim.physics.guard import changes_world
-from simbot.sim.physics.kinematic import KINEMATIC, Kinematics
 from simbot.sim.physics.loading import Loader
 from simbot.sim.physics.rays import Rays
-from simbot.sim.physics.wheel_friction import WheelFriction, wheel_loads
+from simbot.sim.physics.stepping import Stepper, stepper
 from simbot.transform import Transform
 
 
@@ -44,10 +43,8 @@ class Physics(Commands):
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _loader: Loader = field(init=False)
-    _wheels: dict[int, WheelFriction] = field(default_factory=dict)
-    """The wheels' friction model of each body that has wheels, by PyBullet body id."""
-    _kinematics: Kinematics | None = None
-    """Set in kinematic mode (`<physics type="kinematic">`): robots move by their drives' commands."""
+    _stepper: Stepper = field(init=False)
+    """Dynamic, or kinematic where the world asks (`<physics type="kinematic">`): chosen once, here."""
     _heightfields: dict[str, list[int]] = field(default_factory=dict)
     """The heightfield bodies of each model's heightmaps (PyBullet bodies apart from the model's)."""
     _saved_state: int | None = None
@@ -60,8 +57,7 @@ class Physics(Commands):
         pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
         self._rays = Rays(self.client)
-        if self.world.physics.type == KINEMATIC:
-            self._kinematics = Kinematics(self.client)
+        self._stepper = stepper(self.world, self.client)
         self._loader = Loader(self.client, Path(self._tmp.name), self.fixed_castors, self.merge_fixed_links)
 
     def close(self) -> None:
@@ -91,8 +87,7 @@ class Physics(Commands):
             raise ValueError(f"a model named {name!r} is already in the world")
         loaded = self._loader.load(model, name, pose)
         self.bodies[name] = loaded.body
-        if loaded.wheels is not None:
-            self._wheels[loaded.body.id] = loaded.wheels
+        self._stepper.add(loaded.body.id, loaded.wheels)
         self._heightfields[name] = loaded.heightfields
         return loaded.body
 
@@ -105,9 +100,7 @@ class Physics(Commands):
         names = [n for n in self.bodies if n == name or n.startswith(name + "::")]
         for part in names:
             body = self.bodies.pop(part)
-            self._wheels.pop(body.id, None)
-            if self._kinematics is not None:
-                self._kinematics.forget(body.id)
+            self._stepper.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
             self._rays.release(part)
             for heightfield in self._heightfields.pop(part, []):
@@ -134,15 +127,8 @@ class Physics(Commands):
     @changes_world
     def step(self) -> None:
         """One physics step: wheel friction from the last contacts, then PyBullet; in kinematic mode
-        the drives' motions and a collision check (`kinematic`)."""
-        if self._kinematics is not None:
-            self._kinematics.step(self.bodies, self.step_size)
-            return
-        if self._wheels:
-            loads = wheel_loads(self.client, self._wheels)
-            for wheels in self._wheels.values():
-                wheels.apply(loads)
-        pb.stepSimulation(physicsClientId=self.client)
+        the drives' motions and a collision check (`stepping`)."""
+        self._stepper.step(self.bodies)
 
     @changes_world
     def reset(self) -> None:
