@@ -16,7 +16,7 @@ from simbot.description.model import Box, Collision, Inertial, Link, Model, Sphe
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
-from simbot.sim.physics.kinematic import KINEMATIC_STEP_S, KinematicStepper, kinematic
+from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, KinematicStepper, kinematic
 from simbot.sim.physics.stepping import DynamicStepper, stepper
 from simbot.transform import yaw_of
 

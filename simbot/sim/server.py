@@ -32,7 +32,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import WorldControl
-from simbot.sim.physics.kinematic import KINEMATIC, kinematic
+from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
 from simbot.sim.simulation import Mode
 from simbot.sim.system import RunOptions, System, SystemConfigError
@@ -68,7 +68,7 @@ class ServerConfig:
     additions: tuple[Path, ...] = ()
     """`--add`: SDF files whose models and actors join the world's own (`with_additions`)."""
     kinematic: bool = False
-    """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic),
+    """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic_stepper),
     as a world's `<physics type="kinematic">` asks."""
 
     def run_options(self) -> RunOptions:

@@ -26,7 +26,7 @@ from simbot.sim.bus_view import SimBus
 from simbot.sim.control import CreateRequest
 from simbot.sim.naming import scoped_key, scoped_rng
 from simbot.sim.physics import Physics
-from simbot.sim.physics.kinematic import KINEMATIC, kinematic
+from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.plugin_params import plugin_priority
 from simbot.sim.registry import ROBOT_GROUP, WORLD_GROUP, builtin, lookup, sensor_lookup
 from simbot.sim.simulation import Mode, Scheduled, Simulation

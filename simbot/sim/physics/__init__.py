@@ -16,11 +16,11 @@ PyBullet itself comes from `simbot.sim.bullet`, which the render workers share.
 """
 
 from simbot.sim.physics.contacts import ContactPoint
-from simbot.sim.physics.frames import compose, invert, pose_to_transform
+from simbot.sim.physics.bullet_transforms import compose, invert, pose_to_transform
 from simbot.sim.physics.guard import PhysicsReadOnly
 from simbot.sim.physics.loading import ball_castors
 from simbot.sim.physics.protocols import WorldAccess, WorldCommands, WorldReader
-from simbot.sim.physics.world import Physics
+from simbot.sim.physics.engine import Physics
 
 __all__ = [
     "ContactPoint",

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbot.sim.bullet import pb
-from simbot.sim.physics.frames import compose, invert, vec3
+from simbot.sim.physics.bullet_transforms import compose, invert, vec3
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.queries import Queries
 from simbot.sim.physics.stepping import Stepper

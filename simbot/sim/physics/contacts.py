@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from simbot.sim.physics.frames import vec3
+from simbot.sim.physics.bullet_transforms import vec3
 from simbot.transform import Vec3, matmul
 
 

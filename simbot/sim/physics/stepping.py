@@ -26,7 +26,7 @@ from typing import Protocol
 from simbot.description.model import World
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.kinematic import KINEMATIC, KinematicStepper
+from simbot.sim.physics.kinematic_stepper import KINEMATIC, KinematicStepper
 from simbot.sim.physics.wheel_friction import WheelFriction, wheel_loads
 
 

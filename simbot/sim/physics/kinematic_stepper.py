@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 from simbot.description.model import World
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.frames import compose, invert
+from simbot.sim.physics.bullet_transforms import compose, invert
 from simbot.sim.physics.wheel_friction import WheelFriction
 from simbot.transform import Transform
 
