@@ -6,21 +6,21 @@ reports a body's centre of mass; the offset is undone here once).
 
 - `loading`: an SDF model's trees of joints into PyBullet bodies (`Body`), with `dynamics` (friction,
   wheels, castors) and `heightfields`;
-- `world`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
+- `engine`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
 - `stepping`: what differs between dynamic and kinematic stepping (`Stepper`), chosen once per world;
-  `kinematic`: the kinematic fleet mode's stepper;
+  `kinematic_stepper`: the kinematic fleet mode's stepper;
 - `queries` and `commands`: its read and command halves, by name; `protocols`: the same as systems see them;
-- `frames`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`: the parts.
+- `bullet_transforms`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`: the parts.
 
 PyBullet itself comes from `simbot.sim.bullet`, which the render workers share.
 """
 
-from simbot.sim.physics.contacts import ContactPoint
 from simbot.sim.physics.bullet_transforms import compose, invert, pose_to_transform
+from simbot.sim.physics.contacts import ContactPoint
+from simbot.sim.physics.engine import Physics
 from simbot.sim.physics.guard import PhysicsReadOnly
 from simbot.sim.physics.loading import ball_castors
 from simbot.sim.physics.protocols import WorldAccess, WorldCommands, WorldReader
-from simbot.sim.physics.engine import Physics
 
 __all__ = [
     "ContactPoint",

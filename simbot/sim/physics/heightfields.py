@@ -10,8 +10,8 @@ from simbot.description.generated_meshes import heightmap_heights
 from simbot.description.model import Collision, Heightmap, Link, Model
 from simbot.description.poses import Pose
 from simbot.sim.bullet import pb
-from simbot.sim.physics.dynamics import SDF_DEFAULT_MU
 from simbot.sim.physics.bullet_transforms import compose, pose_to_transform
+from simbot.sim.physics.dynamics import SDF_DEFAULT_MU
 from simbot.transform import Transform
 
 logger = logging.getLogger(__name__)

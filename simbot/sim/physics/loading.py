@@ -15,8 +15,8 @@ from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf_held, urdf_root
 from simbot.sim.bullet import pb, quiet
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.dynamics import configure
 from simbot.sim.physics.bullet_transforms import compose, invert, pose_to_transform
+from simbot.sim.physics.dynamics import configure
 from simbot.sim.physics.heightfields import add_heightfields
 from simbot.sim.physics.wheel_friction import WheelFriction
 from simbot.transform import Transform

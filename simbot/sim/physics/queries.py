@@ -12,8 +12,8 @@ from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import link_frame
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
-from simbot.sim.physics.contacts import ContactPoint, contact_point
 from simbot.sim.physics.bullet_transforms import compose, pose_to_transform, vec3
+from simbot.sim.physics.contacts import ContactPoint, contact_point
 from simbot.sim.physics.rays import Rays
 from simbot.transform import Transform, Vec3, matmul
 

@@ -13,7 +13,7 @@ chosen once when it is created (`stepper`), and otherwise knows nothing of the m
 
 `DynamicStepper` (here) integrates forces: wheel friction from the last contacts, joint motors,
 constraints, then `stepSimulation`; a drive moves its base through the wheels, so it ignores the
-twist. `KinematicStepper` (`kinematic`) integrates nothing: bodies move by their twists and joint
+twist. `KinematicStepper` (`kinematic_stepper`) integrates nothing: bodies move by their twists and joint
 velocities and stop at contact.
 """
 
