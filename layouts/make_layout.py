@@ -1,17 +1,18 @@
 """Write `layouts/simbot.json`, the Foxglove layout for `simbot foxglove`, with the SDK's `foxglove.layouts`.
 
 Built in code so that every panel and setting is checked against the SDK's layout types, and the
-topic and frame names come from the clients that publish them. The layout shows:
+topic and frame names come from the code that publishes them. The layout opens on the tug:
 
-- the stitcher's panorama (an Image panel);
-- the merger's 360° scan from above over the world's scene (`/scene`, the walls, racks and
-  trolley as markers; the server places `world` in `odom`), in a 3D panel whose fixed frame is
-  `odom` (the scan stays where the world is while the robot drives) and whose view follows
-  `base_link`, with the robot's collision shapes from `robot_description`;
-- the robot's frames: a 3D panel with every tf frame, labelled, and the TransformTree panel.
+- a 3D panel whose fixed frame is `odom` (the world stays put while the robot drives) and whose
+  view follows `base_link` from behind and above, turning with it: the world's visuals as markers
+  (the scene publisher's `/scene`: floor, walls, racks, the trolley, the people and the tug
+  itself; the server places `world` in `odom`), the merger's 360° scan over them, and the robot's
+  frames as small axes without labels (labels of a dozen frames a few centimetres apart pile up);
+- beside it, the front camera over the stitcher's panorama (two Image panels);
+- under the 3D panel, the TransformTree panel: every frame by name.
 
-The app subscribes only to what the panels show, so the cameras render only for the stitcher.
-The output is deterministic (a test compares it with the committed file).
+The app subscribes only to what the panels show: of the cameras, the front one (the stitcher
+subscribes to all six itself). The output is deterministic (a test compares it with the committed file).
 
     .venv/bin/python layouts/make_layout.py [--out FILE]     (`make layout`)
 """
@@ -21,97 +22,69 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-from typing import Any
+from typing import Literal
 
 import foxglove.layouts as fl
 
 from simbot.clients.merger import MERGED_TOPIC, TARGET_FRAME
-from simbot.clients.stitcher import IMAGE_TOPIC
+from simbot.clients.stitcher import CAMERAS, IMAGE_TOPIC
+from simbot.sim.systems.scene_publisher import SCENE_TOPIC
 
 FIXED_FRAME = "odom"
+FRONT_CAMERA = "/" + CAMERAS[0]
 PANORAMA = "/" + IMAGE_TOPIC
 SCAN = "/" + MERGED_TOPIC
-ROBOT_DESCRIPTION = "/robot_description"
-SCENE = "/scene"
-SCAN_VIEW_M = 14.0
-"""How far the scan panel's camera is from base_link: the ±6 m a warehouse aisle shows, with a margin."""
+SCENE = "/" + SCENE_TOPIC
+BEHIND_AND_ABOVE = fl.ThreeDeeCameraState(
+    perspective=True, distance=12.0, phi=60.0, theta_offset=90.0, target_offset=(3.5, 0.0, 0.0), fovy=45.0
+)
+"""12 m from a point 3.5 m ahead of base_link, 60° from the vertical, on base_link's -x side
+(theta_offset 90°): the tug low in the middle, the trolley and the aisle ahead, the pillars either side."""
 
 
-def robot_model(opacity: float) -> fl.BaseRendererUrdfTopicSettings:
-    """The robot from `robot_description`, drawn by its collision shapes."""
-    return fl.BaseRendererUrdfTopicSettings(
-        visible=True, display_mode="collision", fallback_color="#e8a33d", opacity=opacity
+def tug_panel() -> fl.ThreeDeePanel:
+    """The scene, the merged scan and the robot's frames, seen from behind and above base_link."""
+    scene = fl.BaseRendererSceneSettings(
+        # the robot's STL meshes are z-up, as in ROS; the app's default for STL is y-up
+        mesh_up_axis="z_up",
+        transforms=fl.BaseRendererTransforms(visible=True, show_label=False, axis_size=0.15, line_width=0.0),
     )
-
-
-def panorama_panel() -> fl.ImagePanel:
-    return fl.ImagePanel(title="Panorama", config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic=PANORAMA)))
-
-
-def following_panel(
-    title: str, camera: fl.ThreeDeeCameraState, scene: fl.BaseRendererSceneSettings, **settings: Any
-) -> fl.ThreeDeePanel:
-    """A 3D panel whose fixed frame is odom and whose view follows base_link's position and heading."""
+    topics = {
+        SCENE: fl.BaseRendererRosMarkerTopicSettings(visible=True, show_outlines=False),
+        # a colour field named, though the colour is flat: without one, Studio 1.48 (the browser
+        # test's) colours by intensity, which the merged scan leaves empty, and draws nothing
+        SCAN: fl.BaseRendererLaserScanTopicSettings(
+            visible=True, point_size=6.0, color_mode="flat", flat_color="#ff3b30", color_field="range"
+        ),
+    }
     config = fl.ThreeDeeConfig(
         fixed_frame=FIXED_FRAME,
         follow_tf=TARGET_FRAME,
         follow_mode="follow-pose",
-        camera_state=camera,
+        camera_state=BEHIND_AND_ABOVE,
         scene=scene,
-        **settings,
+        topics=topics,
     )
-    return fl.ThreeDeePanel(title=title, config=config)
+    return fl.ThreeDeePanel(title="Tug", config=config)
 
 
-def scan_panel() -> fl.ThreeDeePanel:
-    """The merged scan from above over the scene, in odom, the view following base_link's heading."""
-    return following_panel(
-        "Merged scan",
-        fl.ThreeDeeCameraState(perspective=False, distance=SCAN_VIEW_M, phi=0.0, theta_offset=0.0),
-        fl.BaseRendererSceneSettings(transforms=fl.BaseRendererTransforms(visible=False)),
-        layers={"grid": fl.BaseRendererGridLayerSettings(frame_id=FIXED_FRAME, size=20.0, divisions=20.0)},
-        topics={
-            # a colour field named, though the colour is flat: without one, Studio 1.48 (the browser
-            # test's) colours by intensity, which the merged scan leaves empty, and draws nothing
-            SCAN: fl.BaseRendererLaserScanTopicSettings(
-                visible=True, point_size=3.0, color_mode="flat", flat_color="#ff3b30", color_field="range"
-            ),
-            ROBOT_DESCRIPTION: robot_model(opacity=0.8),
-            SCENE: fl.BaseRendererRosMarkerTopicSettings(visible=True, show_outlines=False),
-        },
-    )
+def image_panel(title: str, topic: str) -> fl.ImagePanel:
+    """An Image panel on one image topic."""
+    return fl.ImagePanel(title=title, config=fl.ImageConfig(image_mode=fl.ImageModeConfig(image_topic=topic)))
 
 
-def frames_panel() -> fl.ThreeDeePanel:
-    """Every tf frame of the robot, labelled, around base_link."""
-    return following_panel(
-        "Frames",
-        fl.ThreeDeeCameraState(perspective=True, distance=4.0, phi=55.0, theta_offset=45.0),
-        fl.BaseRendererSceneSettings(
-            transforms=fl.BaseRendererTransforms(visible=True, show_label=True, label_size=0.08, axis_size=0.15)
-        ),
-        topics={ROBOT_DESCRIPTION: robot_model(opacity=0.3)},
+def split(direction: Literal["row", "column"], *items: tuple[float, fl.Content]) -> fl.SplitContainer:
+    """Panels side by side (`row`) or one over another (`column`), each given as (proportion, panel)."""
+    return fl.SplitContainer(
+        direction=direction, items=[fl.SplitItem(proportion=share, content=content) for share, content in items]
     )
 
 
 def layout() -> fl.Layout:
-    """Panorama over the scan on the left; the frames in 3D over the transform tree on the right."""
-    left = fl.SplitContainer(
-        direction="column",
-        items=[fl.SplitItem(proportion=1, content=panorama_panel()), fl.SplitItem(proportion=2, content=scan_panel())],
-    )
-    right = fl.SplitContainer(
-        direction="column",
-        items=[
-            fl.SplitItem(proportion=2, content=frames_panel()),
-            fl.SplitItem(proportion=1, content=fl.TransformTreePanel()),
-        ],
-    )
-    return fl.Layout(
-        content=fl.SplitContainer(
-            direction="row", items=[fl.SplitItem(proportion=3, content=left), fl.SplitItem(proportion=2, content=right)]
-        )
-    )
+    """The 3D panel over the transform tree on the left; the front camera over the panorama on the right."""
+    tug = split("column", (4, tug_panel()), (1, fl.TransformTreePanel()))
+    images = split("column", (3, image_panel("Front camera", FRONT_CAMERA)), (1, image_panel("Panorama", PANORAMA)))
+    return fl.Layout(content=split("row", (3, tug), (2, images)))
 
 
 def render() -> str:
