@@ -1,7 +1,7 @@
 """Camera (SDF `camera`): images rendered by the rendering system, stamped with the sim time they show.
 
 The world's one `Rendering` system (simbot/sim/systems/camera_rendering.py) finds the camera by its
-`RenderedSensor` contract (simbot/sim/render/contract.py), schedules it and renders it in worker
+`RenderedSensor` contract (simbot/sim/rendered_sensor.py), schedules it and renders it in worker
 processes. This module says what a camera renders
 and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same camera with
 other products. A camera's products are data (`Product`: the key under its topic, the output it
@@ -57,10 +57,10 @@ from simbot.sim.camera_save import frame_saver
 from simbot.sim.naming import sensor_frame, sensor_rate
 from simbot.sim.rates import Sampled
 from simbot.sim.render import CameraSpec, Frame
-from simbot.sim.render.contract import RenderStatus
 from simbot.sim.render.lens import Distortion
 from simbot.sim.render.publishing import Publication, Route
 from simbot.sim.render.wide_lens import WideLens
+from simbot.sim.rendered_sensor import RenderStatus
 from simbot.sim.sensor_params import Noise, SdfElement
 from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 

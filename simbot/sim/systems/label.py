@@ -5,7 +5,7 @@ On a `<visual>`, it labels that visual; on a `<model>` or an `<include>`, every 
 model, nested models' included (a visual's own label wins over its model's). Geometry without a
 label is background to segmentation cameras and has no box, but it still hides what lies behind it.
 It does nothing in the loop: the world's Rendering system reads its `annotation` when the model
-enters (`Annotating`, simbot/sim/render/contract.py) and hands it to the render workers.
+enters (`Annotating`, simbot/sim/rendered_sensor.py) and hands it to the render workers.
 
 SDF parameters:
 
