@@ -10,7 +10,9 @@ What it shows, and where from:
   nearest return, odometry and model poses, joint speeds, image sizes from camera_info, short
   strings such as the docking state;
 - the server's cameras, from the world state's sensor figures (size, rate per sim second,
-  skipped frames): images are never subscribed to, since a subscriber makes the server render.
+  skipped frames): images are never subscribed to, since a subscriber makes the server render;
+- the systems the world runs without because their SDF parameters are bad, from the world
+  state's `systems_left_out`: a row each, `left out` and why (a lidar that vanished says so here).
 
 Rates count wall seconds, and the heading asks the world each time, so a server that restarts
 shows again within a refresh or two of coming back (its sim time from zero, which the monitor
@@ -138,6 +140,16 @@ def camera_text(figures: Mapping[str, Any]) -> str:
     return f"{width}x{height}; {figures.get('skipped', 0)} frames skipped"
 
 
+def left_out_rows(state: Mapping[str, Any] | None, model: str) -> list[tuple[str, str, str]]:
+    """A row per system the world left out (of `model`'s, when one is followed): its name, `left out`, why."""
+    entries: list[Mapping[str, str]] = (state or {}).get("systems_left_out", [])
+    return [
+        (entry["name"], "left out", entry["reason"])
+        for entry in entries
+        if not model or entry["name"].startswith(f"{model}/")
+    ]
+
+
 def state_line(world: str | None, state: Mapping[str, Any] | None) -> str:
     """The heading: world, sim time, real-time factor, mode."""
     if world is None:
@@ -217,7 +229,8 @@ class Monitor:
             return None
 
     def rows(self, state: Mapping[str, Any] | None) -> list[tuple[str, str, str]]:
-        """One row per followed key (latest message summarised here, in the loop), then the cameras."""
+        """One row per followed key (latest message summarised here, in the loop), then the cameras,
+        then the systems left out."""
         for name, inbox in self.inboxes.items():
             msg = inbox.get(0.0)
             if msg is not None:
@@ -230,7 +243,7 @@ class Monitor:
         for name, figures in sensors.items():
             if "size" in figures and (not self.model or name.startswith(f"{self.model}/")):
                 rows.append((name, f"{figures.get('rate_hz', 0.0):.1f} Hz", camera_text(figures)))
-        return rows
+        return rows + left_out_rows(state, self.model)
 
     def frame(self) -> str:
         """The whole table as text."""

@@ -15,7 +15,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from simbot.description import DescriptionError, load_description, load_model, model_to_urdf
-from simbot.description.summary import summarize
+from simbot.description.summary import left_out_table, summarize
+from simbot.sim.sdf_systems import left_out_of
 
 EXIT_USAGE = 2
 
@@ -57,8 +58,12 @@ def _sdf2urdf(args: argparse.Namespace) -> int:
 
 
 def _describe(args: argparse.Namespace) -> int:
+    """The file's tables, then the systems a server would leave out of its world and why: checked
+    by the server's own code (`simbot.sim.sdf_systems.left_out_of`), with no server running."""
     description = load_description(args.file)
     print(summarize(description))
+    print()
+    print(left_out_table([(entry.name, entry.kind, entry.reason) for entry in left_out_of(description)]))
     return 0
 
 
@@ -71,7 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-o", "--output", help="URDF file to write (default: standard output)")
     convert.set_defaults(run=_sdf2urdf)
     describe = commands.add_parser(
-        "describe", help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file"
+        "describe",
+        help="print the links, joints, sensors and plugins of an SDF, URDF or xacro file, and those a server would "
+        "leave out for bad parameters",
     )
     describe.add_argument("file", help="SDF world or model, URDF, or xacro file")
     describe.set_defaults(run=_describe)

@@ -23,6 +23,7 @@ from simbot.description.resources import asset
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import MAX_STEPS, CreateRequest, WorldControl
 from simbot.sim.physics import Physics
+from simbot.sim.sdf_systems import LeftOut
 from simbot.sim.simulation import Mode, Simulation
 
 WORLD = "empty"
@@ -44,10 +45,12 @@ class Controlled:
 
 @dataclass
 class BareWorld:
-    """The world control's view of a world without a server around it: no sensors, no models made at run time."""
+    """The world control's view of a world without a server around it: no sensors, none left out, no
+    models made at run time."""
 
     sim: Simulation
     sensors: dict[str, object] = field(default_factory=dict)
+    left_out: list[LeftOut] = field(default_factory=list)
 
     def create(self, request: CreateRequest) -> str:
         raise ValueError("sdf: this test world makes no models")
@@ -89,6 +92,7 @@ def test_multi_step_replies_when_the_steps_are_done(world: Controlled) -> None:
 def test_state_reports_time_mode_and_every_model(world: Controlled) -> None:
     state = world.ask(STATE, b"")
     assert (state["ok"], state["paused"], state["mode"], state["dropped"]) == (True, False, "lockstep", {})
+    assert state["systems_left_out"] == []
     assert set(state["models"]) == {"trolley"}
     assert state["models"]["trolley"]["position"][:2] == pytest.approx(TROLLEY_AT[:2], abs=1e-6)
 

@@ -144,6 +144,11 @@ def summarize_world(world: World) -> str:
     return "\n\n".join([head, models, plugins, *dynamic])
 
 
+def left_out_table(rows: Sequence[Sequence[str]]) -> str:
+    """The systems a server would run this file's world without, for bad SDF parameters: (name, kind, reason) rows."""
+    return table("systems left out (bad SDF parameters: a server runs without them)", ["name", "kind", "reason"], rows)
+
+
 def summarize(description: Model | World) -> str:
     """The tables for whichever was loaded."""
     return summarize_world(description) if isinstance(description, World) else summarize_model(description)

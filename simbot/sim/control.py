@@ -17,7 +17,10 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   factor, every model's pose, each sensor's figures by its scoped name `model/link/sensor` (its
   achieved rate in messages per sim second, frames skipped), the payloads each input key has
   received (counted on arrival, so a client can tell that its command is in before it asks for
-  steps), and the dropped-input counters with their last reasons.
+  steps), the dropped-input counters with their last reasons, and `systems_left_out`: each
+  system the world runs without because its SDF parameters are bad, as `{"name", "kind",
+  "reason"}` (its scoped name, its sensor type or plugin filename, the one-line error; an empty
+  list when none).
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 A reset removes the models created since the start, as Gazebo's does.
@@ -28,13 +31,14 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from simbot.bus import BadRequest, Node, Request
 from simbot.description.poses import Pose
 from simbot.sim.bus_view import SimBus
+from simbot.sim.sdf_systems import LeftOut
 from simbot.sim.simulation import Mode, Simulation
 from simbot.sim.system import Reporting
 from simbot.transform import Transform
@@ -70,6 +74,9 @@ class Models(Protocol):
 
     @property
     def sensors(self) -> Mapping[str, object]: ...
+
+    @property
+    def left_out(self) -> Sequence[LeftOut]: ...
 
     def create(self, request: CreateRequest) -> str: ...
 
@@ -155,6 +162,7 @@ class WorldControl:
             "received": {i.key: i.received for i in self.bus.inputs},
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),
+            "systems_left_out": [entry.as_dict() for entry in self.models.left_out],
         }
         request.reply(state)
 

@@ -7,6 +7,9 @@ a model enters (at start, or through world control's `create`) or leaves (`remov
 tells the world systems that follow models (`ModelObserver`) with a `ModelEvent` that carries the
 model's bodies and systems. No system is named here: the built-in ones come from their entry-point
 groups (`simbot.sim.registry`), and each finds what it serves among a model's systems by Protocol.
+Which systems the SDF asks for is `simbot.sim.sdf_systems`'s to say (`simbot describe` asks it
+too); one whose SDF parameters are bad is left out, and the world keeps why (`left_out`, which
+world state reports): a model's entries for as long as the model stays, the world's own for good.
 """
 
 from __future__ import annotations
@@ -14,32 +17,21 @@ from __future__ import annotations
 import itertools
 import logging
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from functools import partial
 from pathlib import Path
 
 from simbot.description import DescriptionError, load_description
-from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
+from simbot.description.model import Model, World
 from simbot.description.poses import Pose
 from simbot.sim.bus_view import SimBus
 from simbot.sim.control import CreateRequest
-from simbot.sim.naming import scoped_key, scoped_rng
 from simbot.sim.physics import Physics
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
-from simbot.sim.plugin_params import plugin_priority
-from simbot.sim.registry import ROBOT_GROUP, WORLD_GROUP, builtin, lookup, sensor_lookup
+from simbot.sim.registry import ROBOT_GROUP, WORLD_GROUP
+from simbot.sim.sdf_systems import LeftOut, Wanted, builtins, plugins_of, sensors_of, world_plugins
 from simbot.sim.simulation import Mode, Scheduled, Simulation
-from simbot.sim.system import (
-    ModelEvent,
-    ModelObserver,
-    RunOptions,
-    System,
-    SystemConfigError,
-    SystemContext,
-    SystemFactory,
-    priority,
-)
+from simbot.sim.system import ModelEvent, ModelObserver, RunOptions, System, SystemConfigError
 
 log = logging.getLogger(__name__)
 
@@ -89,6 +81,8 @@ class Placed:
     """Whether it gets the robot systems (its description and tf): the robot, a namespaced model."""
     systems: list[Scheduled] = field(default_factory=list)
     sensors: dict[str, System] = field(default_factory=dict)
+    left_out: list[LeftOut] = field(default_factory=list)
+    """Its systems the world runs without, for bad SDF parameters: they leave with it."""
     created: bool = False
     """Created through world control: a reset removes it."""
 
@@ -115,9 +109,9 @@ class SimWorld:
         self.bus = sim_bus
         self._seed = seed
         self._options = options or RunOptions()
-        self._skipped_plugins: set[Plugin] = set()
         self.models: dict[str, Placed] = {}
         self._world_systems: list[Scheduled] = []
+        self._left_out: list[LeftOut] = []
         try:
             self._load(robot, placements)
         except BaseException:
@@ -133,7 +127,8 @@ class SimWorld:
             for place in placements:
                 self._place(robot, place.name, place.pose, place.namespace, describe=True)
         self.physics.save_initial_state()
-        self._world_systems = self._scheduled(self._plugins(None) + self._builtin(WORLD_GROUP, self._context()))
+        wanted = world_plugins(self.description) + builtins(WORLD_GROUP)
+        self._world_systems = [entry for _, entry in self._started(wanted, None)]
         for placed in self.models.values():
             self._build(placed)
         self.sim.add_systems([*self._world_systems, *(s for p in self.models.values() for s in p.systems)])
@@ -155,6 +150,12 @@ class SimWorld:
         """Every sensor system of the world, by scoped name `model/link/sensor`."""
         return {name: sensor for placed in self.models.values() for name, sensor in placed.sensors.items()}
 
+    @property
+    def left_out(self) -> list[LeftOut]:
+        """The systems the world runs without, for bad SDF parameters: the world's, then each model's.
+        A reset keeps them (they are about the SDF); a model's leave with it."""
+        return [*self._left_out, *(entry for placed in self.models.values() for entry in placed.left_out)]
+
     # models in and out
 
     def _place(
@@ -173,20 +174,24 @@ class SimWorld:
         return self.models[name]
 
     def _build(self, placed: Placed) -> None:
-        """The systems of a placed model: its plugins, its sensors, its robot systems; if one fails, those built close."""
-        systems: list[tuple[System, int | None]] = []
+        """The systems of a placed model: the plugins of each of its bodies, their sensors (by scoped
+        name `model/link/sensor`: two models may hold sensors of one name), its robot systems; if
+        one fails, those built close."""
+        bodies = [(self.physics.model_of(body), body) for body in placed.bodies]
+        systems: list[Scheduled] = []
         try:
-            systems += self._plugins(placed)
-            placed.sensors = self._sensors(placed)
-            systems += [(sensor, None) for sensor in placed.sensors.values()]
+            systems += [entry for _, entry in self._started([w for b in bodies for w in plugins_of(*b)], placed)]
+            sensors = self._started([w for b in bodies for w in sensors_of(*b)], placed)
+            placed.sensors = {wanted.name: entry.system for wanted, entry in sensors}
+            systems += [entry for _, entry in sensors]
             if placed.describe:  # its main tree of joints: what a URDF can hold (see Physics.add_model)
-                model = self.physics.model_of(placed.name)
-                systems += self._builtin(ROBOT_GROUP, self._context(model, placed.name, bus=placed.bus))
+                wanted = builtins(ROBOT_GROUP, self.physics.model_of(placed.name), placed.name)
+                systems += [entry for _, entry in self._started(wanted, placed)]
         except BaseException:
-            Simulation.close_all([system for system, _ in systems])
+            Simulation.close_all([entry.system for entry in systems])
             placed.bus.close()
             raise
-        placed.systems = self._scheduled(systems)
+        placed.systems = systems
 
     def _tell_added(self, placed: Placed) -> None:
         event = placed.event()
@@ -251,132 +256,28 @@ class SimWorld:
 
     # building systems
 
-    def _context(
-        self,
-        model: Model | None = None,
-        name: str | None = None,
-        plugin: Plugin | None = None,
-        sensor: tuple[Link, Sensor] | None = None,
-        bus: SimBus | None = None,
-        visual: tuple[Link, Visual] | None = None,
-    ) -> SystemContext:
-        link, sdf_sensor = sensor if sensor else (None, None)
-        if visual is not None:
-            link = visual[0]
-        leaf = (link.name, sdf_sensor.name) if link and sdf_sensor else (plugin.name,) if plugin else ()
-        if visual is not None:
-            leaf = (visual[0].name, visual[1].name, *leaf)
-        rng = scoped_rng(self._seed, name or "world", *leaf)
-        return SystemContext(
-            self.physics,
-            bus or self.bus,
-            self.description,
-            rng,
-            model,
-            name,
-            plugin,
-            link,
-            sdf_sensor,
-            self._options,
-            visual[1] if visual else None,
-        )
-
-    def _scheduled(self, systems: list[tuple[System, int | None]]) -> list[Scheduled]:
-        """Each system with its priority: the SDF's where it states one, else its class's."""
-        return [Scheduled(system, priority(system) if stated is None else stated) for system, stated in systems]
-
-    def _builtin(self, group: str, ctx: SystemContext) -> list[tuple[System, int | None]]:
-        """The systems every world (or every described model) gets, by their entry-point names."""
-        return _started([partial(_make, factory, ctx, None) for factory in builtin(group)])
-
-    def _plugins(self, placed: Placed | None) -> list[tuple[System, int | None]]:
-        """A system for each plugin of the world (`placed` None) or of each body of a placed model
-        and of its visuals, with the priority its SDF states."""
-        makers = []
-        for ctx in self._plugin_contexts(placed):
-            assert ctx.plugin is not None
-            factory = lookup(ctx.plugin)
-            if factory is None:
-                continue
-            if ctx.visual is not None and not getattr(factory, "runs_on_visuals", False):
-                self._skip_visual_plugin(ctx.plugin, ctx.visual)
-                continue
-            makers.append(partial(_make, factory, ctx, plugin_priority(ctx.plugin)))
-        return _started(makers)
-
-    def _plugin_contexts(self, placed: Placed | None) -> list[SystemContext]:
-        if placed is None:
-            return [self._context(plugin=p) for p in self.description.plugins]
-        contexts = []
-        for name in placed.bodies:
-            model = self.physics.model_of(name)
-            contexts += [self._context(model, name, p, bus=placed.bus) for p in model.plugins]
-            contexts += [
-                self._context(model, name, p, bus=placed.bus, visual=(link, visual))
-                for link in model.links
-                for visual in link.visuals
-                for p in visual.plugins
-            ]
-        return contexts
-
-    def _skip_visual_plugin(self, plugin: Plugin, visual: Visual) -> None:
-        """Once per plugin (a nested model's goes to each of its visuals)."""
-        if plugin not in self._skipped_plugins:
-            self._skipped_plugins.add(plugin)
-            log.warning(
-                "plugin %s on visual %r (or its nested model) is not run: only a visual's systems "
-                "(Label, Thermal) run there, as simbot flattens nested models",
-                plugin.name,
-                visual.name,
-            )
-
-    def _sensors(self, placed: Placed) -> dict[str, System]:
-        """A system for each `<sensor>` of each body of a placed model, by scoped name `model/link/sensor`
-        (two models may hold sensors of one name); if one fails, those already started stop."""
-        sensors: dict[str, System] = {}
+    def _started(self, wanted: Sequence[Wanted], placed: Placed | None) -> list[tuple[Wanted, Scheduled]]:
+        """Builds each system of the world (`placed` None) or of a placed model in turn, leaving out
+        one with bad parameters (`_drop`); if one fails otherwise, those already built close."""
+        bus, left_out = (self.bus, self._left_out) if placed is None else (placed.bus, placed.left_out)
+        built: list[tuple[Wanted, Scheduled]] = []
         try:
-            for body_name in placed.bodies:
-                model = self.physics.model_of(body_name)
-                for link, sensor in model.sensors():
-                    factory = sensor_lookup(sensor)
-                    if factory is not None:
-                        scoped = "/".join(map(scoped_key, (body_name, link.name, sensor.name)))
-                        context = self._context(model, body_name, sensor=(link, sensor), bus=placed.bus)
-                        try:
-                            sensors[scoped] = factory(context)
-                        except SystemConfigError as exc:
-                            _drop(exc)
+            for one in wanted:
+                ctx = one.context(self.physics, bus, self.description, self._seed, self._options)
+                try:
+                    built.append((one, one.build(ctx)))
+                except SystemConfigError as exc:
+                    left_out.append(_drop(one, exc))
         except BaseException:
-            Simulation.close_all(list(sensors.values()))
+            Simulation.close_all([entry.system for _, entry in built])
             raise
-        return sensors
+        return built
 
 
-Maker = Callable[[], tuple[System, int | None]]
-"""Builds one system, with the priority its SDF states (None: its class's)."""
-
-
-def _make(factory: SystemFactory, ctx: SystemContext, stated: int | None) -> tuple[System, int | None]:
-    return factory(ctx), stated
-
-
-def _drop(error: SystemConfigError) -> None:
+def _drop(wanted: Wanted, error: SystemConfigError) -> LeftOut:
     """A system whose SDF parameters are bad is left out, with one line naming it and the element:
-    the rest of the world runs (as Gazebo runs a world with a sensor that failed to load)."""
-    log.error("%s; the world runs without it", " ".join(str(error).split()))
-
-
-def _started(makers: Sequence[Maker]) -> list[tuple[System, int | None]]:
-    """Builds each system in turn, leaving out one with bad parameters (`_drop`); if one fails
-    otherwise, those already built close."""
-    built: list[tuple[System, int | None]] = []
-    try:
-        for make in makers:
-            try:
-                built.append(make())
-            except SystemConfigError as exc:
-                _drop(exc)
-    except BaseException:
-        Simulation.close_all([system for system, _ in built])
-        raise
-    return built
+    the rest of the world runs (as Gazebo runs a world with a sensor that failed to load), and
+    world state lists it."""
+    entry = LeftOut.of(wanted, error)
+    log.error("%s; the world runs without it", entry.reason)
+    return entry
