@@ -26,9 +26,9 @@ from tables import publish
 
 from simbot.bus import BusOptions, Node
 from simbot.description.resources import asset
-from simbot.sim.control import create_request
+from simbot.sim.loop.simulation import Mode
+from simbot.sim.loop.world_control import create_request
 from simbot.sim.server import Server, ServerConfig, world_path
-from simbot.sim.simulation import Mode
 
 ACTOR = """<?xml version="1.0"?>
 <sdf version="1.9">

@@ -33,9 +33,9 @@ from live_runs import count_topics
 from tables import publish
 
 from simbot.bus import BusOptions, Node
+from simbot.sim.loop.simulation import Mode
 from simbot.sim.render import Frame
 from simbot.sim.server import Server, ServerConfig
-from simbot.sim.simulation import Mode
 from simbot.sim.systems.camera import Camera
 
 RATE_HZ = 30

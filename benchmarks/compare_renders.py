@@ -33,11 +33,11 @@ def draw(folder: Path) -> None:
     from simbot.bus import BusOptions, Node
     from simbot.description.resources import asset
     from simbot.sim.bullet import pb
+    from simbot.sim.loop.simulation import Mode
     from simbot.sim.render import CameraSpec
     from simbot.sim.render.gl import GlRenderer
     from simbot.sim.render.scene import BulletScene
     from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
-    from simbot.sim.simulation import Mode
     from simbot.sim.systems.camera import CameraParams
     from simbot.sim.systems.camera_rendering import world_light
 

@@ -24,6 +24,7 @@ from live_runs import WORLD
 from simbot.bus import BusOptions, Node
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
+from simbot.sim.loop.simulation import Mode
 from simbot.sim.physics import Physics
 from simbot.sim.render import CameraSpec, Light
 from simbot.sim.render.bodies import scene_body
@@ -32,7 +33,6 @@ from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.tiny import tiny_lighting
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig, world_path
-from simbot.sim.simulation import Mode
 from simbot.sim.systems.camera import CameraParams
 from simbot.transform import Transform
 

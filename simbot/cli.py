@@ -16,7 +16,7 @@ from pathlib import Path
 
 from simbot.description import DescriptionError, load_description, load_model, model_to_urdf
 from simbot.description.summary import left_out_table, summarize
-from simbot.sim.sdf_systems import left_out_of
+from simbot.sim.loop.sdf_systems import left_out_of
 
 EXIT_USAGE = 2
 
@@ -59,7 +59,7 @@ def _sdf2urdf(args: argparse.Namespace) -> int:
 
 def _describe(args: argparse.Namespace) -> int:
     """The file's tables, then the systems a server would leave out of its world and why: checked
-    by the server's own code (`simbot.sim.sdf_systems.left_out_of`), with no server running."""
+    by the server's own code (`simbot.sim.loop.sdf_systems.left_out_of`), with no server running."""
     description = load_description(args.file)
     print(summarize(description))
     print()

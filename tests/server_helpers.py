@@ -213,7 +213,7 @@ def exited(pid: int) -> bool:
 
 def dropped(caplog: pytest.LogCaptureFixture) -> list[str]:
     """The lines a world logged for the systems it left out for bad parameters (in this process)."""
-    return [r.getMessage() for r in caplog.records if r.name == "simbot.sim.world" and r.levelno == logging.ERROR]
+    return [r.getMessage() for r in caplog.records if r.name == "simbot.sim.loop.world" and r.levelno == logging.ERROR]
 
 
 def server_command(*args: str) -> list[str]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from conftest import REPO
 
-from simbot.sim.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
+from simbot.sim.loop.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
 
 PACKAGE = REPO / "simbot"
 MAX_LINES = 500

@@ -27,10 +27,10 @@ import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
-from simbot.sim.naming import scoped_rng
-from simbot.sim.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
+from simbot.sim.loop.naming import scoped_rng
+from simbot.sim.loop.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
+from simbot.sim.loop.simulation import Mode
 from simbot.sim.server import Server, ServerConfig
-from simbot.sim.simulation import Mode
 
 FLUSH = "conformance_flush"
 """A key no system uses, put after the last step: its arrival means the run's messages have all arrived."""

@@ -25,7 +25,7 @@ from test_conformance import CASES, ROBOT
 from test_conformance import WORLD as CONFORMANCE_WORLD
 
 from simbot.description import load_description
-from simbot.sim.sdf_systems import left_out_of
+from simbot.sim.loop.sdf_systems import left_out_of
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 MONITOR_TIMEOUT_S = 60.0
@@ -111,7 +111,7 @@ def test_world_state_lists_the_lidar_left_out_and_the_other_one_publishes(sim: S
     assert state["systems_left_out"] == [BAD]
     assert set(state["sensors"]) == {"scanner/base/lidar_good"}
     assert [line for line in sim.errors() if "lidar_bad" in line] == [
-        f"ERROR simbot.sim.world: {BAD['reason']}; the world runs without it"
+        f"ERROR simbot.sim.loop.world: {BAD['reason']}; the world runs without it"
     ]
     scan = sim.latest({"lidar_good": LASER_SCAN}, chunk=100)["lidar_good"]
     assert (len(scan.ranges), scan.range_min, scan.range_max) == (8, pytest.approx(0.1), pytest.approx(10.0))

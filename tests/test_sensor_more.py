@@ -43,9 +43,9 @@ from simbot.description import load_sdf, load_world
 from simbot.description.errors import DescriptionError
 from simbot.description.model import Atmosphere, Model, SphericalCoordinates
 from simbot.description.poses import Pose
+from simbot.sim.loop.simulation import Mode
 from simbot.sim.physics import pose_to_transform
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig
-from simbot.sim.simulation import Mode
 
 G = 9.8
 STEP_NS = 1_000_000

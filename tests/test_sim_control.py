@@ -1,4 +1,4 @@
-"""World control alone (simbot/sim/control.py): its three queryables over a real Zenoh pair, on a
+"""World control alone (simbot/sim/loop/world_control.py): its three queryables over a real Zenoh pair, on a
 real lockstep Simulation of a tiny world, with no server process around it.
 
 The loop runs in a thread (`Simulation.run` with `WorldControl.poll`), as in the server; the test
@@ -20,11 +20,11 @@ from simbot.bus import Node
 from simbot.description import load_model, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
-from simbot.sim.bus_view import SimBus
-from simbot.sim.control import MAX_STEPS, CreateRequest, WorldControl
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.sdf_systems import LeftOut
+from simbot.sim.loop.simulation import Mode, Simulation
+from simbot.sim.loop.world_control import MAX_STEPS, CreateRequest, WorldControl
 from simbot.sim.physics import Physics
-from simbot.sim.sdf_systems import LeftOut
-from simbot.sim.simulation import Mode, Simulation
 
 WORLD = "empty"
 CONTROL, SET_POSE, STATE = (f"world/{WORLD}/{name}" for name in ("control", "set_pose", "state"))

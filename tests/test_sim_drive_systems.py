@@ -25,8 +25,8 @@ from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 from server_helpers import dropped
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
+from simbot.sim.loop.simulation import Mode
 from simbot.sim.server import ROBOT_NAME, Server, ServerConfig
-from simbot.sim.simulation import Mode
 from simbot.transform import yaw_of
 
 BOT = f"model/{ROBOT_NAME}"

@@ -1,4 +1,4 @@
-"""The loop alone (simbot/sim/simulation.py): the order of one step, priorities, the update
+"""The loop alone (simbot/sim/loop/simulation.py): the order of one step, priorities, the update
 record, reset and requested steps.
 
 Stand-ins for the physics and the systems record every call with the sim time they were given,
@@ -19,10 +19,10 @@ import pytest
 from simbot.description.model import Box, Collision, Inertial, Link, Model, Param, Plugin
 from simbot.description.model import World as SdfWorld
 from simbot.description.poses import Pose
+from simbot.sim.kit.plugin_params import plugin_priority
+from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
+from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly
-from simbot.sim.plugin_params import plugin_priority
-from simbot.sim.simulation import Mode, Scheduled, Simulation
-from simbot.sim.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 
 STEP_NS = 1_000_000
 Calls = list[tuple[str, ...]]

@@ -11,10 +11,10 @@ from conftest import ROBOT_SDF
 from simbot.description import load_model, load_world
 from simbot.description.model import Param, Plugin
 from simbot.description.resources import asset
-from simbot.sim.plugin_params import number_param
-from simbot.sim.rates import Every
-from simbot.sim.registry import canonical_name, lookup, registered
-from simbot.sim.system import SystemConfigError
+from simbot.sim.kit.plugin_params import number_param
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.registry import canonical_name, lookup, registered
+from simbot.sim.loop.system import SystemConfigError
 from simbot.sim.systems.diff_drive import DiffDriveParams, Limits, Odometry, check_twist
 from simbot.sim.systems.recognised import Recognised
 

@@ -2,7 +2,7 @@
 
 One server in lockstep: the warehouse, the tug, and worlds/additions/warehouse_people.sdf added.
 Each worker's ground truth on `model/<name>/pose` is where its script puts it at the message's sim
-time (simbot.sim.actor_paths, the model of truth: within 1 cm, PyBullet's single-precision
+time (simbot.sim.kit.actor_paths, the model of truth: within 1 cm, PyBullet's single-precision
 transforms are micrometres), and the cart, pushed by its TrajectoryFollower from rest, reaches its
 first waypoint and heads on for the second.
 """
@@ -18,7 +18,7 @@ from server_helpers import POSE_STAMPED, REPO, SimServer, pose_of, running_serve
 
 from simbot.description import load_world
 from simbot.description.actor_scripts import ActorModel
-from simbot.sim.actor_paths import ScriptPath
+from simbot.sim.kit.actor_paths import ScriptPath
 
 PEOPLE = REPO / "worlds" / "additions" / "warehouse_people.sdf"
 TIMES_S = (3.0, 10.0)

@@ -14,7 +14,7 @@ from simbot.description.actor_scripts import PROXY_RADIUS, ActorModel
 from simbot.description.model import RGBA, Box, Cylinder, Geometry, Plane, Sphere
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import RESOURCE_PATH_VARIABLES
-from simbot.sim.actor_paths import ScriptPath
+from simbot.sim.kit.actor_paths import ScriptPath
 
 REPO = Path(__file__).resolve().parents[1]
 WORLDS = REPO / "worlds"

@@ -30,13 +30,13 @@ from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_a
 from simbot.description import DescriptionError, World, load_description, load_world
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
-from simbot.sim.bus_view import SimBus
-from simbot.sim.control import WorldControl
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.simulation import Mode
+from simbot.sim.loop.system import RunOptions, System, SystemConfigError
+from simbot.sim.loop.world import Placement, SimWorld, load_robot
+from simbot.sim.loop.world_control import WorldControl
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
-from simbot.sim.simulation import Mode
-from simbot.sim.system import RunOptions, System, SystemConfigError
-from simbot.sim.world import Placement, SimWorld, load_robot
 from simbot.transform import yaw_of
 
 log = logging.getLogger("simbot.server")

@@ -35,7 +35,7 @@ import math
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.drive import (
+from simbot.sim.kit.drive import (
     DeadReckoning,
     Encoders,
     Limits,
@@ -50,8 +50,8 @@ from simbot.sim.drive import (
     require_joints,
     warn_unsupported,
 )
-from simbot.sim.plugin_params import bool_param
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.plugin_params import bool_param
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 STRAIGHT = 0.001
 """rad/s of commanded turn below which the car drives straight (Gazebo's threshold)."""

@@ -4,7 +4,7 @@ A world system (built in, no `<plugin>`): every world gets it, and it takes each
 the world (at start, or created through world control) from the model events. An actor is a
 kinematic body of the physics (simbot.description.actor_scripts: its skin, its ray-visible proxy, its
 links), which this system puts, before every physics step, where the script puts it at the step's
-sim time (simbot.sim.actor_paths): the actor's frame (its SDF `<pose>`, the trajectory's origin,
+sim time (simbot.sim.kit.actor_paths): the actor's frame (its SDF `<pose>`, the trajectory's origin,
 as gz-sim's actor Pose component) composed with the trajectory's pose. The motion is a function of
 sim time alone, so lockstep runs repeat exactly, and every sensor after the step (lidar rays on
 the proxy, cameras drawing the skin, ground truth on `model/<name>/pose`) sees the actor there.
@@ -34,9 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from simbot.description.actor_scripts import ActorModel
-from simbot.sim.actor_paths import ActorDriver, ScriptPath
+from simbot.sim.kit.actor_paths import ActorDriver, ScriptPath
+from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
-from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import Transform
 
 MOVED_TOLERANCE = 1e-4

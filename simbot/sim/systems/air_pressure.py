@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Atmosphere, Sensor
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 EARTH_RADIUS = 6356766.0
 """m, the radius geopotential height is reckoned with (US Standard Atmosphere 1976)."""

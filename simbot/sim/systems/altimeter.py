@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)

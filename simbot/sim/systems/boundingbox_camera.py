@@ -28,12 +28,12 @@ from simbot.bus import messages
 from simbot.bus.messages import Box2D, Box3D
 from simbot.description.model import Sensor
 from simbot.description.poses import Pose
-from simbot.sim.bus_view import SimBus
+from simbot.sim.kit.sensor_params import SdfElement
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.system import SystemContext
 from simbot.sim.physics import pose_to_transform
 from simbot.sim.render import Frame
 from simbot.sim.render.boxes import Corners, Objects, Posed, View, draw_box, draw_segment, visible
-from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Product, _Published
 from simbot.transform import Transform, matmul
 

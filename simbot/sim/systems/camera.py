@@ -1,7 +1,7 @@
 """Camera (SDF `camera`): images rendered by the rendering system, stamped with the sim time they show.
 
 The world's one `Rendering` system (simbot/sim/systems/camera_rendering.py) finds the camera by its
-`RenderedSensor` contract (simbot/sim/rendered_sensor.py), schedules it and renders it in worker
+`RenderedSensor` contract (simbot/sim/kit/rendered_sensor.py), schedules it and renders it in worker
 processes. This module says what a camera renders
 and how a frame becomes messages; `depth_camera` and `rgbd_camera` are the same camera with
 other products. A camera's products are data (`Product`: the key under its topic, the output it
@@ -37,7 +37,7 @@ SDF parameters (under `<camera>`; `CameraParams`):
 | `<distortion>` `<k1>` `<k2>` `<k3>` `<p1>` `<p2>` | 0 | plumb_bob lens distortion of colour, depth and points |
 | `<distortion><center>` | 0.5 0.5 | distortion centre, normalised image coordinates; the principal point |
 | `<update_rate>` (of the `<sensor>`) | 30 | frames per second (`--camera-rate` overrides) |
-| `<save enabled="true"><path>` | off | every frame also written to the folder in simbot's dataset layout (simbot/sim/camera_save.py) |
+| `<save enabled="true"><path>` | off | every frame also written to the folder in simbot's dataset layout (simbot/sim/kit/camera_save.py) |
 
 Command-line parameters (`RunOptions.overrides`): `camera.size` ((width, height)), `camera.rate` (Hz).
 """
@@ -52,17 +52,17 @@ from typing import Any
 from simbot.bus import Publisher, messages
 from simbot.bus.frames import optical_frame, with_frame_prefix
 from simbot.description.model import Sensor
-from simbot.sim.bus_view import SimBus
-from simbot.sim.camera_save import frame_saver
-from simbot.sim.naming import sensor_frame, sensor_rate
-from simbot.sim.rates import Sampled
+from simbot.sim.kit.camera_save import frame_saver
+from simbot.sim.kit.rates import Sampled
+from simbot.sim.kit.rendered_sensor import RenderStatus
+from simbot.sim.kit.sensor_params import Noise, SdfElement
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.lens import Distortion
 from simbot.sim.render.publishing import Publication, Route
 from simbot.sim.render.wide_lens import WideLens
-from simbot.sim.rendered_sensor import RenderStatus
-from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 
 COLOR_OUTPUTS = {"R8G8B8": "color", "RGB_INT8": "color", "L8": "mono", "L_INT8": "mono"}
 """SDF image formats simbot renders, by the output that renders them (rgb8, mono8)."""
@@ -214,7 +214,7 @@ class Camera(Sampled):
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0
         self.saver = frame_saver(sensor, topic, self.spec)
-        """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/camera_save.py)."""
+        """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/kit/camera_save.py)."""
 
     def wide_lens(self, sensor: Sensor) -> WideLens | None:
         """The wide-angle lens it sees through (`wide_angle_camera.py`); None: a pinhole camera."""

@@ -2,7 +2,7 @@
 
 A world system (built in, no `<plugin>`). Camera sensors (`camera`, `depth_camera`,
 `rgbd_camera`, and any sensor module that follows the `RenderedSensor` contract of
-simbot/sim/rendered_sensor.py) are found among the systems of each model that enters the world
+simbot/sim/kit/rendered_sensor.py) are found among the systems of each model that enters the world
 (`model_added`); this system owns the render pool
 (simbot/sim/render/), started in the background when the first image is wanted, and decides at
 each step which cameras render. The sensors themselves only say what they render (a
@@ -50,12 +50,12 @@ import threading
 
 from simbot.bus.options import helper_options
 from simbot.description.model import SdfLight, World
+from simbot.sim.kit.rendered_sensor import Annotating, RenderedSensor, RenderStatus
+from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.render import Annotation, BodyState, Light, LightSource, RenderPool, SceneBody, plan_pool
 from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.label_bits import MAX_INSTANCE
 from simbot.sim.render.publishing import Bus
-from simbot.sim.rendered_sensor import Annotating, RenderedSensor, RenderStatus
-from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.rates import Every
-from simbot.sim.system import LAST_PRIORITY, SystemContext, UpdateInfo
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.system import LAST_PRIORITY, SystemContext, UpdateInfo
 
 CLOCK_RATE = 100.0
 """Hz of sim time; SPEC §4 asks for at least 100."""

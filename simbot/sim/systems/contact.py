@@ -28,11 +28,11 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Link, Sensor
-from simbot.sim.naming import sensor_frame, sensor_rate
+from simbot.sim.kit.rates import Sampled
+from simbot.sim.kit.sensor_params import SdfElement
+from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics import ContactPoint, WorldReader
-from simbot.sim.rates import Sampled
-from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
 
 DEFAULT_TOPIC = "__default_topic__"
 

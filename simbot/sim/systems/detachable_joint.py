@@ -18,9 +18,9 @@ from __future__ import annotations
 import logging
 
 from simbot.bus import messages
-from simbot.sim.naming import model_topic
-from simbot.sim.plugin_params import param
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.plugin_params import param
+from simbot.sim.loop.naming import model_topic
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)
 

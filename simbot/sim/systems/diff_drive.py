@@ -30,11 +30,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
-from simbot.sim.naming import model_topic, scoped_key
-from simbot.sim.plugin_params import bool_param, number_param, param
-from simbot.sim.rates import Every
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
+from simbot.sim.kit.plugin_params import bool_param, number_param, param
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import model_topic, scoped_key
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,8 @@ import numpy as np
 from simbot.bus import messages
 from simbot.description.model import Joint, Model, Sensor
 from simbot.description.poses import Pose
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import rotate_into
 
 FRAMES = ("child", "parent", "sensor")

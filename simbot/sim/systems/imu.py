@@ -27,10 +27,10 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.naming import sensor_frame, sensor_rate
-from simbot.sim.rates import Sampled
-from simbot.sim.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.rates import Sampled
+from simbot.sim.kit.sensor_params import ChannelNoise, Noise, SdfElement
+from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.transform import rotate_into
 
 Axes = tuple[Noise, Noise, Noise]

@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import math
 
-from simbot.sim.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
-from simbot.sim.naming import scoped_key
-from simbot.sim.pid import Pid, PidGains
-from simbot.sim.plugin_params import bool_param, number_param
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.drive import check_float, command_topic, joint_effort, refuse_actuators, require_joints
+from simbot.sim.kit.pid import Pid, PidGains
+from simbot.sim.kit.plugin_params import bool_param, number_param
+from simbot.sim.loop.naming import scoped_key
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 
 class CommandedJoints:

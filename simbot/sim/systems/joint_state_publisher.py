@@ -10,10 +10,10 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.naming import scoped_key
-from simbot.sim.plugin_params import number_param, param
-from simbot.sim.rates import Every
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.plugin_params import number_param, param
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import scoped_key
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 DEFAULT_RATE_HZ = 30.0

@@ -5,7 +5,7 @@ On a `<visual>`, it labels that visual; on a `<model>` or an `<include>`, every 
 model, nested models' included (a visual's own label wins over its model's). Geometry without a
 label is background to segmentation cameras and has no box, but it still hides what lies behind it.
 It does nothing in the loop: the world's Rendering system reads its `annotation` when the model
-enters (`Annotating`, simbot/sim/rendered_sensor.py) and hands it to the render workers.
+enters (`Annotating`, simbot/sim/kit/rendered_sensor.py) and hands it to the render workers.
 
 SDF parameters:
 
@@ -16,9 +16,9 @@ SDF parameters:
 
 from __future__ import annotations
 
-from simbot.sim.plugin_params import param
+from simbot.sim.kit.plugin_params import param
+from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.render import Annotation
-from simbot.sim.system import SystemConfigError, SystemContext
 
 MAX_LABEL = 255
 

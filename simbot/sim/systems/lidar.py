@@ -42,10 +42,10 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.naming import sensor_frame, sensor_rate
-from simbot.sim.rates import Sampled
-from simbot.sim.sensor_params import Noise, SdfElement
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.rates import Sampled
+from simbot.sim.kit.sensor_params import Noise, SdfElement
+from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import matmul, quaternion_to_matrix
 
 

@@ -23,8 +23,8 @@ import numpy as np
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.transform import rotate_into
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from simbot.description.model import Model, Plugin
-from simbot.sim.drive import (
+from simbot.sim.kit.drive import (
     DeadReckoning,
     Encoders,
     Limits,
@@ -41,7 +41,7 @@ from simbot.sim.drive import (
     require_joints,
     warn_unsupported,
 )
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 CORNERS = ("front_left", "front_right", "back_left", "back_right")
 SIGNS = ((-1.0, -1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, 1.0))

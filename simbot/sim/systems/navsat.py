@@ -34,8 +34,8 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor, SphericalCoordinates
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import matmul
 
 WGS84_A = 6378137.0

@@ -28,12 +28,12 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.poses import Pose
-from simbot.sim.drive import OdometryOutput, diagonal, vector_param
-from simbot.sim.naming import scoped_key
+from simbot.sim.kit.drive import OdometryOutput, diagonal, vector_param
+from simbot.sim.kit.plugin_params import number_param, param
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import scoped_key
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose, pose_to_transform
-from simbot.sim.plugin_params import number_param, param
-from simbot.sim.rates import Every
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import Transform, rotate_into, yaw_of
 
 

@@ -4,9 +4,9 @@
 from __future__ import annotations
 
 from simbot.bus import Publisher, messages
-from simbot.sim.naming import model_topic
-from simbot.sim.rates import Every
-from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import model_topic
+from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 
 POSE_RATE = 50.0
 """Hz of sim time: as often as odometry, so the two can be compared sample by sample."""

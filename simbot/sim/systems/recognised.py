@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 
-from simbot.sim.system import SystemContext
+from simbot.sim.loop.system import SystemContext
 
 log = logging.getLogger(__name__)
 

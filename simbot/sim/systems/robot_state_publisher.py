@@ -26,11 +26,11 @@ from simbot.description.kinematics import KinematicTree, UrdfJoint
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf
-from simbot.sim.naming import sensor_frame
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import sensor_frame
+from simbot.sim.loop.registry import SENSOR_GROUP, registered
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics import compose, pose_to_transform
-from simbot.sim.rates import Every
-from simbot.sim.registry import SENSOR_GROUP, registered
-from simbot.sim.system import SystemContext, UpdateInfo
 from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 from simbot.transform import Transform, Vec3
 

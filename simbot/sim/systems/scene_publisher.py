@@ -43,10 +43,10 @@ from typing import Any
 from simbot.bus import Publisher, messages
 from simbot.description.model import Box, Capsule, Cylinder, Ellipsoid, Geometry, Mesh, Plane, Sphere, Visual
 from simbot.description.poses import Pose
-from simbot.sim.naming import scoped_key
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.naming import scoped_key
+from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader, pose_to_transform
-from simbot.sim.rates import Every
-from simbot.sim.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.transform import Transform
 
 log = logging.getLogger(__name__)

@@ -20,9 +20,9 @@ SDF parameters: the colour camera's (`<horizontal_fov>`, `<image>` size, `<clip>
 from __future__ import annotations
 
 from simbot.description.model import Sensor
+from simbot.sim.kit.sensor_params import SdfElement
+from simbot.sim.loop.system import SystemContext
 from simbot.sim.render.segmentation import OUTPUTS, PANOPTIC, SEMANTIC
-from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Product
 
 TYPES = {"semantic": SEMANTIC, "instance": PANOPTIC, "panoptic": PANOPTIC}

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import logging
 
-from simbot.sim.plugin_params import number_param, param
+from simbot.sim.kit.plugin_params import number_param, param
+from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.render import Annotation
-from simbot.sim.system import SystemConfigError, SystemContext
 from simbot.sim.systems.label import covered
 
 log = logging.getLogger(__name__)

@@ -45,11 +45,11 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Atmosphere, Param, Sensor
+from simbot.sim.kit.sensor_params import SdfElement
+from simbot.sim.loop.system import SystemContext
 from simbot.sim.render.lens import Distortion
 from simbot.sim.render.specs import CameraSpec
 from simbot.sim.render.thermal_counts import DEFAULT_RESOLUTION, ThermalScale, ThermalSpec
-from simbot.sim.sensor_params import SdfElement
-from simbot.sim.system import SystemContext
 from simbot.sim.systems.camera import Camera, Message, Product
 
 log = logging.getLogger(__name__)

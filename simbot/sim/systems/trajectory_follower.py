@@ -34,8 +34,8 @@ import math
 import numpy as np
 
 from simbot.description.model import Param, Plugin
-from simbot.sim.plugin_params import bool_param, number_param, param
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.plugin_params import bool_param, number_param, param
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import Transform, Vec3, matmul, norm, quaternion_to_matrix, rotate_into
 
 CIRCLE_SAMPLES = 8

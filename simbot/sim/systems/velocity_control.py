@@ -14,9 +14,9 @@ where nothing holds it). Gazebo's per-link commands (`<link_name>`) are not supp
 
 from __future__ import annotations
 
-from simbot.sim.drive import check_twist, vector_param
-from simbot.sim.plugin_params import param
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.drive import check_twist, vector_param
+from simbot.sim.kit.plugin_params import param
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 class VelocityControl:

@@ -18,9 +18,9 @@ from pathlib import Path
 from simbot.bus.intrinsics import Intrinsics
 from simbot.dataset_format import OPTICAL_IN_BODY, DatasetWriter, Shot, open_shared, release
 from simbot.description.model import Param, Sensor
+from simbot.sim.loop.system import SystemConfigError
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.label_bits import instance_of, label_of, labelled
-from simbot.sim.system import SystemConfigError
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)

@@ -21,9 +21,9 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.model import Param, Sensor
-from simbot.sim.naming import sensor_frame, sensor_rate
-from simbot.sim.rates import Sampled
-from simbot.sim.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.kit.rates import Sampled
+from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from functools import cache
 
 from simbot.description.model import Plugin, Sensor
 from simbot.plugins import load_group
-from simbot.sim.system import SystemFactory
+from simbot.sim.loop.system import SystemFactory
 
 log = logging.getLogger(__name__)
 

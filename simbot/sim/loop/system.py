@@ -23,12 +23,12 @@ they were added where priorities tie. The phases give the coarse order Gazebo's 
 for: commands act before the physics step, sensors see its result after.
 
 Systems come from SDF `<plugin>` elements (by plugin name), `<sensor>` elements (by sensor type),
-and the built-in groups every world or described model gets (`simbot.sim.registry`); all get the
+and the built-in groups every world or described model gets (`simbot.sim.loop.registry`); all get the
 same context, a sensor's with its link and sensor filled in. A `<plugin>` inside a `<visual>` (or
 on a nested model, which simbot flattens: it goes to the nested model's visuals) runs only where its
 class says `runs_on_visuals = True` (Label, Thermal), with its link and visual filled in. Each gets its own random stream from
-the seed and its scoped name (`simbot.sim.naming.scoped_rng`). Bus callbacks only queue
-(`simbot.sim.bus_view.Input`); systems act in the loop, so everything a system does happens at a
+the seed and its scoped name (`simbot.sim.loop.naming.scoped_rng`). Bus callbacks only queue
+(`simbot.sim.loop.bus_view.Input`); systems act in the loop, so everything a system does happens at a
 definite sim time.
 """
 
@@ -41,14 +41,14 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
-from simbot.sim.bus_view import SimBus
-from simbot.sim.naming import model_topic, scoped_key
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.naming import model_topic, scoped_key
 from simbot.sim.physics.protocols import WorldAccess
 
 
 class SystemConfigError(ValueError):
     """A system's SDF parameters are unusable; the message names the plugin and the parameter. The
-    world leaves that system out with the message as one error line, and runs (simbot/sim/world.py)."""
+    world leaves that system out with the message as one error line, and runs (simbot/sim/loop/world.py)."""
 
 
 DEFAULT_PRIORITY = 0

@@ -14,12 +14,12 @@ from typing import Any
 
 from simbot.bus import messages
 from simbot.description.model import Model, Plugin
-from simbot.sim.bus_view import SimBus
-from simbot.sim.naming import scoped_key
+from simbot.sim.kit.plugin_params import bool_param, number_param, param
+from simbot.sim.kit.rates import Every
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.naming import scoped_key
+from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.physics import WorldReader
-from simbot.sim.plugin_params import bool_param, number_param, param
-from simbot.sim.rates import Every
-from simbot.sim.system import SystemConfigError, SystemContext
 
 log = logging.getLogger(__name__)
 

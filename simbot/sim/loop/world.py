@@ -6,8 +6,8 @@ of `SystemContext`, and puts them in the simulation loop. It is the one owner of
 a model enters (at start, or through world control's `create`) or leaves (`remove`, a reset), it
 tells the world systems that follow models (`ModelObserver`) with a `ModelEvent` that carries the
 model's bodies and systems. No system is named here: the built-in ones come from their entry-point
-groups (`simbot.sim.registry`), and each finds what it serves among a model's systems by Protocol.
-Which systems the SDF asks for is `simbot.sim.sdf_systems`'s to say (`simbot describe` asks it
+groups (`simbot.sim.loop.registry`), and each finds what it serves among a model's systems by Protocol.
+Which systems the SDF asks for is `simbot.sim.loop.sdf_systems`'s to say (`simbot describe` asks it
 too); one whose SDF parameters are bad is left out, and the world keeps why (`left_out`, which
 world state reports): a model's entries for as long as the model stays, the world's own for good.
 """
@@ -24,14 +24,14 @@ from pathlib import Path
 from simbot.description import DescriptionError, load_description
 from simbot.description.model import Model, World
 from simbot.description.poses import Pose
-from simbot.sim.bus_view import SimBus
-from simbot.sim.control import CreateRequest
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.registry import ROBOT_GROUP, WORLD_GROUP
+from simbot.sim.loop.sdf_systems import LeftOut, Wanted, builtins, plugins_of, sensors_of, world_plugins
+from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
+from simbot.sim.loop.system import ModelEvent, ModelObserver, RunOptions, System, SystemConfigError
+from simbot.sim.loop.world_control import CreateRequest
 from simbot.sim.physics import Physics
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
-from simbot.sim.registry import ROBOT_GROUP, WORLD_GROUP
-from simbot.sim.sdf_systems import LeftOut, Wanted, builtins, plugins_of, sensors_of, world_plugins
-from simbot.sim.simulation import Mode, Scheduled, Simulation
-from simbot.sim.system import ModelEvent, ModelObserver, RunOptions, System, SystemConfigError
 
 log = logging.getLogger(__name__)
 

@@ -9,7 +9,7 @@ import math
 
 from simbot.description.model import Plugin
 from simbot.description.xml import parse_flag
-from simbot.sim.system import SystemConfigError
+from simbot.sim.loop.system import SystemConfigError
 
 
 def param(plugin: Plugin, *tags: str, default: str | None = None) -> str | None:

@@ -37,10 +37,10 @@ from typing import Any, Protocol
 
 from simbot.bus import BadRequest, Node, Request
 from simbot.description.poses import Pose
-from simbot.sim.bus_view import SimBus
-from simbot.sim.sdf_systems import LeftOut
-from simbot.sim.simulation import Mode, Simulation
-from simbot.sim.system import Reporting
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.sdf_systems import LeftOut
+from simbot.sim.loop.simulation import Mode, Simulation
+from simbot.sim.loop.system import Reporting
 from simbot.transform import Transform
 
 MAX_STEPS = 10_000_000

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from simbot.description.poses import Pose
+from simbot.sim.loop.system import UpdateInfo
 from simbot.sim.render.publishing import Publication
 from simbot.sim.render.specs import Annotation, CameraSpec, Frame
-from simbot.sim.system import UpdateInfo
 
 
 @dataclass

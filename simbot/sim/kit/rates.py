@@ -7,7 +7,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from simbot.sim.system import UpdateInfo
+from simbot.sim.loop.system import UpdateInfo
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 One step: the clock advances, every system's `pre_update` (commands in), the physics step, every
 system's `post_update` (state out) with the physics read-only. Every phase gets the same
-`UpdateInfo`; within a phase systems run by priority (see `simbot.sim.system`). The loop only
+`UpdateInfo`; within a phase systems run by priority (see `simbot.sim.loop.system`). The loop only
 schedules; what happens in a step is the systems' and the physics module's business.
 """
 
@@ -16,8 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 
+from simbot.sim.loop.system import Closable, PostUpdate, PreUpdate, Resettable, System, UpdateInfo
 from simbot.sim.physics import Physics
-from simbot.sim.system import Closable, PostUpdate, PreUpdate, Resettable, System, UpdateInfo
 
 log = logging.getLogger(__name__)
 
