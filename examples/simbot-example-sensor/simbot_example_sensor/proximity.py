@@ -28,8 +28,8 @@ import numpy as np
 from simbot.bus.codec import TYPESTORE
 from simbot.bus.messages import header
 from simbot.description.model import Sensor
-from simbot.sim.sensor_params import FramedSensor, Noise, SdfElement
-from simbot.sim.system import SystemContext, UpdateInfo
+from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.transform import quaternion_to_matrix
 
 Range: Any = TYPESTORE.types["sensor_msgs/msg/Range"]
