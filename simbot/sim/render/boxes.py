@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.kinematics import KinematicTree, UrdfJoint
-from simbot.sim.render.kinds import Intrinsics
+from simbot.sim.render.kinds import Optics
 from simbot.sim.render.label_bits import MAX_INSTANCE, labelled
 from simbot.sim.render.specs import Frame, SceneBody
 from simbot.sim.render.visuals import visual_points
@@ -103,7 +103,7 @@ def _motion(joint: UrdfJoint, position: float) -> Matrix:
 class View:
     """A camera at one pose: the world to its optical frame, and its pinhole projection."""
 
-    def __init__(self, pose: Transform, spec: Intrinsics) -> None:
+    def __init__(self, pose: Transform, spec: Optics) -> None:
         camera = pose.matrix()
         self.optical = np.eye(4)
         self.optical[:3, :3] = matmul(OPTICAL_FROM_CAMERA, camera[:3, :3].T)

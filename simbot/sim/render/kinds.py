@@ -38,7 +38,7 @@ Finish = Callable[[Array, Mapping[str, Array]], None]
 """Finishes an output in place, given its array and every output of the camera by name."""
 
 
-class Intrinsics(Protocol):
+class Optics(Protocol):
     """What a kind may read of its camera (a `CameraSpec` is one): size, clip, noise, focal length, lens."""
 
     @property
@@ -75,10 +75,10 @@ class OutputKind:
     """The raw buffer the renderer draws straight into this output's memory."""
     needs: tuple[str, ...] = ()
     """The outputs it is computed from: they are in the camera's memory and finished before it."""
-    finisher: Callable[[Intrinsics], Finish | None] | None = None
+    finisher: Callable[[Optics], Finish | None] | None = None
     """Makes the camera's finishing step, once per camera in its worker; None (or a None step): none."""
 
-    def shape(self, spec: Intrinsics) -> tuple[int, ...]:
+    def shape(self, spec: Optics) -> tuple[int, ...]:
         return (spec.height, spec.width) if self.channels == 1 else (spec.height, spec.width, self.channels)
 
 

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from simbot.sim.render import lens
-from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
+from simbot.sim.render.kinds import Array, Finish, Optics, OutputKind
 from simbot.sim.render.specs import Depths, Pixels, Points
 from simbot.transform import matmul
 
@@ -50,7 +50,7 @@ class PointGrid:
     """Per-pixel ray slopes of a camera, worked out once: (u − cx)/fx and (v − cy)/fy of a pinhole
     camera, the undistorted ray of each pixel (`lens.rays`, NaN where none) through a lens that bends."""
 
-    def __init__(self, spec: Intrinsics) -> None:
+    def __init__(self, spec: Optics) -> None:
         cx, cy = spec.principal_point
         self.x: Depths = ((np.arange(spec.width, dtype=np.float32) - cx) / spec.fx)[np.newaxis, :]
         self.y: Depths = ((np.arange(spec.height, dtype=np.float32) - cy) / spec.fx)[:, np.newaxis]
@@ -68,14 +68,14 @@ class PointGrid:
         out[..., 3] = packed.view(np.float32)
 
 
-def _remap(spec: Intrinsics) -> lens.Remap | None:
+def _remap(spec: Optics) -> lens.Remap | None:
     """The camera's lens as remap tables (shared by its outputs); None for a pinhole camera."""
     if not spec.distortion.bends:
         return None
     return lens.remap(spec.distortion, spec.width, spec.height, spec.fx)
 
 
-def noise(spec: Intrinsics) -> Finish | None:
+def noise(spec: Optics) -> Finish | None:
     """The lens, then the camera's seeded pixel noise; none for a pinhole camera at stddev 0."""
     bend = _remap(spec)
     rng = np.random.default_rng(spec.seed) if spec.noise_stddev > 0.0 else None
@@ -91,7 +91,7 @@ def noise(spec: Intrinsics) -> Finish | None:
     return finish
 
 
-def metres(spec: Intrinsics) -> Finish:
+def metres(spec: Optics) -> Finish:
     """Window depth to metres, then the lens (nearest: no depth between two surfaces)."""
     bend = _remap(spec)
 
@@ -103,7 +103,7 @@ def metres(spec: Intrinsics) -> Finish:
     return finish
 
 
-def points(spec: Intrinsics) -> Finish:
+def points(spec: Optics) -> Finish:
     grid = PointGrid(spec)
 
     def fill(out: Array, arrays: Mapping[str, Array]) -> None:

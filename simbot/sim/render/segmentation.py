@@ -22,7 +22,7 @@ from collections.abc import Mapping
 import numpy as np
 import numpy.typing as npt
 
-from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
+from simbot.sim.render.kinds import Array, Finish, Optics, OutputKind
 
 SEMANTIC = "semantic"
 PANOPTIC = "panoptic"
@@ -68,7 +68,7 @@ def _foreground(packed: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
     return out
 
 
-def _semantic_labels(_: Intrinsics) -> Finish:
+def _semantic_labels(_: Optics) -> Finish:
     """The label byte in all three channels (0 for the sky and unlabelled geometry, whose label bits are 0)."""
 
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
@@ -77,7 +77,7 @@ def _semantic_labels(_: Intrinsics) -> Finish:
     return finish
 
 
-def _panoptic_labels(_: Intrinsics) -> Finish:
+def _panoptic_labels(_: Optics) -> Finish:
     """The packed pixel's first three bytes, [count & 0xFF, count >> 8, label]; background zeroed."""
 
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
@@ -87,14 +87,14 @@ def _panoptic_labels(_: Intrinsics) -> Finish:
     return finish
 
 
-def _semantic_colors(_: Intrinsics) -> Finish:
+def _semantic_colors(_: Optics) -> Finish:
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
         out[...] = SEMANTIC_COLOURS[_bytes(arrays["labels"])[..., LABEL_BYTE]]
 
     return finish
 
 
-def _panoptic_colors(_: Intrinsics) -> Finish:
+def _panoptic_colors(_: Optics) -> Finish:
     def finish(out: Array, arrays: Mapping[str, Array]) -> None:
         packed = arrays["labels"]
         np.multiply(colour_of(packed & np.uint32(0xFFFFFF)), _foreground(_bytes(packed)), out=out)

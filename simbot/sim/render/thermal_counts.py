@@ -19,7 +19,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind
+from simbot.sim.render.kinds import Array, Finish, Optics, OutputKind
 from simbot.sim.render.specs import CameraSpec
 
 DEFAULT_RESOLUTION = {16: 0.01, 8: 3.0}
@@ -70,7 +70,7 @@ class ThermalSpec(CameraSpec):
         return ThermalSpec(**given | {"scale": scale})
 
 
-def _finisher(spec: Intrinsics, bits: int) -> Finish:
+def _finisher(spec: Optics, bits: int) -> Finish:
     """The camera's scale (Gazebo's defaults for a camera that carries none), and a scratch buffer."""
     scale = spec.scale if isinstance(spec, ThermalSpec) else ThermalScale.gazebo(bits)
     scratch = np.empty((spec.height, spec.width), dtype=np.float32)
@@ -81,11 +81,11 @@ def _finisher(spec: Intrinsics, bits: int) -> Finish:
     return finish
 
 
-def counts16(spec: Intrinsics) -> Finish:
+def counts16(spec: Optics) -> Finish:
     return _finisher(spec, 16)
 
 
-def counts8(spec: Intrinsics) -> Finish:
+def counts8(spec: Optics) -> Finish:
     return _finisher(spec, 8)
 
 

@@ -10,14 +10,14 @@ from collections.abc import Callable, Iterator, Mapping
 import cv2
 import numpy as np
 
-from simbot.sim.render.kinds import Array, Finish, Intrinsics, OutputKind, Raw
+from simbot.sim.render.kinds import Array, Finish, Optics, OutputKind, Raw
 from simbot.sim.render.outputs import add_noise, luminance
 from simbot.sim.render.specs import CameraSpec
 from simbot.sim.render.wide_lens import FACES, OPTICAL_IN_CAMERA, Plan, WideLens, plan
 from simbot.transform import Matrix, Transform, matmul, quaternion_to_matrix
 
 
-def _plan_of(spec: Intrinsics) -> tuple[WideLens, Plan]:
+def _plan_of(spec: Optics) -> tuple[WideLens, Plan]:
     if not isinstance(spec, CameraSpec) or spec.wide is None:
         raise ValueError(f"a wide-angle output needs a camera with a wide-angle lens, got {spec!r}")
     return spec.wide, plan(spec.wide, spec.width, spec.height, spec.hfov)
@@ -26,12 +26,12 @@ def _plan_of(spec: Intrinsics) -> tuple[WideLens, Plan]:
 class FacesKind(OutputKind):
     """The raw faces: each drawn face of `lens.face` pixels a side, one below the other."""
 
-    def shape(self, spec: Intrinsics) -> tuple[int, ...]:
+    def shape(self, spec: Optics) -> tuple[int, ...]:
         lens, drawn = _plan_of(spec)
         return (len(drawn.faces) * lens.face, lens.face, 3)
 
 
-def _remap(spec: Intrinsics) -> Callable[[Mapping[str, Array], Array], None]:
+def _remap(spec: Optics) -> Callable[[Mapping[str, Array], Array], None]:
     """The camera's remap of its faces into an rgb image."""
     _, drawn = _plan_of(spec)
 
@@ -41,7 +41,7 @@ def _remap(spec: Intrinsics) -> Callable[[Mapping[str, Array], Array], None]:
     return remap
 
 
-def _noise(spec: Intrinsics) -> Callable[[Array], None]:
+def _noise(spec: Optics) -> Callable[[Array], None]:
     """The camera's seeded pixel noise, after the lens as on a real sensor."""
     rng = np.random.default_rng(spec.seed)
 
@@ -52,7 +52,7 @@ def _noise(spec: Intrinsics) -> Callable[[Array], None]:
     return noise
 
 
-def color(spec: Intrinsics) -> Finish:
+def color(spec: Optics) -> Finish:
     """The faces remapped into the image, then the camera's pixel noise."""
     remap, noise = _remap(spec), _noise(spec)
 
@@ -63,7 +63,7 @@ def color(spec: Intrinsics) -> Finish:
     return finish
 
 
-def mono(spec: Intrinsics) -> Finish:
+def mono(spec: Optics) -> Finish:
     """As `color`, then to luminance (the faces are drawn in colour)."""
     remap, noise = _remap(spec), _noise(spec)
     rgb = np.empty((spec.height, spec.width, 3), dtype=np.uint8)
