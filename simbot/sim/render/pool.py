@@ -430,21 +430,26 @@ def _check_config(bodies: Sequence[SceneBody], cameras: Sequence[CameraSpec], wo
 
 
 def _stop_workers(workers: Sequence[_Worker]) -> None:
-    """Ask politely, give a frame's time, then terminate, then kill."""
+    """Ask politely, give a frame's time, then terminate, then kill: every worker at each stage
+    together, so that stopping takes the same time however many workers there are."""
     for worker in workers:
         with contextlib.suppress(OSError):  # a dead worker's pipe: it is stopped already
             worker.conn.send(Stop())
-    deadline = time.monotonic() + STOP_GRACE_S
+    _join_all(workers, STOP_GRACE_S)
+    for stage, seconds in ((BaseProcess.terminate, 1.0), (BaseProcess.kill, None)):
+        alive = [worker for worker in workers if worker.process.is_alive()]
+        for worker in alive:
+            stage(worker.process)
+        _join_all(alive, seconds)
     for worker in workers:
-        worker.process.join(max(0.0, deadline - time.monotonic()))
-    for worker in workers:
-        if worker.process.is_alive():
-            worker.process.terminate()
-            worker.process.join(1.0)
-        if worker.process.is_alive():
-            worker.process.kill()
-            worker.process.join()
         worker.conn.close()
+
+
+def _join_all(workers: Sequence[_Worker], seconds: float | None) -> None:
+    """Waits for the workers to end, `seconds` for all of them together (None: as long as it takes)."""
+    deadline = None if seconds is None else time.monotonic() + seconds
+    for worker in workers:
+        worker.process.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
 
 
 def _free(shm: SharedMemory) -> None:
