@@ -30,8 +30,14 @@ Cell = tuple[int, int]
 
 def cell_of(positions: npt.NDArray[np.floating]) -> Cell:
     """The cell (x, y) of the middle of the points' box, in the world frame."""
-    middle = (positions.min(axis=0) + positions.max(axis=0)) / 2.0
+    middle = _middle(positions)
     return (math.floor(float(middle[0]) / CELL_M), math.floor(float(middle[1]) / CELL_M))
+
+
+def _middle(points: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
+    """The middle of the points' axis-aligned box."""
+    middle: npt.NDArray[np.floating] = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    return middle
 
 
 def sphere(positions: npt.NDArray[np.floating]) -> tuple[npt.NDArray[np.float64], float]:
@@ -39,7 +45,7 @@ def sphere(positions: npt.NDArray[np.floating]) -> tuple[npt.NDArray[np.float64]
     points = np.asarray(positions, dtype=np.float64)
     if not len(points):
         return np.zeros(3), 0.0
-    centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    centre = _middle(points).astype(np.float64, copy=False)
     offsets = points - centre
     return centre, float(np.sqrt((offsets * offsets).sum(axis=1).max()))
 

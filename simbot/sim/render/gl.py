@@ -31,7 +31,7 @@ import logging
 import os
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +60,13 @@ ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 Rows = npt.NDArray[np.float32]
 _Drawn = tuple["_Part", bytes]
 """A part with its model matrix (GLSL bytes)."""
+
+
+class _Seen(NamedTuple):
+    """What one view draws: its opaque parts nearest first, then its translucent ones."""
+
+    opaque: list[_Drawn]
+    translucent: list[_Drawn]
 
 
 @dataclass
@@ -321,16 +328,15 @@ class GlRenderer:
         if target.annotations is not None:
             self._annotate(target.annotations, shaders.gl_matrix(view_projection), seen, drawn)
 
-    def _seen(self, view_projection: Matrix, eye: npt.NDArray[np.float64], transforms: list[bytes]) -> list[_Drawn]:
-        """The parts the view can show with their transforms: the opaque ones nearest first, then
+    def _seen(self, view_projection: Matrix, eye: npt.NDArray[np.float64], transforms: list[bytes]) -> _Seen:
+        """The parts the view can show with their transforms: the opaque ones nearest first, and
         the translucent ones in the scene's order (`culling.py`)."""
-        inside = culling.visible(culling.frustum_planes(view_projection), self._centres, self._radii)
+        inside = np.flatnonzero(culling.visible(culling.frustum_planes(view_projection), self._centres, self._radii))
         offsets = self._centres - eye
         distance = (offsets * offsets).sum(axis=1)
-        opaque = [i for i in np.flatnonzero(inside) if self.parts[i].surface.opacity >= 1.0]
-        opaque.sort(key=lambda i: (distance[i], i))
-        translucent = [i for i in np.flatnonzero(inside) if self.parts[i].surface.opacity < 1.0]
-        return [(self.parts[i], transforms[i]) for i in (*opaque, *translucent)]
+        opaque = sorted((i for i in inside if self.parts[i].surface.opacity >= 1.0), key=lambda i: (distance[i], i))
+        translucent = [i for i in inside if self.parts[i].surface.opacity < 1.0]
+        return _Seen(*([(self.parts[i], transforms[i]) for i in kind] for kind in (opaque, translucent)))
 
     def _shade(
         self,
@@ -338,7 +344,7 @@ class GlRenderer:
         fbo: Any,
         pose: Transform,
         view_projection: bytes,
-        seen: list[_Drawn],
+        seen: _Seen,
         drawn: Mapping[Raw, Array],
     ) -> None:
         """What the camera sees in the world's light: colour, and window depth."""
@@ -355,14 +361,14 @@ class GlRenderer:
         if (depth := drawn.get("depth")) is not None:
             fbo.read_into(depth, attachment=-1, dtype="f4", alignment=1)
 
-    def _annotate(self, fbo: Any, view_projection: bytes, seen: list[_Drawn], drawn: Mapping[Raw, Array]) -> None:
+    def _annotate(self, fbo: Any, view_projection: bytes, seen: _Seen, drawn: Mapping[Raw, Array]) -> None:
         """Each pixel's label and temperature, every surface drawn opaque and unshaded; 0 where
         nothing is (the sky)."""
         program = self.annotation_program
         program["view_projection"].write(view_projection)
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        for part, transform in seen:
+        for part, transform in (*seen.opaque, *seen.translucent):
             program["model"].write(transform)
             part.annotation_vao.render()
         if (labels := drawn.get("labels")) is not None:
@@ -370,22 +376,20 @@ class GlRenderer:
         if (temperature := drawn.get("temperature")) is not None:
             fbo.read_into(temperature, components=1, attachment=1, dtype="f4", alignment=1)
 
-    def _draw(self, seen: list[_Drawn], fbo: Any) -> None:
+    def _draw(self, seen: _Seen, fbo: Any) -> None:
         """The opaque parts, then the translucent ones blended over them without writing depth.
         (A depth pre-pass, to shade each pixel once, cost more on llvmpipe than it saved: the
         vertices, drawn twice, are the larger part of a frame.)"""
         import moderngl
 
-        for part, transform in seen:
-            if part.surface.opacity >= 1.0:
-                self._draw_part(part, transform)
-        translucent = [(part, transform) for part, transform in seen if part.surface.opacity < 1.0]
-        if not translucent:
+        for part, transform in seen.opaque:
+            self._draw_part(part, transform)
+        if not seen.translucent:
             return
         self.ctx.enable(moderngl.BLEND)
         fbo.depth_mask = False
         try:
-            for part, transform in translucent:
+            for part, transform in seen.translucent:
                 self._draw_part(part, transform)
         finally:
             fbo.depth_mask = True
