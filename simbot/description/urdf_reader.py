@@ -9,10 +9,10 @@ from __future__ import annotations
 import io
 import logging
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xacro
-import yourdfpy
 
 from simbot.description.errors import DescriptionError
 from simbot.description.missing_meshes import present_collisions, visuals_with_fallbacks
@@ -35,6 +35,9 @@ from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import resolve
 from simbot.description.xml import parse_text
 from simbot.transform import norm
+
+if TYPE_CHECKING:
+    import yourdfpy
 
 logger = logging.getLogger(__name__)
 
@@ -70,6 +73,8 @@ def load_urdf(path: Path | str) -> yourdfpy.URDF:
     root = parse_text(text, path)
     if root.tag != "robot":
         raise DescriptionError(path, "not a URDF file: the root element must be <robot>", root.tag, root.sourceline)
+    import yourdfpy  # with trimesh, 1.1 s of import that every render worker would pay for a package it never calls
+
     urdf = yourdfpy.URDF.load(
         io.BytesIO(text.encode()),
         build_scene_graph=True,
