@@ -47,10 +47,6 @@ from simbot.sim.render.wide_angle import views
 from simbot.transform import Transform
 
 RENDERERS = ("auto", "gl", "tiny")
-NICE = 10
-"""How far a worker steps back once it has loaded: its frames must not take the physics' core. It loads
-at the server's priority: a one-off the loop does not wait for in real time, which at nice 10 on a
-machine busy with four other processes took 44 s instead of 6 (2-core AMD EPYC)."""
 
 
 class Renderer(Protocol):
@@ -120,6 +116,7 @@ class _Camera:
 def worker_main(conn: Connection, plan: WorkerPlan) -> None:
     """A render worker: load the scene, report ready, render requests until told to stop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's to handle; it closes the pool
+    os.nice(10)
     _silence_stdio()
     try:
         from simbot.sim.bullet import pb
@@ -134,7 +131,6 @@ def worker_main(conn: Connection, plan: WorkerPlan) -> None:
         conn.send(StartError(_reason(exc)))
         return
     conn.send(Ready(renderer.name, fallback, renderer.device))
-    os.nice(NICE)
     try:
         _serve(conn, held)
     finally:
