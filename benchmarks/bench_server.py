@@ -94,7 +94,7 @@ def server(seconds: float) -> tuple[float, float]:
             if not first_odom.wait(30):
                 raise RuntimeError("no odom within 30 s")
             startup = time.perf_counter() - launched
-            drive = node.publisher("cmd_vel", drop=False)
+            drive = node.publisher("cmd_vel", messages.Twist, drop=False)
             drive.put(messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.1)))
             sim0, wall0 = node.call("world/warehouse/state", {})["sim_time"], time.perf_counter()
             time.sleep(seconds)

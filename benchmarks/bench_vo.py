@@ -156,7 +156,7 @@ def _send(node: Node, topic: str, msg: Any) -> None:
     """Puts `msg` on an input of the server and waits until the server counts it received."""
     key = node.key(topic)
     before = _call(node, "state", {})["received"][key]
-    node.publisher(topic, drop=False).put(msg)
+    node.publisher(topic, msg.__msgtype__, drop=False).put(msg)
     _wait(lambda: _call(node, "state", {})["received"][key] > before, 30, f"receipt of {topic}")
 
 

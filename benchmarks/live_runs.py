@@ -68,7 +68,7 @@ def count_topics(node: Node, topics: Sequence[str]) -> dict[str, Counter]:
     counters = {}
     for topic in topics:
         counter = counters[topic] = Counter()
-        counter.subscriber = node.session.declare_subscriber(node.key(topic), counter)
+        counter.subscriber = node.session.declare_subscriber(node.graph.any_type_key(node.key(topic)), counter)
     return counters
 
 
@@ -226,7 +226,9 @@ def run_server(
             wait_ready(node)
             counters = count_topics(node, topics)
             if drive:
-                node.publisher("cmd_vel", drop=False).put(messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.1)))
+                node.publisher("cmd_vel", messages.Twist, drop=False).put(
+                    messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.1))
+                )
             _wait_first(counters, topics, proc)
             time.sleep(SETTLE_S)
             return _measure(node, proc.pid if clients is None else _server_pid(proc.pid), counters, seconds)

@@ -191,7 +191,7 @@ class Echo:
         self.node = node
         self.args = args
         try:
-            self.key = node.key(args.key)
+            self.key = node.graph.any_type_key(node.key(args.key))
         except ValueError as exc:
             raise ClientError(str(exc)) from None
         self.name = args.key.strip("/")

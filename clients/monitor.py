@@ -205,12 +205,14 @@ class Monitor:
             for name, t in shown.items()
             if name not in self.types and "pub" in t.kinds and t.typename in SUMMARIES
         }
-        held = latched(self.node.session, [topic.key for topic in new.values()])
+        held = latched(self.node.session, [topic.data_key for topic in new.values()])
         for name, topic in new.items():
             inbox: Mailbox[Any] = Mailbox(1)
             self.types[name], self.inboxes[name] = topic.typename, inbox
             # by its name at the bus's namespace: the same key whatever robot is followed
-            self.node.subscribe(f"/{topic.name}", topic.typename, self._arrival(name, inbox), latched=topic.key in held)
+            self.node.subscribe(
+                f"/{topic.name}", topic.typename, self._arrival(name, inbox), latched=topic.data_key in held
+            )
 
     def _arrival(self, name: str, inbox: Mailbox[Any]) -> Callable[[Any], None]:
         def arrived(msg: Any) -> None:  # Zenoh thread: count and keep the newest

@@ -179,15 +179,15 @@ class Recorder:
         new = [
             topic for name, topic in topics.items() if self.selection.chosen(name) and name not in self.bag.connections
         ]
-        latched_keys = latched(self.node.session, [topic.key for topic in new]) if new else set()
+        latched_keys = latched(self.node.session, [topic.data_key for topic in new]) if new else set()
         for topic in new:
-            self.bag.add(topic, topic.key in latched_keys)
+            self.bag.add(topic, topic.data_key in latched_keys)
             self.tap.listen(topic)
             logger.info(
                 "recording %s (%s%s)",
                 ros_topic(topic.name),
                 topic.typename,
-                ", latched" if topic.key in latched_keys else "",
+                ", latched" if topic.data_key in latched_keys else "",
             )
         self._warn_missing(now, list(topics))
 

@@ -151,11 +151,11 @@ class Outbound:
         if self.latched:
             history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
             self._subscriber = zenoh.ext.declare_advanced_subscriber(
-                self._session, self.topic.key, self._on_sample, history=history
+                self._session, self.topic.data_key, self._on_sample, history=history
             )
         else:
             self._subscriber = self._session.declare_subscriber(
-                self.topic.key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE
+                self.topic.data_key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE
             )
 
     def unsubscribe(self) -> None:
@@ -189,7 +189,7 @@ class Inbound:
         self._own: set[bytes] = set()
         self._others: set[bytes] = set()
         self._publisher = session.declare_publisher(
-            topic.key,
+            topic.data_key,
             encoding=CDR.with_schema(topic.typename),
             congestion_control=zenoh.CongestionControl.BLOCK,
             allowed_destination=zenoh.Locality.REMOTE,
@@ -244,7 +244,7 @@ class Bridge:
         self._graph: frozenset[tuple[str, tuple[str, ...]]] = frozenset()
         self._rewind = SimTimeWatch()
         # a plain Zenoh subscriber, not node.subscribe: that one would announce the bridge on the graph
-        self._clock = node.session.declare_subscriber(node.key("/clock"), self._on_clock)
+        self._clock = node.session.declare_subscriber(node.data_key("/clock", CLOCK), self._on_clock)
 
     def _on_clock(self, sample: zenoh.Sample) -> None:
         """Zenoh thread: the tick's sim time to the rewind detector."""
@@ -309,9 +309,9 @@ class Bridge:
         return True
 
     def _open_outbound(self, topics: list[Topic]) -> None:
-        held = latched(self._node.session, [topic.key for topic in topics])
+        held = latched(self._node.session, [topic.data_key for topic in topics])
         for topic in topics:
-            latched_key = topic.key in held
+            latched_key = topic.data_key in held
             publisher = self._ros.create_publisher(ros_type(topic.typename), "/" + topic.key, qos(latched_key))
             route = self.routes.outbound[topic.name] = Outbound(
                 self._node.session, topic, publisher, latched_key, self.to_dds

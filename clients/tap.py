@@ -68,7 +68,7 @@ class Tap:
             return
         history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
         self._subscribers[topic.name] = zenoh.ext.declare_advanced_subscriber(
-            self._node.session, topic.key, lambda sample: self._on_sample(topic, sample), history=history
+            self._node.session, topic.data_key, lambda sample: self._on_sample(topic, sample), history=history
         )
 
     def unlisten(self, name: str) -> None:

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import zenoh
 
 from simbot.bus import Node
-from simbot.bus.graph import KINDS, Kind, discover
+from simbot.bus.graph import KINDS, SERVICE_TYPE, Kind, discover
+from simbot.bus.rmw import RosGraph
 
 from .common import ClientError, client_parser, number, run_client
 
@@ -52,26 +53,31 @@ class Topic:
 
     name: str
     key: str
+    """The topic's full name without its leading slash (`ns/odom`): the ROS topic, world state's key."""
     typename: str
     kinds: tuple[Kind, ...]
+    data_key: str
+    """Where its samples are on Zenoh (rmw_zenoh's key; a JSON service's own name)."""
 
 
-def topic_name(key: str, namespace: str) -> str:
-    """The topic name of a Zenoh key: the key without the namespace prefix."""
+def topic_name(key: str, namespace: str, graph: RosGraph | None = None) -> str:
+    """The topic name of a key (a name, or a data key of `graph`'s domain) without the namespace prefix."""
+    name = (graph or RosGraph()).name_of(key) or key
     prefix = namespace.strip("/")
-    return key[len(prefix) + 1 :] if prefix and key.startswith(prefix + "/") else key
+    return name[len(prefix) + 1 :] if prefix and name.startswith(prefix + "/") else name
 
 
 def live_topics(node: Node) -> dict[str, Topic]:
     """Every live key of the node's namespace, by topic name; the publishers' type wins over the others'."""
     by_key: dict[str, dict[Kind, str]] = defaultdict(dict)
-    for endpoint in discover(node.session, node.namespace):
+    for endpoint in discover(node.session, node.namespace, graph=node.graph):
         by_key[endpoint.key].setdefault(endpoint.kind, endpoint.typename)
     topics = {}
     for key, kinds in by_key.items():
         name = topic_name(key, node.namespace)
         typename = next(kinds[kind] for kind in KINDS if kind in kinds)
-        topics[name] = Topic(name, key, typename, tuple(kind for kind in KINDS if kind in kinds))
+        data_key = key if typename == SERVICE_TYPE else node.graph.data_key(key, typename)
+        topics[name] = Topic(name, key, typename, tuple(kind for kind in KINDS if kind in kinds), data_key)
     return topics
 
 
@@ -183,7 +189,7 @@ class Measurement:
 def measure(node: Node, window_s: float, stop: threading.Event) -> Measurement:
     """Counts every sample in the namespace for `window_s` seconds (less if `stop` is set)."""
     measurement = Measurement(Traffic(window_s), {})
-    scope = f"{node.namespace.strip('/')}/**" if node.namespace.strip("/") else "**"
+    scope = "/".join(part for part in (str(node.graph.domain_id), node.namespace.strip("/"), "**") if part)
     subscriber = node.session.declare_subscriber(scope, measurement.on_sample)
     try:
         stop.wait(window_s)
@@ -207,23 +213,24 @@ def table_rows(node: Node, measurement: Measurement | None) -> list[tuple[str, .
     topics = live_topics(node)
     if measurement is not None:
         for key in measurement.traffic.keys():  # noqa: SIM118 - Traffic is not a dict: keys() is its own method
-            name = topic_name(key, node.namespace)
+            name = topic_name(key, node.namespace, node.graph)
             if name not in topics:
-                topics[name] = Topic(name, key, schema_type(measurement.encodings.get(key, "")) or "?", ())
+                typename = schema_type(measurement.encodings.get(key, "")) or "?"
+                topics[name] = Topic(name, node.graph.name_of(key) or key, typename, (), key)
     silent = [
-        t.key
+        t.data_key
         for t in topics.values()
-        if "pub" in t.kinds and (measurement is None or not measurement.figures(t.key).count)
+        if "pub" in t.kinds and (measurement is None or not measurement.figures(t.data_key).count)
     ]
     held = latched(node.session, silent)
     rows: list[tuple[str, ...]] = []
     for name in sorted(topics):
         topic = topics[name]
         rate = bandwidth = NOTHING
-        if topic.key in held:
+        if topic.data_key in held:
             rate = "latched"
         elif measurement is not None and "srv" not in topic.kinds:
-            figures = measurement.figures(topic.key)
+            figures = measurement.figures(topic.data_key)
             rate = format_rate(figures)
             bandwidth = format_bandwidth(figures.bytes_per_s) if figures.count else NOTHING
         rows.append((name, topic.typename, " ".join(topic.kinds) or NOTHING, rate, bandwidth))

@@ -36,6 +36,7 @@ from bus_helpers import endpoint, free_port, unique_namespace
 from gl_helpers import NO_EGL
 
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError, Subscription, messages
+from simbot.bus.rmw import RosGraph
 
 REPO = Path(__file__).resolve().parents[1]
 STARTUP_TIMEOUT_S = 120.0
@@ -163,8 +164,15 @@ def payload(sample: zenoh.Sample) -> bytes:
 
 
 def keyed_payload(sample: zenoh.Sample) -> tuple[str, bytes]:
-    """What `raw_samples` keeps of a sample: its key and its payload."""
-    return str(sample.key_expr), sample.payload.to_bytes()
+    """What `raw_samples` keeps of a sample: its topic's name (`ns/odom`, from rmw_zenoh's data key
+    `0/ns/odom/<type>/<hash>`; another key as it is) and its payload."""
+    key = str(sample.key_expr)
+    return RosGraph().name_of(key) or key, sample.payload.to_bytes()
+
+
+def data_keys(namespace: str) -> str:
+    """Every data key of topics in `namespace` (domain 0), for a plain Zenoh subscriber."""
+    return f"0/{namespace}/**"
 
 
 @contextmanager
@@ -235,7 +243,7 @@ class SimServer:
     args: tuple[str, ...] = ()
     """The server's command-line arguments (what `restarted` starts again)."""
     stopped: bool = False
-    _publishers: dict[str, Publisher] = field(default_factory=dict)
+    _publishers: dict[tuple[str, str], Publisher] = field(default_factory=dict)
     _subscriptions: list[Subscription[Any]] = field(default_factory=list)
 
     # bus
@@ -245,18 +253,26 @@ class SimServer:
         return endpoint(self.port)
 
     def key(self, topic: str) -> str:
-        """The Zenoh key of `topic` in the server's namespace (as in `dropped` and `last_errors`)."""
+        """The name of `topic` in the server's namespace (as in `received`, `dropped` and `last_errors`)."""
         return self.node.key(topic)
+
+    def data_key(self, topic: str, typename: str) -> str:
+        """The Zenoh key of `topic`'s samples of `typename` (rmw_zenoh's), for a plain Zenoh put or subscriber."""
+        return self.node.data_key(topic, typename)
+
+    def any_type_key(self, topic: str) -> str:
+        """Every Zenoh key of `topic`, whatever type it carries."""
+        return self.node.graph.any_type_key(self.node.key(topic))
 
     def client(self) -> Node:
         """A new client node on the server's bus (the caller closes it)."""
         return Node(BusOptions(connect=(self.endpoint,), namespace=self.namespace, connect_timeout=10.0), "client")
 
-    def publisher(self, topic: str) -> Publisher:
-        """One reliable (BLOCK) publisher per topic, kept for the server's life."""
-        if topic not in self._publishers:
-            self._publishers[topic] = self.node.publisher(topic, drop=False)
-        return self._publishers[topic]
+    def publisher(self, topic: str, typename: str) -> Publisher:
+        """One reliable (BLOCK) publisher per topic and type, kept for the server's life."""
+        if (topic, typename) not in self._publishers:
+            self._publishers[topic, typename] = self.node.publisher(topic, typename, drop=False)
+        return self._publishers[topic, typename]
 
     def subscribe(self, topic: str, typename: str, *, latched: bool = False) -> Collector[Any]:
         """Messages of `topic` collected on the server's client node, until `unsubscribe_all`."""
@@ -275,7 +291,7 @@ class SimServer:
         key = self.key(topic)
         received = self.state()["received"]
         assert key in received, f"{topic!r} is not an input of the server ({', '.join(received)})"
-        self.publisher(topic).put(msg)
+        self.publisher(topic, msg.__msgtype__).put(msg)
         wait_until(
             lambda: self.state()["received"][key] > received[key],
             SEND_TIMEOUT_S,
@@ -283,8 +299,9 @@ class SimServer:
             poll=0.002,
         )
 
-    def send_raw(self, topic: str, data: bytes) -> None:
-        self.publisher(topic).put_raw(data)
+    def send_raw(self, topic: str, typename: str, data: bytes) -> None:
+        """`data` as it is, on `topic`'s key of `typename` (garbage, to see it refused)."""
+        self.publisher(topic, typename).put_raw(data)
 
     def drive(self, vx: float, wz: float = 0.0) -> None:
         self.send("cmd_vel", messages.twist((vx, 0.0, 0.0), (0.0, 0.0, wz)))

@@ -119,7 +119,7 @@ def _play(run: Run, env: Mapping[str, str]) -> Played:
     """The run, on a server started with `env` added to its environment."""
     with running_server(run.world, "lockstep", SEED, run.extra, env=env) as sim:
         session, prefix = sim.node.session, f"{sim.namespace}/"
-        with raw_samples(session, f"{prefix}**", keyed_payload) as samples:
+        with raw_samples(session, f"0/{prefix}**", keyed_payload) as samples:
             sim.step(STEPS_BEFORE)
             sim.send(run.cmd_vel, messages.twist((0.6, 0.0, 0.0), (0.0, 0.0, 0.4)))
             end_ns = round(sim.step(STEPS_DRIVEN)["sim_time"] * 1e9)
@@ -137,7 +137,7 @@ def _latched(session: zenoh.Session, prefix: str, keys: tuple[str, ...]) -> Payl
     """The latest sample of each latched key, from its publisher's queryable."""
     found = []
     for key in keys:
-        replies = [reply.ok for reply in session.get(prefix + key, timeout=10.0) if reply.ok is not None]
+        replies = [reply.ok for reply in session.get(f"0/{prefix}{key}/*/*", timeout=10.0) if reply.ok is not None]
         assert len(replies) == 1, f"{key}: {len(replies)} replies to a get of a latched key"
         found.append((prefix + key, replies[0].payload.to_bytes()))
     return found

@@ -30,6 +30,7 @@ from simbot.bus import (
     zenoh_config,
 )
 from simbot.bus import messages as m
+from simbot.bus.rmw import parse_attachment
 
 TWIST = "geometry_msgs/msg/Twist"
 STRING = "std_msgs/msg/String"
@@ -40,7 +41,7 @@ def test_twist_round_trip_client_to_server_and_back() -> None:
     with node_pair() as pair:
         got: list[Any] = []
         subscription = pair.server.subscribe("/cmd_vel", TWIST, got.append)
-        publisher = pair.client.publisher("/cmd_vel")
+        publisher = pair.client.publisher("/cmd_vel", TWIST)
         wait_until(lambda: publisher.has_subscribers, what="the server's cmd_vel subscription")
         publisher.put(m.twist((0.5, 0.0, 0.0), (0.0, 0.0, -0.25)))
         wait_until(lambda: got, what="the Twist")
@@ -50,7 +51,7 @@ def test_twist_round_trip_client_to_server_and_back() -> None:
 
         back: list[Any] = []
         pair.client.subscribe("odom_twist", TWIST, back.append)
-        server_publisher = pair.server.publisher("odom_twist")
+        server_publisher = pair.server.publisher("odom_twist", TWIST)
         wait_until(lambda: server_publisher.has_subscribers, what="the client's subscription")
         server_publisher.put(m.twist((0.1, 0.2, 0.3), (0.4, 0.5, 0.6)))
         wait_until(lambda: back, what="the server's Twist")
@@ -61,24 +62,32 @@ def test_twist_round_trip_client_to_server_and_back() -> None:
 
 
 def test_keys_carry_the_namespace() -> None:
-    """A node's keys are its namespace + the topic; samples carry the CDR encoding with the type name."""
+    """A node's keys are rmw_zenoh's: domain, namespace + topic, DDS type, type hash; samples carry the
+    CDR encoding with the type name and rmw_zenoh's 33-byte attachment, numbered from 1."""
     with node_pair() as pair:
         assert pair.server.key("/tf_static") == f"{pair.server.namespace}/tf_static"
         samples: list[zenoh.Sample] = []
-        pair.client.session.declare_subscriber(f"{pair.client.namespace}/**", samples.append)
-        publisher = pair.server.publisher("/clock")
+        pair.client.session.declare_subscriber(f"0/{pair.client.namespace}/**", samples.append)
+        publisher = pair.server.publisher("/clock", "rosgraph_msgs/msg/Clock")
         wait_until(lambda: publisher.has_subscribers, what="the plain subscriber")
         publisher.put(m.clock(2_000_000_001))
-        wait_until(lambda: samples, what="the Clock sample")
-        assert str(samples[0].key_expr) == f"{pair.client.namespace}/clock"
+        publisher.put(m.clock(2_000_000_002))
+        wait_until(lambda: len(samples) == 2, what="the Clock samples")
+        assert str(samples[0].key_expr) == (
+            f"0/{pair.client.namespace}/clock/rosgraph_msgs::msg::dds_::Clock_/"
+            "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564"
+        )
         assert str(samples[0].encoding) == "application/cdr;rosgraph_msgs/msg/Clock"
         assert samples[0].payload.to_bytes() == encode(m.clock(2_000_000_001))
+        attachments = [parse_attachment(s.attachment.to_bytes()) for s in samples if s.attachment is not None]
+        assert [a[0] for a in attachments] == [1, 2] and attachments[0][2] == attachments[1][2]
+        assert 0 <= time.time_ns() - attachments[0][1] < 10e9, "the source timestamp is the wall clock's"
 
 
 def test_latched_topic_reaches_a_late_joiner_exactly_once() -> None:
     """A subscriber that joins after the puts gets the latest value once, then every later put."""
     with node_pair() as pair:
-        publisher = pair.server.publisher("/robot_description", latched=True, drop=False)
+        publisher = pair.server.publisher("/robot_description", STRING, latched=True, drop=False)
         publisher.put(m.string("<robot name='v1'/>"))
         publisher.put(m.string("<robot name='v2'/>"))
         got: list[str] = []
@@ -99,20 +108,22 @@ def test_latched_subscriber_before_the_publisher_and_across_a_server_restart() -
     with Node(server_options, "server") as server:
         client = Node(BusOptions(connect=(endpoint(port),), namespace=namespace), "client")
         client.subscribe("tf_static_names", STRING, lambda msg: got.append(msg.data), latched=True)
-        server.publisher("tf_static_names", latched=True).put(m.string("first"))
+        server.publisher("tf_static_names", STRING, latched=True).put(m.string("first"))
         wait_until(lambda: got == ["first"], what="the first server's value")
     with client, Node(server_options, "server") as restarted:
-        restarted.publisher("tf_static_names", latched=True).put(m.string("second"))  # before the client reconnects
+        restarted.publisher("tf_static_names", STRING, latched=True).put(
+            m.string("second")
+        )  # before the client reconnects
         wait_until(lambda: got == ["first", "second"], timeout=10.0, what="the restarted server's value")
 
 
 def test_latched_topic_answers_a_plain_zenoh_get() -> None:
     """A plain Zenoh user reads the latest latched value with `get` on the key."""
     with node_pair() as pair:
-        publisher = pair.server.publisher("detachable_joint/state", latched=True)
+        publisher = pair.server.publisher("detachable_joint/state", STRING, latched=True)
         publisher.put(m.string("detached"))
         publisher.put(m.string("attached"))
-        replies = list(pair.client.session.get(pair.client.key("detachable_joint/state"), timeout=2.0))
+        replies = list(pair.client.session.get(pair.client.data_key("detachable_joint/state", STRING), timeout=2.0))
         payloads = [reply.ok.payload.to_bytes() for reply in replies if reply.ok is not None]
         assert payloads == [encode(m.string("attached"))]
 
@@ -121,7 +132,7 @@ def test_inbox_drains_in_order_and_counts_overflow() -> None:
     """Raw payloads queue up to maxlen (the oldest go first when full); drain returns and clears them."""
     with node_pair() as pair:
         inbox = pair.server.inbox("/cmd_vel", TWIST, maxlen=3)
-        publisher = pair.client.publisher("/cmd_vel", drop=False)
+        publisher = pair.client.publisher("/cmd_vel", TWIST, drop=False)
         wait_until(lambda: publisher.has_subscribers, what="the inbox subscription")
         for i in range(5):
             publisher.put(m.twist((float(i), 0.0, 0.0)))
@@ -137,7 +148,7 @@ def test_garbage_is_counted_and_good_messages_still_arrive(caplog: pytest.LogCap
     with node_pair() as pair:
         got: list[Any] = []
         subscription = pair.server.subscribe("/cmd_vel", TWIST, got.append)
-        publisher = pair.client.publisher("/cmd_vel", drop=False)
+        publisher = pair.client.publisher("/cmd_vel", TWIST, drop=False)
         wait_until(lambda: publisher.has_subscribers, what="the cmd_vel subscription")
         publisher.put_raw(b"\x00\x01\x00\x00garbage")
         publisher.put(m.string("a String is not a Twist"))
@@ -236,18 +247,50 @@ def test_server_listens_only_on_its_loopback_port_and_client_on_nothing() -> Non
     assert all(s.loopback for s in own_sockets() - before)
 
 
-def test_default_configs_are_loopback_only() -> None:
-    """Without options: server peer on 127.0.0.1:7447, client connects there, no multicast, timestamps."""
+def test_default_configs_are_loopback_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without options: server peer on 127.0.0.1:7448, joining a ROS 2 router at rmw_zenohd's 7447 if
+    one is there; client connects to the server; no multicast, timestamps."""
+    monkeypatch.delenv("ZENOH_ROUTER_CONFIG_URI", raising=False)
     server = zenoh_config(BusOptions(), "server")
     client = zenoh_config(BusOptions(), "client")
-    assert json.loads(server.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7447"]
-    assert json.loads(server.get_json("connect/endpoints")) == []
+    assert json.loads(server.get_json("listen/endpoints")) == ["tcp/127.0.0.1:7448"]
+    assert json.loads(server.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
     assert json.loads(client.get_json("listen/endpoints")) == []
-    assert json.loads(client.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
+    assert json.loads(client.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7448"]
     assert (json.loads(server.get_json("mode")), json.loads(client.get_json("mode"))) == ("peer", "client")
     for config in (server, client):
         assert json.loads(config.get_json("scouting/multicast/enabled")) is False
         assert json.loads(config.get_json("timestamping/enabled")) is True
+
+
+def test_a_ros_hosts_router_domain_and_session_config_are_honoured(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """ZENOH_ROUTER_CONFIG_URI says where the server finds the router; ZENOH_SESSION_CONFIG_URI is the
+    config file of a program given none; ROS_DOMAIN_ID is the keys' domain; `--ros-router none` joins nothing."""
+    router = tmp_path / "router.json5"
+    router.write_text("{ mode: 'router', listen: { endpoints: ['tcp/[::]:7550'] } }\n")
+    session = tmp_path / "session.json5"
+    session.write_text("{ mode: 'peer', scouting: { multicast: { enabled: false } }, queries_default_timeout: 1234 }\n")
+    monkeypatch.setenv("ZENOH_ROUTER_CONFIG_URI", str(router))
+    monkeypatch.setenv("ZENOH_SESSION_CONFIG_URI", str(session))
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    parser = argparse.ArgumentParser()
+    add_bus_arguments(parser)
+    options = BusOptions.from_args(parser.parse_args(["--listen", "tcp/127.0.0.1:7551", "--ros-distro", "humble"]))
+    assert (options.config_file, options.ros.domain_id, options.ros.distro) == (session, 42, "humble")
+    server = zenoh_config(options, "server")
+    assert json.loads(server.get_json("connect/endpoints")) == ["tcp/[::1]:7550"]
+    assert json.loads(server.get_json("queries_default_timeout")) == 1234
+    assert (
+        options.ros.data_key("ns/odom", "nav_msgs/msg/Odometry")
+        == "42/ns/odom/nav_msgs::msg::dds_::Odometry_/TypeHashNotSupported"
+    )
+    alone = BusOptions.from_args(parser.parse_args(["--ros-router", "none"]))
+    assert json.loads(zenoh_config(alone, "server").get_json("connect/endpoints")) == []
+    monkeypatch.setenv("ROS_DOMAIN_ID", "blue")
+    with pytest.raises(BusConfigError, match=r"^ROS_DOMAIN_ID 'blue': not a number$"):
+        BusOptions.from_args(parser.parse_args([]))
 
 
 def test_options_from_the_command_line_and_a_config_file(tmp_path: Path) -> None:

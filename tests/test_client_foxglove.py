@@ -195,7 +195,10 @@ def decode_with(channel: dict[str, Any], payload: bytes) -> Any:
 def on_bus(sim: SimServer, *topics: str) -> Iterator[dict[str, Collector[bytes]]]:
     """The raw payloads of `topics` as a plain Zenoh subscriber in the test receives them."""
     with ExitStack() as stack:
-        yield {topic: stack.enter_context(raw_samples(sim.node.session, sim.key(topic), payload)) for topic in topics}
+        yield {
+            topic: stack.enter_context(raw_samples(sim.node.session, sim.any_type_key(topic), payload))
+            for topic in topics
+        }
 
 
 def camera_images(sim: SimServer) -> tuple[float, dict[str, int]]:
@@ -368,7 +371,7 @@ def test_malformed_payloads_are_dropped_and_the_next_scan_forwarded(
         first = app.received(subscription, 1)[0]
         garbage = [b"\x00\x01\x00\x00" + b"\xff" * 7, first.payload[: len(first.payload) // 2]]
         for data in garbage:
-            sim.send_raw("lidar_back", data)
+            sim.send_raw("lidar_back", "sensor_msgs/msg/LaserScan", data)
         bus["lidar_back"].wait_for(lambda payloads: all(g in payloads for g in garbage), 5.0, "the garbage on the bus")
         after = len(bus["lidar_back"])
         bus["lidar_back"].wait_count(after + 2, WAIT_S, "two scans after the garbage")
@@ -409,7 +412,9 @@ def test_a_second_viewer_also_gets_the_latched_keys(sim: SimServer, bridge: Brid
     """A viewer that subscribes to tf_static after another still gets it, the bytes the server latched,
     logged (it has no header) at a clock tick of the sim time meanwhile."""
     latched = [
-        reply.ok.payload.to_bytes() for reply in sim.node.session.get(sim.key("tf_static"), timeout=5.0) if reply.ok
+        reply.ok.payload.to_bytes()
+        for reply in sim.node.session.get(sim.any_type_key("tf_static"), timeout=5.0)
+        if reply.ok
     ]
     assert len(latched) == 1
     begun = round(sim.state()["sim_time"] * 1e9)

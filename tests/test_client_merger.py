@@ -246,8 +246,8 @@ def test_garbage_on_the_lidar_keys_is_dropped_and_counted(sim: SimServer) -> Non
     with client_process(sim, "merger") as merger:
         _first_merge(sim, outputs)
         whole = encode(synthetic_scan(0, "base_scan_back", np.full(SAMPLES, 2.0)))
-        sim.send_raw("lidar_front", os.urandom(97))
-        sim.send_raw("lidar_back", whole[: len(whole) // 2])
+        sim.send_raw("lidar_front", "sensor_msgs/msg/LaserScan", os.urandom(97))
+        sim.send_raw("lidar_back", "sensor_msgs/msg/LaserScan", whole[: len(whole) // 2])
         warnings = [f"{sim.key(topic)}: dropped a payload that is not a valid {LASER_SCAN}" for topic in LIDARS]
         wait_until(lambda: all(w in merger.stderr() for w in warnings), WAIT_S, "the merger's warning on each key")
         t = _step_one_scan(sim)
@@ -296,7 +296,7 @@ def _tf_static(node: Node) -> None:
         messages.transform_stamped(0, "base_link", frame, xyz, yaw_quaternion(yaw))
         for frame, (xyz, yaw) in SENSORS_IN_BASE_LINK.items()
     ]
-    node.publisher("tf_static", latched=True).put(messages.tf_message(transforms))
+    node.publisher("tf_static", messages.TFMessage, latched=True).put(messages.tf_message(transforms))
 
 
 def _collect(node: Node, topic: str) -> Collector[Any]:
@@ -313,7 +313,7 @@ def test_front_alone_still_makes_a_scan() -> None:
     with stand_in_bus() as bus:
         _tf_static(bus.node)
         merged, front, back = (_collect(bus.node, t) for t in ("scan", "lidar_front_fixed", "lidar_back_fixed"))
-        publisher = bus.node.publisher("lidar_front", drop=False)
+        publisher = bus.node.publisher("lidar_front", LASER_SCAN, drop=False)
         with client_process(bus, "merger") as merger:
             deadline, k = time.monotonic() + WAIT_S, 0
             while len(merged) < 3:

@@ -27,7 +27,17 @@ from bus_helpers import unique_namespace
 from client_helpers import client_command, client_process
 from rosbags.interfaces import QosDurability
 from rosbags.rosbag2 import Reader
-from server_helpers import REPO, SimServer, keyed_payload, payload, raw_samples, running_server, stamp_ns, wait_until
+from server_helpers import (
+    REPO,
+    SimServer,
+    data_keys,
+    keyed_payload,
+    payload,
+    raw_samples,
+    running_server,
+    stamp_ns,
+    wait_until,
+)
 
 from simbot.bus import decode
 
@@ -92,13 +102,13 @@ def recorded(sim: SimServer, tmp_path_factory: pytest.TempPathFactory) -> Iterat
     """
     bag = tmp_path_factory.mktemp("record") / "bag"
     with (
-        raw_samples(sim.node.session, sim.key("lidar_front"), payload) as seen,
+        raw_samples(sim.node.session, sim.any_type_key("lidar_front"), payload) as seen,
         client_process(sim, "record", "-o", str(bag), "--duration", str(RECORD_S), *RATES_HZ, *LATCHED) as recorder,
     ):
         wait_until(lambda: "recording /lidar_front" in recorder.stderr(), 20.0, "the recorder to tap lidar_front")
         tapped = len(seen)
         seen.wait_count(tapped + 2, 10.0, "lidar_front scans while the recorder taps it")
-        sim.send_raw("lidar_front", GARBAGE)
+        sim.send_raw("lidar_front", "sensor_msgs/msg/LaserScan", GARBAGE)
         wait_until(
             lambda: f"{sim.key('lidar_front')}: dropped a sample" in recorder.stderr(),
             RECORD_S,
@@ -172,7 +182,7 @@ def test_sigint_midway_leaves_a_bag_that_opens_with_everything_received(sim: Sim
     with client_process(sim, "record", "-o", str(bag), "imu_scan", "odom") as recorder:
         wait_until(lambda: "recording /odom" in recorder.stderr(), 20.0, "the recorder to tap odom")
         wait_until(lambda: "recording /imu_scan" in recorder.stderr(), 20.0, "the recorder to tap imu_scan")
-        with raw_samples(sim.node.session, sim.key("imu_scan"), payload) as imu:
+        with raw_samples(sim.node.session, sim.any_type_key("imu_scan"), payload) as imu:
             imu.wait_count(400, 30.0, "2 s of sim time on imu_scan while the recorder taps it")
         assert recorder.stop(signal.SIGINT) == 0
         stderr = recorder.stderr()
@@ -190,7 +200,7 @@ def test_play_publishes_the_same_messages_in_the_same_order(
     """`simbot play` into a fresh namespace: a subscriber gets every message of the bag, byte for byte, in the bag's order."""
     bag, _, _ = recorded
     namespace = unique_namespace()
-    with raw_samples(sim.node.session, f"{namespace}/**", keyed_payload) as received:
+    with raw_samples(sim.node.session, data_keys(namespace), keyed_payload) as received:
         done = run("play", "--connect", sim.endpoint, "--namespace", namespace, str(bag), "--rate", "4")
         assert done.returncode == 0, done.stderr
         expected = [(f"{namespace}{topic}", data) for topic, _, _, data in bag_messages(bag)]

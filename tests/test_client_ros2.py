@@ -314,7 +314,7 @@ def test_raw_payloads_are_byte_identical_to_the_zenoh_ones(sim: SimServer, ros: 
         carried = ((raw_stamp_ns(scan, LASER_SCAN), scan) for scan in dds_scans.messages())
         return [(scan, by_stamp[stamp]) for stamp, scan in carried if stamp in by_stamp]
 
-    with raw_samples(sim.node.session, sim.key("lidar_front"), payload) as zenoh_scans:
+    with raw_samples(sim.node.session, sim.any_type_key("lidar_front"), payload) as zenoh_scans:
         dds_scans, unsubscribe = ros.subscribe(LaserScan, topic(sim, "lidar_front"), raw=True)
         wait_until(lambda: len(pairs()) >= 3, WAIT_S, "three scans on both DDS and Zenoh")
         unsubscribe()

@@ -101,8 +101,8 @@ def synthetic_bus(topics: Sequence[str]) -> Iterator[tuple[int, str]]:
     stop = threading.Event()
     with Node(BusOptions(listen=(endpoint(port),), namespace=namespace), "server") as node:
         if snap.DESCRIPTION in topics:
-            node.publisher(snap.DESCRIPTION, latched=True).put(messages.string(URDF))
-        publishers = {topic: node.publisher(topic) for topic in topics if topic in data}
+            node.publisher(snap.DESCRIPTION, messages.String, latched=True).put(messages.string(URDF))
+        publishers = {topic: node.publisher(topic, data[topic].__msgtype__) for topic in topics if topic in data}
 
         def feed() -> None:
             while not stop.wait(PERIOD_S):

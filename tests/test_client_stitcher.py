@@ -259,9 +259,9 @@ def test_a_camera_missing_or_garbage_leaves_its_sector_black(tmp_path: Path) -> 
         def feed(sim_time: float) -> None:
             """On camera_back, which the server no longer publishes: undecodable bytes, and an image
             of an encoding the stitcher refuses."""
-            server.send_raw("camera_back", b"\x00\x01\x00\x00 not an image")
+            server.send_raw("camera_back", "sensor_msgs/msg/Image", b"\x00\x01\x00\x00 not an image")
             image = messages.image(round(sim_time * 1e9), "camera_back_optical_frame", garbage)
-            server.publisher("camera_back").put(dataclasses.replace(image, encoding="32FC1"))
+            server.publisher("camera_back", "sensor_msgs/msg/Image").put(dataclasses.replace(image, encoding="32FC1"))
 
         images, infos, stderr = run_stitcher(server, count=4, each_chunk=feed)
     panorama = images[-1]

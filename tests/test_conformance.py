@@ -382,7 +382,7 @@ def _config(tmp: Path, case: Case, seed: int) -> ServerConfig:
 
 def _command(server: Server, node: Node, topic: str, message: Any) -> None:
     """Put one command and wait until its input has it, so that the first step applies it in every run."""
-    node.session.put(node.key(topic), encode(message))
+    node.session.put(node.data_key(topic, message.__msgtype__), encode(message))
     inputs = [i for i in server.bus.inputs if i.key == node.key(topic)]
     wait_until(lambda: inputs and all(i.received for i in inputs), 5.0, f"{topic} at its input")
 
@@ -400,9 +400,10 @@ def run(tmp: Path, case: Case, seed: int) -> Published:
         prefix = len(node.namespace) + 1
 
         def keep(sample: zenoh.Sample) -> None:
-            published.setdefault(str(sample.key_expr)[prefix:], []).append(sample.payload.to_bytes())
+            name = node.graph.name_of(str(sample.key_expr)) or str(sample.key_expr).removeprefix("0/")
+            published.setdefault(name[prefix:], []).append(sample.payload.to_bytes())
 
-        subscriber = node.session.declare_subscriber(f"{node.namespace}/**", keep)
+        subscriber = node.session.declare_subscriber(f"0/{node.namespace}/**", keep)
         server = Server(config, node)
         try:
             if case.command is not None:
@@ -410,7 +411,7 @@ def run(tmp: Path, case: Case, seed: int) -> Published:
             for _ in range(STEPS):
                 server.sim.step()
             # everything put before the marker has been handed to `keep` once the marker has
-            node.session.put(f"{node.namespace}/{FLUSH}", b"")
+            node.session.put(f"0/{node.namespace}/{FLUSH}", b"")
             wait_until(lambda: FLUSH in published, 10.0, "the flush marker, after every message of the run")
             del published[FLUSH]
         finally:

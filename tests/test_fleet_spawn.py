@@ -239,7 +239,7 @@ def _run_with_a_create(seed: int) -> dict[str, list[bytes]]:
     """Every message of a lockstep run that creates a tug after 100 steps and drives it for 400: by key, in order."""
     with running_server("empty", seed=seed, extra=CHEAP_CAMERAS) as sim:
         prefix = len(sim.namespace) + 1
-        with raw_samples(sim.node.session, f"{sim.namespace}/**", keyed_payload) as received:
+        with raw_samples(sim.node.session, f"0/{sim.namespace}/**", keyed_payload) as received:
             sim.step(100)
             assert create_tug(sim, 2)["ok"] is True
             sim.send("tug_2/cmd_vel", messages.twist((0.3, 0.0, 0.0), (0.0, 0.0, 0.2)))

@@ -145,6 +145,6 @@ def test_a_moved_model_s_frame_follows_within_one_period(sim: SimServer) -> None
 def test_the_scene_is_latched(sim: SimServer) -> None:
     """A plain `get` (z_get) is answered with the whole scene, as the other latched keys are."""
     _scene(sim)  # published once (whichever test of the module runs first)
-    replies = sim.node.session.get(sim.key("scene"), timeout=10.0)
+    replies = sim.node.session.get(sim.any_type_key("scene"), timeout=10.0)
     payloads = [r.ok.payload.to_bytes() for r in replies if r.ok is not None]
     assert payloads and len(payloads[0]) > 1000

@@ -163,7 +163,10 @@ def probe(
     robot_file.write_text(PROBE.format(static=str(static).lower(), mass=mass, sensors=sensors, extra=extra))
     config = ServerConfig(world_file, robot_file, spawn, Mode.LOCKSTEP, 0, {"rendering.workers": 1})
     options = BusOptions(listen=(endpoint(free_port()),), namespace=unique_namespace())
-    with Node(options, "server") as node, raw_samples(node.session, f"{node.namespace}/**", keyed_payload) as received:
+    with (
+        Node(options, "server") as node,
+        raw_samples(node.session, f"0/{node.namespace}/**", keyed_payload) as received,
+    ):
         server = Server(config, node)
         try:
             yield Probe(server, node.namespace, received)

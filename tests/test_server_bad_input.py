@@ -41,6 +41,8 @@ SEED = 20240611
 SETTLE_STEPS = 300
 STILL_M = 1e-4
 STILL_RAD = 1e-4
+INPUT_TYPES = {"cmd_vel": "geometry_msgs/msg/Twist", "attach": "std_msgs/msg/Empty", "detach": "std_msgs/msg/Empty"}
+"""The type each input takes: its garbage goes on that type's key, where the server listens for it."""
 
 
 sim = module_server("warehouse")
@@ -95,10 +97,11 @@ def _bad_empties() -> list[tuple[str, bytes, str]]:
 
 
 def _expect_drop(sim: SimServer, topic: str, label: str, payload: bytes, reason: str) -> str:
-    """Sends `payload` on `topic`, steps until the server has taken it, checks it was dropped and why."""
+    """Sends `payload` on `topic` (on the key of the type the topic takes), steps until the server
+    has taken it, checks it was dropped and why."""
     key = sim.key(topic)
     before = sim.state()["dropped"].get(key, 0)
-    sim.send_raw(topic, payload)
+    sim.send_raw(topic, INPUT_TYPES[topic], payload)
     for _ in range(50):
         sim.step(1)
         state = sim.state()

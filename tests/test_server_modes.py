@@ -124,7 +124,9 @@ def test_a_slow_subscriber_does_not_slow_the_simulation(realtime: SimServer, whe
             if where == "callback_thread":
                 slow.subscribe(topic, typename, sleepy)
             else:
-                slow.session.declare_subscriber(slow.key(topic), zenoh.handlers.Callback(sleepy, indirect=False))
+                slow.session.declare_subscriber(
+                    slow.data_key(topic, typename), zenoh.handlers.Callback(sleepy, indirect=False)
+                )
         wait_until(lambda: calls, 5.0, "the slow subscriber's first message")
         clock.clear()
         state0, wall0 = realtime.state(), time.monotonic()

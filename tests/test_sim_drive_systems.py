@@ -80,7 +80,7 @@ class Rig:
 
     def send(self, topic: str, message: Any) -> None:
         """Puts a command and waits until the server's input holds it: the next step applies it."""
-        self.node.session.put(self.node.key(topic), encode(message))
+        self.node.session.put(self.node.data_key(topic, message.__msgtype__), encode(message))
         inputs = [i for i in self.server.bus.inputs if i.key == self.node.key(topic)]
         assert inputs, f"no system takes {topic}"
         wait_until(lambda: all(i.received for i in inputs), 5.0, f"{topic} at its input")
@@ -104,7 +104,7 @@ class Rig:
         def keep(sample: zenoh.Sample) -> None:
             inbox.append(decode(sample.payload.to_bytes(), typename))
 
-        self.node.session.declare_subscriber(self.node.key(topic), keep)
+        self.node.session.declare_subscriber(self.node.data_key(topic, typename), keep)
         return inbox
 
 

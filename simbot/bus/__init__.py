@@ -7,18 +7,9 @@ from __future__ import annotations
 
 from simbot.bus.codec import DecodeError, EncodeError, UnknownMessageType, decode, encode, message_type
 from simbot.bus.keys import topic_key
-from simbot.bus.node import (
-    BadRequest,
-    BusOpenError,
-    Inbox,
-    Node,
-    Publisher,
-    Queryable,
-    Request,
-    ServiceError,
-    Subscription,
-)
+from simbot.bus.node import BusOpenError, Inbox, Node, Publisher, Subscription
 from simbot.bus.options import BusConfigError, BusOptions, add_bus_arguments, zenoh_config
+from simbot.bus.services import BadRequest, Queryable, Request, RosRequest, RosService, ServiceError
 
 __all__ = [
     "BadRequest",
@@ -32,6 +23,8 @@ __all__ = [
     "Publisher",
     "Queryable",
     "Request",
+    "RosRequest",
+    "RosService",
     "ServiceError",
     "Subscription",
     "UnknownMessageType",

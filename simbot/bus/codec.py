@@ -15,10 +15,13 @@ serialization of every camera image.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rosbags.interfaces import Msgdef
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+if TYPE_CHECKING:
+    from rosbags.interfaces.typing import Typesdict
 
 ROS_GZ_INTERFACES = {
     "ros_gz_interfaces/msg/Entity": """
@@ -91,11 +94,48 @@ publishes it: Detection2DArray and Detection3DArray, as ros_gz_bridge maps Gazeb
 boxes. Field for field as the package defines them; ROS 2 Humble's typestore lacks the package."""
 
 
+STD_SRVS = {
+    "std_srvs/srv/Empty_Request": "",
+    "std_srvs/srv/Empty_Response": "",
+    "std_srvs/srv/SetBool_Request": "bool data\n",
+    "std_srvs/srv/SetBool_Response": "bool success\nstring message\n",
+    "std_srvs/srv/Trigger_Request": "",
+    "std_srvs/srv/Trigger_Response": "bool success\nstring message\n",
+}
+"""The request and response messages of the std_srvs services simbot serves (Empty, SetBool,
+Trigger), field for field as the package's .srv files define them; an empty one gets rosidl's
+placeholder member `structure_needs_at_least_one_member` from rosbags, as on the wire."""
+
+SERVICE_MSGS = {
+    "service_msgs/msg/ServiceEventInfo": """
+uint8 REQUEST_SENT=0
+uint8 REQUEST_RECEIVED=1
+uint8 RESPONSE_SENT=2
+uint8 RESPONSE_RECEIVED=3
+uint8 event_type
+builtin_interfaces/Time stamp
+char[16] client_gid
+int64 sequence_number
+""",
+}
+"""The header of every service's event message (ROS 2 Iron and later), which a service's type hash
+covers; ROS 2 Humble's typestore lacks the package."""
+
+
+def _service_message(name: str, text: str) -> Typesdict:
+    """A service's request or response under its own name: rosbags would file it under /msg/."""
+    (definition,) = get_types_from_msg(text, name).values()
+    return {name: definition}
+
+
 def _typestore() -> Any:
-    """ROS 2 Humble's message types, ros_gz_interfaces' and vision_msgs' (the one place types are registered)."""
+    """ROS 2 Humble's message types, ros_gz_interfaces', vision_msgs' and the std_srvs services' (the one
+    place types are registered)."""
     store = get_typestore(Stores.ROS2_HUMBLE)
-    for name, text in (ROS_GZ_INTERFACES | VISION_MSGS).items():
+    for name, text in (ROS_GZ_INTERFACES | VISION_MSGS | SERVICE_MSGS).items():
         store.register(get_types_from_msg(text, name))
+    for name, text in STD_SRVS.items():
+        store.register(_service_message(name, text))
     return store
 
 

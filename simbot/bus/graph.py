@@ -2,12 +2,13 @@
 
 Zenoh alone cannot say that the server *subscribes* to `cmd_vel`, or what type a silent latched
 key carries. So every publisher, subscription and service of a `Node` declares a liveliness
-token (rmw_zenoh announces ROS 2 entities the same way) whose key spells out what it is:
+token whose key spells out what it is, and lives exactly as long as its entity (or its process):
 
-    simbot_graph/<kind>/<type with '/' as '%'>/<key>
+- topics and ROS services: rmw_zenoh's own tokens (`@ros2_lv/...`, `simbot.bus.rmw`), so that a
+  ROS 2 node on rmw_zenoh sees them in `ros2 topic list` and `ros2 service list`;
+- simbot's JSON services (world control), which no ROS tool can call: `simbot_graph/srv/json/<name>`.
 
-with kind `pub`, `sub` or `srv`. A token lives exactly as long as its entity, or until its
-process dies, so `discover` lists the live graph, which `simbot topics` prints.
+`discover` reads both back, which `simbot topics` prints.
 """
 
 from __future__ import annotations
@@ -19,44 +20,55 @@ from typing import Literal
 import zenoh
 
 from simbot.bus.options import zenoh_reason
+from simbot.bus.rmw import ADMIN_SPACE, RosGraph, demangle
+from simbot.bus.type_hashes import ros_typename
 
 logger = logging.getLogger(__name__)
 
-PREFIX = "simbot_graph"
+JSON_PREFIX = "simbot_graph/srv/json"
 Kind = Literal["pub", "sub", "srv"]
 KINDS: tuple[Kind, ...] = ("pub", "sub", "srv")
+ROS_KINDS: dict[str, Kind] = {"MP": "pub", "MS": "sub", "SS": "srv"}
 SERVICE_TYPE = "json"
-"""What a service carries: JSON requests and replies (world control)."""
+"""What a JSON service carries: JSON requests and replies (world control)."""
+TOPIC_CHUNK = 9
+"""Where an entity token holds the topic's name: after the prefix, domain, session, node, entity,
+kind, enclave, namespace and node name."""
 
 
 @dataclass(frozen=True, order=True)
 class Endpoint:
-    """One live entity on the bus: its key, its kind and the ROS 2 type (or `json`) it carries."""
+    """One live entity on the bus: its topic or service name (no leading slash), its kind and the
+    ROS 2 type (or `json`) it carries."""
 
     key: str
     kind: Kind
     typename: str
 
 
-def token_key(kind: Kind, typename: str, key: str) -> str:
-    """The liveliness key that announces an entity."""
-    return f"{PREFIX}/{kind}/{typename.replace('/', '%')}/{key}"
+def json_token(name: str) -> str:
+    """The liveliness key that announces a JSON service."""
+    return f"{JSON_PREFIX}/{name}"
 
 
 def parse_token(token: str) -> Endpoint | None:
-    """The entity a liveliness key announces, or None for a key that is not one of ours."""
-    parts = token.split("/", 3)
-    if len(parts) != 4 or parts[0] != PREFIX or parts[1] not in KINDS:
+    """The entity a liveliness key announces, or None for a key that is none of ours or rmw_zenoh's."""
+    if token.startswith(JSON_PREFIX + "/"):
+        return Endpoint(token.removeprefix(JSON_PREFIX + "/"), "srv", SERVICE_TYPE)
+    parts = token.split("/")
+    if len(parts) < TOPIC_CHUNK + 4 or parts[0] != ADMIN_SPACE or parts[5] not in ROS_KINDS:
         return None
-    kind: Kind = parts[1]  # narrowed to a Kind by the check against KINDS above
-    return Endpoint(parts[3], kind, parts[2].replace("%", "/"))
+    typename = ros_typename(parts[TOPIC_CHUNK + 1])
+    if typename is None:
+        return None
+    return Endpoint(demangle(parts[TOPIC_CHUNK]).strip("/"), ROS_KINDS[parts[5]], typename)
 
 
 class Announcement:
     """A liveliness token that announces one entity until `close`."""
 
-    def __init__(self, session: zenoh.Session, kind: Kind, typename: str, key: str) -> None:
-        self._token: zenoh.LivelinessToken | None = session.liveliness().declare_token(token_key(kind, typename, key))
+    def __init__(self, session: zenoh.Session, token: str) -> None:
+        self._token: zenoh.LivelinessToken | None = session.liveliness().declare_token(token)
 
     def close(self) -> None:
         """Withdraw the announcement."""
@@ -69,14 +81,18 @@ class Announcement:
             logger.debug("undeclare token: %s", zenoh_reason(exc))
 
 
-def discover(session: zenoh.Session, namespace: str = "", timeout: float = 1.0) -> list[Endpoint]:
-    """Every live entity whose key is in `namespace`, sorted by key; each (key, kind, type) once."""
-    scope = f"{namespace.strip('/')}/**" if namespace.strip("/") else "**"
+def discover(
+    session: zenoh.Session, namespace: str = "", timeout: float = 1.0, graph: RosGraph | None = None
+) -> list[Endpoint]:
+    """Every live entity whose name is in `namespace` (in `graph`'s domain), sorted; each (name, kind, type) once."""
+    graph = graph or RosGraph()
+    scope = namespace.strip("/")
     found: set[Endpoint] = set()
-    for reply in session.liveliness().get(f"{PREFIX}/*/*/{scope}", timeout=timeout):
-        if reply.ok is None:
-            continue
-        endpoint = parse_token(str(reply.ok.key_expr))
-        if endpoint is not None:
-            found.add(endpoint)
+    for pattern in (f"{ADMIN_SPACE}/{graph.domain_id}/**", f"{JSON_PREFIX}/**"):
+        for reply in session.liveliness().get(pattern, timeout=timeout):
+            if reply.ok is None:
+                continue
+            endpoint = parse_token(str(reply.ok.key_expr))
+            if endpoint is not None and (not scope or endpoint.key.startswith(scope + "/")):
+                found.add(endpoint)
     return sorted(found)

@@ -1,4 +1,10 @@
-"""One Zenoh session with a key namespace: publishers, subscriptions, inboxes and JSON services.
+"""One Zenoh session with a key namespace: publishers, subscriptions, inboxes and services.
+
+Every key is rmw_zenoh's (`simbot.bus.rmw`): a topic `odom` in namespace `ns` is the key
+`0/ns/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_…`, each sample carries rmw_zenoh's attachment,
+and the session is a ROS 2 node on the graph (`graph.py`), so ROS 2 nodes on rmw_zenoh and
+simbot's programs share one key space and every message goes out once. Within simbot a topic is
+still named by `Node.key` (`ns/odom`), the name world state counts inputs by.
 
 Congestion control: publishers DROP by default, so a slow subscriber never slows the
 simulation (SPEC §4); `drop=False` gives BLOCK for data that must arrive.
@@ -21,10 +27,13 @@ from __future__ import annotations
 
 import json
 import logging
+import os
+import sys
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 import zenoh
@@ -32,9 +41,19 @@ import zenoh.ext
 
 from simbot.bus.codec import DecodeError, decode, encode, message_type
 from simbot.bus.frames import with_frame_prefix
-from simbot.bus.graph import SERVICE_TYPE, Announcement
+from simbot.bus.graph import Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
+from simbot.bus.rmw import AttachmentError, Attachments, EntityKind, NodeName, Qos, parse_attachment
+from simbot.bus.services import (
+    JSON_ENCODING,
+    Answering,
+    Queryable,
+    RosService,
+    ServiceError,
+    parse_reply,
+    undeclare,
+)
 
 if TYPE_CHECKING:
     from typing_extensions import Self  # typing.Self from Python 3.11
@@ -43,7 +62,6 @@ logger = logging.getLogger(__name__)
 
 WARNING_PERIOD_S = 1.0
 CDR_ENCODING = zenoh.Encoding.APPLICATION_CDR
-JSON_ENCODING = zenoh.Encoding.APPLICATION_JSON
 TIMEOUT_REPLY = "Timeout"  # the error payload Zenoh delivers to a get when its timeout expires
 
 M = TypeVar("M")
@@ -51,18 +69,6 @@ M = TypeVar("M")
 
 class BusOpenError(OSError):
     """The Zenoh session could not be opened (endpoint in use, no server to connect to)."""
-
-
-class BadRequest(ValueError):
-    """A service request whose payload is not a JSON object; str() is one line."""
-
-
-class ServiceError(RuntimeError):
-    """A service answered a call with an error, or with something other than a JSON object."""
-
-
-class _Undeclarable(Protocol):
-    def undeclare(self) -> None: ...
 
 
 class _Closable(Protocol):
@@ -94,79 +100,69 @@ class RateLimitedWarnings:
         logger.warning("%s: %s%s", key, message, suffix)
 
 
-class Publisher:
-    """Encodes messages and puts them on one key; latched publishers also serve the latest to late joiners.
+@dataclass(frozen=True)
+class Route:
+    """Where one entity of a node goes: its topic's name within simbot (`ns/odom`), its data key,
+    the type it carries and the graph token that announces it (None: off the graph)."""
 
-    The publisher announces itself on the graph (`simbot.bus.graph`) at once when it is given the
-    type it carries, else at its first `put`: a camera nobody watches is on the graph all the same.
-    """
+    name: str
+    key: str
+    typename: str
+    token: str | None
+
+
+class Publisher:
+    """Encodes messages and puts them on one key with rmw_zenoh's attachment; latched publishers
+    also serve the latest to late joiners. On the graph from its declaration."""
 
     def __init__(
-        self,
-        session: zenoh.Session,
-        key: str,
-        *,
-        latched: bool,
-        drop: bool,
-        typename: str | None = None,
-        frame_prefix: str = "",
-        announced: bool = True,
+        self, session: zenoh.Session, route: Route, *, latched: bool, drop: bool, frame_prefix: str = ""
     ) -> None:
-        """`announced=False`: the key's owner announces it on the graph (a server's render worker
-        puts what the server's own publisher announces)."""
-        self.key = key
+        self.key = route.name
+        self.data_key = route.key
+        self.typename = route.typename
         self.frame_prefix = frame_prefix
         """Every frame id the messages carry goes out under it (`frames.with_frame_prefix`)."""
         self.latched = latched
-        self.typename = typename
-        self._session = session
-        self._announced = announced
-        self._announcement = Announcement(session, "pub", typename, key) if typename and announced else None
+        self._encoding = CDR_ENCODING.with_schema(route.typename)
+        """`application/cdr;TYPE`: lets a monitor decode a key without being told its type."""
+        self._attachments = Attachments()
+        self._announcement = Announcement(session, route.token) if route.token else None
         congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
-        self._encodings: dict[str, zenoh.Encoding] = {}
-        self._latest: tuple[bytes, zenoh.Encoding] | None = None
+        self._latest: bytes | None = None
         self._lock = threading.Lock()
         self._queryable: zenoh.Queryable[None] | None = None
         self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
-        if latched:
+        if latched:  # rmw_zenoh's TRANSIENT_LOCAL: an advanced publisher with a cache, and a plain `get`'s answer
             self._publisher = zenoh.ext.declare_advanced_publisher(
                 session,
-                key,
-                encoding=CDR_ENCODING,
+                route.key,
+                encoding=self._encoding,
                 congestion_control=congestion,
                 cache=zenoh.ext.CacheConfig(1),
                 publisher_detection=True,
             )
-            self._queryable = session.declare_queryable(key, self._serve_latest, complete=True)
+            self._queryable = session.declare_queryable(route.key, self._serve_latest, complete=True)
         else:
-            self._publisher = session.declare_publisher(key, encoding=CDR_ENCODING, congestion_control=congestion)
-
-    def _encoding(self, typename: str) -> zenoh.Encoding:
-        """`application/cdr;TYPE`: lets a monitor decode a key without being told its type."""
-        encoding = self._encodings.get(typename)
-        if encoding is None:
-            encoding = self._encodings[typename] = CDR_ENCODING.with_schema(typename)
-        return encoding
+            self._publisher = session.declare_publisher(
+                route.key, encoding=self._encoding, congestion_control=congestion
+            )
 
     def put(self, msg: Any) -> None:
         """Encode `msg` as CDR and put it."""
-        data = encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg)
-        if self._announcement is None and self._announced:
-            self._announcement = Announcement(self._session, "pub", msg.__msgtype__, self.key)
-        self._put(data, self._encoding(msg.__msgtype__))
+        self._put(encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg))
 
     def put_raw(self, data: bytes | bytearray) -> None:
-        """Put bytes as they are, as CDR of the publisher's type if it was given one: a recording played
-        back goes out unchanged, a render worker's image encoded in place, and tests send garbage
-        this way. (A latched publisher keeps a copy of its own.)"""
-        kept = bytes(data) if self.latched else data
-        self._put(kept, self._encoding(self.typename) if self.typename else CDR_ENCODING)
+        """Put bytes as they are, as CDR of the publisher's type: a recording played back goes out
+        unchanged, a render worker's image encoded in place, and tests send garbage this way. (A
+        latched publisher keeps a copy of its own.)"""
+        self._put(bytes(data) if self.latched else data)
 
-    def _put(self, data: bytes | bytearray, encoding: zenoh.Encoding) -> None:
+    def _put(self, data: bytes | bytearray) -> None:
         if self.latched:
             with self._lock:
-                self._latest = (bytes(data), encoding)
-        self._publisher.put(data, encoding=encoding)
+                self._latest = bytes(data)
+        self._publisher.put(data, encoding=self._encoding, attachment=self._attachments.next())
 
     def _serve_latest(self, query: zenoh.Query) -> None:
         """Plain `get` on a latched key: reply with the latest payload (called on a Zenoh thread)."""
@@ -174,7 +170,7 @@ class Publisher:
             with self._lock:
                 latest = self._latest
             if latest is not None:
-                query.reply(self.key, latest[0], encoding=latest[1])
+                query.reply(self.data_key, latest, encoding=self._encoding, attachment=self._attachments.next())
 
     @property
     def has_subscribers(self) -> bool:
@@ -189,8 +185,8 @@ class Publisher:
         """Undeclare the publisher (and the latched queryable)."""
         if self._announcement is not None:
             self._announcement.close()
-        _undeclare(self._queryable)
-        _undeclare(self._publisher)
+        undeclare(self._queryable)
+        undeclare(self._publisher)
         self._queryable = None
 
 
@@ -200,33 +196,32 @@ class Subscription(Generic[M]):
     def __init__(
         self,
         session: zenoh.Session,
-        key: str,
-        typename: str,
+        route: Route,
         callback: Callable[[M], None],
         *,
         latched: bool,
         warnings: RateLimitedWarnings,
     ) -> None:
-        message_type(typename)  # an unknown type name fails here, not in a Zenoh thread
-        self.key = key
-        self.typename = typename
+        message_type(route.typename)  # an unknown type name fails here, not in a Zenoh thread
+        self.key = route.name
+        self.typename = route.typename
         self.dropped = 0
         self.received = 0
         self._callback = callback
         self._warnings = warnings
         self._lock = threading.Lock()
         self._closed = False
-        self._subscriber: _Undeclarable
+        self._subscriber: Any
         if latched:
             self._subscriber = zenoh.ext.declare_advanced_subscriber(
                 session,
-                key,
+                route.key,
                 self._on_sample,
                 history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1),
             )
         else:
-            self._subscriber = session.declare_subscriber(key, self._on_sample)
-        self._announcement = Announcement(session, "sub", typename, key)
+            self._subscriber = session.declare_subscriber(route.key, self._on_sample)
+        self._announcement = Announcement(session, route.token) if route.token else None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         """Zenoh thread: decode, count, hand over; never raises into Zenoh."""
@@ -249,41 +244,71 @@ class Subscription(Generic[M]):
     def close(self) -> None:
         """Undeclare the subscriber; nothing reaches the callback afterwards."""
         self._closed = True
-        self._announcement.close()
-        _undeclare(self._subscriber)
+        if self._announcement is not None:
+            self._announcement.close()
+        undeclare(self._subscriber)
+
+
+@dataclass(frozen=True)
+class Refused:
+    """A sample an inbox refused on arrival, and why: the loop counts it with the key's drops."""
+
+    reason: str
+    warn: bool = True
+    """False for a foreign type after its first sample: one warning per publisher's type, not one a second."""
 
 
 class Inbox:
-    """Raw payloads of one key, queued by Zenoh and drained by the simulation loop.
+    """Raw payloads of one topic, queued by Zenoh and drained by the simulation loop.
 
-    The deque is bounded: when it is full the oldest payload goes (the newest command is the one
-    that matters) and `overflowed` counts it.
+    It listens to the topic's keys of every type: a sample of another type (a ROS node publishing
+    `cmd_vel` as a TwistStamped: another DDS type and hash) is refused with one warning per type,
+    and one with a malformed attachment is refused; a sample without an attachment (a plain Zenoh
+    put) is taken. The deque is bounded: when it is full the oldest payload goes (the newest
+    command is the one that matters) and `overflowed` counts it.
     """
 
-    def __init__(self, session: zenoh.Session, key: str, typename: str, maxlen: int) -> None:
+    def __init__(self, session: zenoh.Session, route: Route, suffix: str, pattern: str, maxlen: int) -> None:
         if maxlen < 1:
-            raise ValueError(f"inbox {key!r}: maxlen must be ≥ 1, not {maxlen}")
-        self.key = key
+            raise ValueError(f"inbox {route.name!r}: maxlen must be ≥ 1, not {maxlen}")
+        self.key = route.name
         self.overflowed = 0
         self.received = 0
         """Payloads that arrived, counted as they arrive (before anyone drains them)."""
-        self._queue: deque[bytes] = deque(maxlen=maxlen)
+        self._suffix = "/" + suffix
+        self._foreign: set[str] = set()
+        self._queue: deque[bytes | Refused] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
-        self._subscriber = session.declare_subscriber(key, self._on_sample)
-        self._announcement = Announcement(session, "sub", typename, key)
+        self._subscriber = session.declare_subscriber(pattern, self._on_sample)
+        self._announcement = Announcement(session, route.token) if route.token else None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if sample.kind != zenoh.SampleKind.PUT:
             return
-        data = sample.payload.to_bytes()
+        item = self._refusal(sample) or sample.payload.to_bytes()
         with self._lock:
             self.received += 1
             if len(self._queue) == self._queue.maxlen:
                 self.overflowed += 1
-            self._queue.append(data)
+            self._queue.append(item)
 
-    def drain(self) -> list[bytes]:
-        """The payloads received since the last drain, oldest first."""
+    def _refusal(self, sample: zenoh.Sample) -> Refused | None:
+        """Why a sample is refused before decoding: another type's key, or a malformed attachment."""
+        key = str(sample.key_expr)
+        if not key.endswith(self._suffix):
+            kind = "/".join(key.split("/")[-2:])
+            first = kind not in self._foreign
+            self._foreign.add(kind)
+            return Refused(f"a publisher of another type ({kind}) on this topic is ignored", warn=first)
+        if sample.attachment is not None:
+            try:
+                parse_attachment(sample.attachment.to_bytes())
+            except AttachmentError as exc:
+                return Refused(str(exc))
+        return None
+
+    def drain(self) -> list[bytes | Refused]:
+        """What arrived since the last drain, oldest first: payloads, and the samples refused."""
         with self._lock:
             items = list(self._queue)
             self._queue.clear()
@@ -291,110 +316,32 @@ class Inbox:
 
     def close(self) -> None:
         """Undeclare the subscriber."""
-        self._announcement.close()
-        _undeclare(self._subscriber)
-
-
-class Request:
-    """One service request: its JSON payload, and a reply that may come later from any thread."""
-
-    def __init__(self, query: zenoh.Query, key: str) -> None:
-        self.key = key
-        self._query = query
-        payload = query.payload
-        self.payload = payload.to_bytes() if payload is not None else b""
-        self._replied = False
-        self._lock = threading.Lock()
-
-    def json(self) -> dict[str, Any]:
-        """The payload as a JSON object; no payload is `{}`. BadRequest when malformed."""
-        if not self.payload.strip():
-            return {}
-        try:
-            value = json.loads(self.payload)
-        except (UnicodeDecodeError, ValueError) as exc:
-            raise BadRequest(f"{self.key}: malformed JSON: {' '.join(str(exc).split())}") from None
-        except RecursionError:
-            raise BadRequest(f"{self.key}: JSON nested too deeply") from None
-        if not isinstance(value, dict):
-            raise BadRequest(f"{self.key}: expected a JSON object, got {type(value).__name__}")
-        return value
-
-    def reply(self, obj: Mapping[str, Any]) -> None:
-        """Answer with `obj` as JSON and finish the request."""
-        text = json.dumps(dict(obj), allow_nan=False)
-        self._finish(lambda: self._query.reply(self.key, text, encoding=JSON_ENCODING))
-
-    def reply_error(self, message: str) -> None:
-        """Answer with a Zenoh error reply (`Node.call` raises ServiceError with `message`)."""
-        self._finish(lambda: self._query.reply_err(message))
-
-    def _finish(self, send: Callable[[], None]) -> None:
-        with self._lock:
-            if self._replied:
-                raise RuntimeError(f"{self.key}: request already answered")
-            self._replied = True
-            try:
-                send()
-            finally:
-                self._query.drop()  # finalizes the query: the caller's get returns now, not at its timeout
-
-
-class Queryable:
-    """A JSON service on one key; requests wait in a FIFO channel until `poll` takes them."""
-
-    def __init__(self, session: zenoh.Session, key: str, capacity: int) -> None:
-        self.key = key
-        self._queryable = session.declare_queryable(key, zenoh.handlers.FifoChannel(capacity), complete=True)
-        self._announcement = Announcement(session, "srv", SERVICE_TYPE, key)
-
-    def poll(self) -> list[Request]:
-        """The requests that arrived since the last poll, without blocking."""
-        requests = []
-        while (query := self._queryable.try_recv()) is not None:
-            requests.append(Request(query, self.key))
-        return requests
-
-    def close(self) -> None:
-        """Undeclare the queryable."""
-        self._announcement.close()
-        _undeclare(self._queryable)
-
-
-class Answering:
-    """A queryable that answers `{}` at once on Zenoh's thread (`Node.answering`); off the graph."""
-
-    def __init__(self, session: zenoh.Session, key: str) -> None:
-        self._queryable = session.declare_queryable(key, _answer_empty)
-
-    def close(self) -> None:
-        _undeclare(self._queryable)
-
-
-def _undeclare(entity: _Undeclarable | None) -> None:
-    if entity is None:
-        return
-    try:
-        entity.undeclare()
-    except zenoh.ZError as exc:  # already undeclared, or the session is closed
-        logger.debug("undeclare: %s", zenoh_reason(exc))
+        if self._announcement is not None:
+            self._announcement.close()
+        undeclare(self._subscriber)
 
 
 class Node:
     """A Zenoh session (server or client role) plus the key namespace; a context manager."""
 
-    def __init__(self, options: BusOptions, role: Role) -> None:
+    def __init__(self, options: BusOptions, role: Role, name: str | None = None) -> None:
+        """`name`: the node's name on the ROS 2 graph (default: the server `simbot`, a client after its program)."""
         self.options = options
         self.role = role
         self.namespace = options.namespace
         self.robot_namespace = options.robot_namespace.strip("/")
+        self.graph = options.ros
         self._warnings = RateLimitedWarnings()
         self._entities: list[_Closable] = []
+        self._entity_ids = 0
         config = zenoh_config(options, role)
         try:
             self.session = zenoh.open(config)
         except zenoh.ZError as exc:
             raise BusOpenError(f"cannot open the Zenoh {role} session: {zenoh_reason(exc)}") from None
+        namespace = "/" + "/".join(part for part in (self.namespace.strip("/"), self.robot_namespace) if part)
+        self.ros_node = NodeName(str(self.session.info.zid()), 0, namespace, name or _node_name(role))
+        self._node_token = Announcement(self.session, self.ros_node.token(self.graph))
 
     def key(self, topic: str) -> str:
         """The Zenoh key of `topic` in this node's namespace. With a robot namespace, as ROS resolves
@@ -404,6 +351,18 @@ class Node:
             return topic_key(topic, self.namespace)
         return topic_key(topic, "/".join(part for part in (self.namespace, self.robot_namespace) if part))
 
+    def data_key(self, topic: str, typename: str) -> str:
+        """The Zenoh key of `topic`'s samples of `typename`, for a plain Zenoh subscriber or put."""
+        return self.graph.data_key(self.key(topic), typename)
+
+    def route(self, name: str, typename: str, kind: EntityKind | None, qos: Qos | None = None) -> Route:
+        """The route of an entity on topic or service `name` (as `key` gives it), announced as `kind` (None: not)."""
+        token = None
+        if kind is not None:
+            self._entity_ids += 1
+            token = self.ros_node.entity_token(self.graph, self._entity_ids, kind, name, typename, qos or Qos())
+        return Route(name, self.graph.data_key(name, typename), typename, token)
+
     def _keep(self, entity: _T) -> _T:
         self._entities.append(entity)
         return entity
@@ -411,37 +370,68 @@ class Node:
     def publisher(
         self,
         topic: str,
-        msgtype: type[Any] | str | None = None,
+        msgtype: type[Any] | str,
         *,
         latched: bool = False,
         drop: bool = True,
         frame_prefix: str = "",
+        announced: bool = True,
     ) -> Publisher:
-        """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name, for the graph);
-        `latched` serves the latest message to late joiners, `drop=False` blocks; `frame_prefix`
-        puts the frames of what it sends under a robot's namespace."""
-        typename = msgtype if isinstance(msgtype, str) or msgtype is None else msgtype.__msgtype__
-        publisher = Publisher(
-            self.session, self.key(topic), latched=latched, drop=drop, typename=typename, frame_prefix=frame_prefix
+        """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name); `latched`
+        serves the latest message to late joiners (TRANSIENT_LOCAL), `drop=False` blocks (RELIABLE);
+        `frame_prefix` puts the frames of what it sends under a robot's namespace; `announced=False`:
+        the key's owner announces it (a server's render worker puts what the server announces)."""
+        return self.publisher_on(
+            self.key(topic), msgtype, latched=latched, drop=drop, frame_prefix=frame_prefix, announced=announced
         )
-        return self._keep(publisher)
+
+    def publisher_on(
+        self,
+        name: str,
+        msgtype: type[Any] | str,
+        *,
+        latched: bool = False,
+        drop: bool = True,
+        frame_prefix: str = "",
+        announced: bool = True,
+    ) -> Publisher:
+        """`publisher` on a topic named as `key` gives it (`ns/camera_front`), in no further namespace."""
+        typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
+        message_type(typename)
+        qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
+        route = self.route(name, typename, "MP" if announced else None, qos)
+        return self._keep(Publisher(self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix))
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False
     ) -> Subscription[Any]:
         """Decoded messages of `topic` to `callback`, on a Zenoh thread: the callback should only queue."""
+        message_type(typename)
+        route = self.route(self.key(topic), typename, "MS", Qos(transient_local=latched, depth=1 if latched else 10))
         subscription: Subscription[Any] = Subscription(
-            self.session, self.key(topic), typename, callback, latched=latched, warnings=self._warnings
+            self.session, route, callback, latched=latched, warnings=self._warnings
         )
         return self._keep(subscription)
 
     def inbox(self, topic: str, typename: str, maxlen: int = 64) -> Inbox:
         """Raw payloads of `topic` (announced as `typename`), for a loop that decodes and counts them itself."""
-        return self._keep(Inbox(self.session, self.key(topic), typename, maxlen))
+        message_type(typename)
+        name = self.key(topic)
+        route = self.route(name, typename, "MS")
+        return self._keep(
+            Inbox(self.session, route, self.graph.type_suffix(typename), self.graph.any_type_key(name), maxlen)
+        )
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> Queryable:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""
         return self._keep(Queryable(self.session, self.key("/" + key_suffix.lstrip("/")), capacity))
+
+    def ros_service(self, name: str, typename: str, capacity: int = 64) -> RosService:
+        """A ROS 2 service `name` (in the namespace) of service type `typename` (`std_srvs/srv/Empty`),
+        on rmw_zenoh's key and the graph, polled by the simulation loop."""
+        route = self.route(self.key("/" + name.lstrip("/")), typename, "SS")
+        assert route.token is not None  # announced: kind SS
+        return self._keep(RosService(self.session, route.name, route.key, typename, route.token, capacity))
 
     def answering(self, key_suffix: str) -> None:
         """A queryable at `key_suffix` (in the namespace) that answers `{}` at once, on Zenoh's thread:
@@ -463,7 +453,7 @@ class Node:
         )
         for reply in replies:
             if reply.ok is not None:
-                return _parse_reply(key, reply.ok.payload.to_bytes())
+                return parse_reply(key, reply.ok.payload.to_bytes())
             error = reply.err.payload.to_string() if reply.err is not None else ""
             if error != TIMEOUT_REPLY:
                 raise ServiceError(f"{key}: {error}")
@@ -484,16 +474,10 @@ class Node:
         self.close()
 
 
-def _answer_empty(query: zenoh.Query) -> None:
-    with query:
-        query.reply(query.key_expr, b"{}", encoding=JSON_ENCODING)
-
-
-def _parse_reply(key: str, data: bytes) -> dict[str, Any]:
-    try:
-        value = json.loads(data)
-    except (UnicodeDecodeError, ValueError):
-        raise ServiceError(f"{key}: the reply is not JSON") from None
-    if not isinstance(value, dict):
-        raise ServiceError(f"{key}: the reply is a JSON {type(value).__name__}, not an object")
-    return value
+def _node_name(role: Role) -> str:
+    """The server is `simbot`; a client is named after its program and process (`simbot_merger_4242`)."""
+    if role == "server":
+        return "simbot"
+    program = os.path.basename(sys.argv[0] or "python").removesuffix(".py").replace("-", "_")
+    stem = "".join(c if c.isalnum() or c == "_" else "_" for c in program) or "client"
+    return f"{stem}_{os.getpid()}"

@@ -1,9 +1,17 @@
 """The bus options every simbot program shares, and the Zenoh configuration they make.
 
-Secure by default (SPEC §4): the server listens on `tcp/127.0.0.1:7447` only, clients connect
+Secure by default (SPEC §4): the server listens on `tcp/127.0.0.1:7448` only, clients connect
 there and listen on nothing, multicast scouting is off. Anything wider is an explicit `--listen`
 / `--connect` or a Zenoh config file; what the config file sets is kept, what it leaves at
-Zenoh's defaults gets ours.
+Zenoh's defaults gets ours. Without `--zenoh-config`, a ROS host's `ZENOH_SESSION_CONFIG_URI`
+is that file, as it is for every rmw_zenoh node.
+
+The ROS 2 graph (`simbot.bus.rmw`): 7447 is the port of `rmw_zenohd`, the router every rmw_zenoh
+node connects to, so simbot leaves it free and its server connects there as a ROS node's session
+does (`--ros-router`, default the endpoint `ZENOH_ROUTER_CONFIG_URI`'s router listens on, else
+`tcp/127.0.0.1:7447`). With no router there, the server runs alone and joins one that starts
+later; a ROS node without a router connects to the server's own endpoint. `ROS_DOMAIN_ID` and
+`--ros-distro` say which domain and which distro's key format.
 
 Roles map to Zenoh modes: the server is a `peer`, a client program is a Zenoh `client`. A client
 session is brokered by the peer it connects to, so two client programs (the lidar merger and a
@@ -18,19 +26,25 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import zenoh
 
 from simbot.bus.keys import topic_key
+from simbot.bus.rmw import DEFAULT_DISTRO, DISTROS, RosGraph, domain_from_env
 
 logger = logging.getLogger(__name__)
 
 Role = Literal["server", "client"]
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7448"
+ROS_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
+"""Where rmw_zenohd listens unless its configuration says otherwise."""
+SESSION_CONFIG_ENV = "ZENOH_SESSION_CONFIG_URI"
+ROUTER_CONFIG_ENV = "ZENOH_ROUTER_CONFIG_URI"
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 ROLE_MODES: dict[str, str] = {"server": "peer", "client": "client"}
 
@@ -65,6 +79,17 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--zenoh-config", type=Path, metavar="FILE", help="Zenoh JSON5 config file (kept as given)")
     group.add_argument("--namespace", default="", metavar="NS", help="prefix of every key, like a ROS namespace")
     group.add_argument(
+        "--ros-distro",
+        choices=DISTROS,
+        default=DEFAULT_DISTRO,
+        help=f"the ROS 2 distro whose rmw_zenoh key format to write (default {DEFAULT_DISTRO}; humble has no type hashes)",
+    )
+    group.add_argument(
+        "--ros-router",
+        metavar="ENDPOINT|none",
+        help=f"server: the ROS 2 Zenoh router (rmw_zenohd) to join (default: where {ROUTER_CONFIG_ENV} says, else {ROS_ROUTER_ENDPOINT})",
+    )
+    group.add_argument(
         "--connect-timeout",
         type=float,
         default=DEFAULT_CONNECT_TIMEOUT_S,
@@ -84,6 +109,10 @@ class BusOptions:
     connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S
     robot_namespace: str = ""
     """A client's robot within the bus's namespace (`tug_2`): where its relative topics resolve."""
+    ros: RosGraph = field(default_factory=RosGraph)
+    """The ROS 2 domain and distro of the keys and graph tokens."""
+    ros_router: str | None = None
+    """The server's ROS 2 router endpoint, `none` for none; None: the default (`ros_router_endpoint`)."""
 
     def __post_init__(self) -> None:
         for option, value in (("--namespace", self.namespace), ("--robot-namespace", self.robot_namespace)):
@@ -99,6 +128,12 @@ class BusOptions:
     def from_args(cls, args: argparse.Namespace) -> BusOptions:
         """The options parsed by a parser that `add_bus_arguments` set up."""
         config = getattr(args, "zenoh_config", None)
+        try:
+            ros = RosGraph(domain_from_env(), getattr(args, "ros_distro", DEFAULT_DISTRO))
+        except ValueError as exc:
+            raise BusConfigError(str(exc)) from None
+        if config is None and os.environ.get(SESSION_CONFIG_ENV, "").strip():
+            config = os.environ[SESSION_CONFIG_ENV].strip()
         return cls(
             listen=tuple(getattr(args, "listen", None) or ()),
             connect=tuple(getattr(args, "connect", None) or ()),
@@ -106,6 +141,8 @@ class BusOptions:
             namespace=getattr(args, "namespace", "") or "",
             connect_timeout=float(getattr(args, "connect_timeout", DEFAULT_CONNECT_TIMEOUT_S)),
             robot_namespace=getattr(args, "robot_namespace", None) or "",
+            ros=ros,
+            ros_router=getattr(args, "ros_router", None),
         )
 
 
@@ -116,7 +153,21 @@ def helper_options(options: BusOptions) -> BusOptions:
     config = zenoh_config(options, "server")
     listening = tuple(_local(endpoint) for endpoint in _endpoints(config, "listen/endpoints"))
     connect = listening or _endpoints(config, "connect/endpoints")
-    return BusOptions(connect=connect, namespace=options.namespace, connect_timeout=options.connect_timeout)
+    return BusOptions(
+        connect=connect, namespace=options.namespace, connect_timeout=options.connect_timeout, ros=options.ros
+    )
+
+
+def ros_router_endpoint(options: BusOptions) -> str | None:
+    """The router a server joins: `--ros-router`, else where ZENOH_ROUTER_CONFIG_URI's router listens
+    (a wildcard address as the loopback one), else rmw_zenohd's default; None for `none`."""
+    if options.ros_router is not None:
+        return None if options.ros_router == "none" else options.ros_router
+    path = os.environ.get(ROUTER_CONFIG_ENV, "").strip()
+    if not path:
+        return ROS_ROUTER_ENDPOINT
+    listening = _endpoints(_load_file(Path(path)), "listen/endpoints")
+    return _local(listening[0]) if listening else ROS_ROUTER_ENDPOINT
 
 
 def _endpoints(config: zenoh.Config, key: str) -> tuple[str, ...]:
@@ -171,6 +222,16 @@ def _check_endpoints(option: str, endpoints: tuple[str, ...]) -> None:
             ) from None
 
 
+def _default_connect(options: BusOptions, role: Role) -> list[str]:
+    """A client connects to the server; the server to the ROS 2 router, if any (retried in the background)."""
+    if role == "client":
+        return [DEFAULT_ENDPOINT]
+    router = ros_router_endpoint(options)
+    if router is not None:
+        _check_endpoints("--ros-router", (router,))
+    return [router] if router is not None and router not in options.listen else []
+
+
 def zenoh_config(options: BusOptions, role: Role) -> zenoh.Config:
     """The Zenoh configuration of a server or client session with `options` applied."""
     if role not in ROLE_MODES:
@@ -198,7 +259,9 @@ def zenoh_config(options: BusOptions, role: Role) -> zenoh.Config:
     if options.connect:
         _insert(config, "connect/endpoints", list(options.connect), "--connect")
     elif unset("connect/endpoints"):
-        _insert(config, "connect/endpoints", [DEFAULT_ENDPOINT] if role == "client" else [], source)
+        _insert(config, "connect/endpoints", _default_connect(options, role), source)
+    if role == "server" and unset("scouting/delay"):
+        _insert(config, "scouting/delay", 0, source)  # a router that is not there must not hold the start
     if role == "client" and unset("connect/timeout_ms"):
         _insert(config, "connect/timeout_ms", round(options.connect_timeout * 1000), "--connect-timeout")
     logger.debug(

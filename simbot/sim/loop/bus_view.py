@@ -14,8 +14,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from simbot.bus import DecodeError, Node, Publisher, decode
+from simbot.bus import DecodeError, Node, Publisher, RosService, decode
 from simbot.bus.frames import prefixed_frame
+from simbot.bus.node import Refused
 
 log = logging.getLogger(__name__)
 
@@ -31,12 +32,12 @@ class Drops:
     last_error: dict[str, str] = field(default_factory=dict)
     _last_warning: dict[str, float] = field(default_factory=dict)
 
-    def drop(self, key: str, reason: str, count: int = 1) -> None:
-        """Counts dropped inputs and warns, rate-limited per key."""
+    def drop(self, key: str, reason: str, count: int = 1, warn: bool = True) -> None:
+        """Counts dropped inputs and warns, rate-limited per key (`warn=False`: counts only)."""
         self.counts[key] = self.counts.get(key, 0) + count
         self.last_error[key] = reason
         now = time.monotonic()
-        if now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
+        if warn and now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
             self._last_warning[key] = now
             log.warning("dropped input on %s (%d so far): %s", key, self.counts[key], reason)
 
@@ -73,6 +74,9 @@ class Input:
             )
         messages = []
         for payload in self._inbox.drain():
+            if isinstance(payload, Refused):
+                self._drops.drop(self.key, payload.reason, warn=payload.warn)
+                continue
             try:
                 message = decode(payload, self._typename)
             except DecodeError as exc:
@@ -98,7 +102,7 @@ class SimBus:
     drops: Drops = field(default_factory=Drops)
     inputs: list[Input] = field(default_factory=list)
     namespace: str = ""
-    _declared: list[Publisher | Input] = field(default_factory=list)
+    _declared: list[Publisher | Input | RosService] = field(default_factory=list)
 
     def scoped(self, namespace: str) -> SimBus:
         """A view for one model's systems (`namespace` empty: the world's keys and frames); shares
@@ -118,6 +122,12 @@ class SimBus:
         publisher = self.node.publisher(self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace)
         self._declared.append(publisher)
         return publisher
+
+    def ros_service(self, name: str, typename: str) -> RosService:
+        """A ROS 2 service (`std_srvs/srv/Empty`...) at `name` in this view, polled by its system."""
+        service = self.node.ros_service(self.topic(name), typename)
+        self._declared.append(service)
+        return service
 
     def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
         self.inputs.append(Input(self.node, self.drops, self.topic(topic), typename, check))

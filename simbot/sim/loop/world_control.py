@@ -38,6 +38,7 @@ from typing import Any, Protocol
 from simbot.bus import BadRequest, Node, Request
 from simbot.description.poses import Pose
 from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.ros_world_control import RosWorldControl
 from simbot.sim.loop.sdf_systems import LeftOut
 from simbot.sim.loop.simulation import Mode, Simulation
 from simbot.sim.loop.system import Reporting
@@ -86,7 +87,7 @@ class Models(Protocol):
 
 
 class WorldControl:
-    """The three queryables of one world."""
+    """The queryables of one world, and its ROS 2 services (`ros_world_control.py`)."""
 
     def __init__(self, node: Node, world: str, sim: Simulation, bus: SimBus, models: Models) -> None:
         self.sim = sim
@@ -104,12 +105,14 @@ class WorldControl:
             name: (node.queryable(f"world/{world}/{name}"), handler) for name, handler in handlers
         }
         self._keys = {name: node.key(f"world/{world}/{name}") for name in self._handlers}
+        self.ros = RosWorldControl(node, world, sim, models, bus.drops)
 
     def poll(self) -> None:
         """Handles every request that arrived since the last call."""
         for name, (queryable, handler) in self._handlers.items():
             for request in queryable.poll():
                 self._handle(name, request, handler)
+        self.ros.poll()
 
     def _handle(self, name: str, request: Request, handler: Handler) -> None:
         try:

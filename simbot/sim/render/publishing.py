@@ -165,7 +165,7 @@ class FramePublisher:
         """In lockstep a sample is never dropped (the step waits for it, as it waits for the frame);
         in real time one that the network cannot take is (a late frame is worth nothing)."""
         drop = self.bus.barrier is None
-        return Publisher(self.node.session, key, latched=False, drop=drop, typename=typename, announced=False)
+        return self.node.publisher_on(key, typename, drop=drop, announced=False)
 
     def publish(self, camera: int, stamp_ns: int, arrays: Mapping[str, Array]) -> None:
         """The camera's products somebody subscribes to, then its camera_info, under `stamp_ns`; in
