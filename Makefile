@@ -53,6 +53,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_stitcher.py
 	$(BIN)/python benchmarks/bench_record.py
 	$(BIN)/python benchmarks/bench_ros2.py
+	$(BIN)/python benchmarks/bench_rmw.py
 	$(BIN)/python benchmarks/bench_actors.py
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
 	$(BIN)/python benchmarks/bench_products.py

@@ -40,13 +40,15 @@ from bus_helpers import endpoint, free_port, unique_namespace
 from server_helpers import REPO, Collector, stamp_ns
 
 from simbot.bus import BusOptions, Node
+from simbot.bus.options import DEFAULT_ENDPOINT, ROS_ROUTER_ENDPOINT
 
 DOCKERFILE = REPO / "docker" / "Dockerfile"
 COMPOSE = REPO / "docker" / "compose.yaml"
 WORKFLOW = REPO / ".github" / "workflows" / "ci.yml"
 BIN = Path(sys.executable).parent
-IMAGE_ENDPOINT = "tcp/127.0.0.1:7447"
+IMAGE_ENDPOINT = "tcp/127.0.0.1:7448"
 """Where the image's server listens and its health check asks (inside the container)."""
+IMAGE_PORT = IMAGE_ENDPOINT.rpartition(":")[2]
 COMPILERS = frozenset({"gcc", "g++", "clang", "cpp", "make", "cmake", "build-essential"})
 STOP_TIMEOUT_S = 5.0
 ENGINE = REPO / "docker" / "engine.sh"
@@ -228,7 +230,9 @@ def test_image_runs_as_a_user_and_checks_its_health(final: Stage) -> None:
     check = health_check(final)
     assert check.command[:2] == ["simbot", "state"] and IMAGE_ENDPOINT in check.command
     assert exec_form(final.last("CMD"))[:1] == ["simbot-server"]
-    assert set(final.last("EXPOSE").split()) == {"7447", "8765"}
+    assert set(final.last("EXPOSE").split()) == {IMAGE_PORT, "8765"}
+    # simbot's default endpoint, so clients on the host connect as they are; 7447 is rmw_zenohd's.
+    assert IMAGE_ENDPOINT == DEFAULT_ENDPOINT != ROS_ROUTER_ENDPOINT
 
 
 def test_test_stage_runs_make_test_from_the_built_wheels(dockerfile: list[Stage]) -> None:
@@ -292,7 +296,7 @@ def test_health_check_passes_once_the_images_server_has_loaded_its_world(final: 
             time.sleep(check.options["interval"])
         assert done.stdout.splitlines()[0].split() == ["world", "warehouse"], done.stdout
         by_name = run_check(moved(check.command, where.replace("127.0.0.1", "localhost")), check.options["timeout"])
-        assert by_name.returncode == 0, f"a host name in the endpoint, as compose's tcp/server:7447: {by_name.stderr}"
+        assert by_name.returncode == 0, f"a host name in the endpoint, as compose's tcp/server:7448: {by_name.stderr}"
 
 
 def test_health_check_fails_within_its_timeout_where_nothing_listens(final: Stage) -> None:
@@ -343,10 +347,10 @@ def test_the_built_image_keeps_the_dockerfiles_health_check(built_image: str, fi
 
 @contextmanager
 def image_container(image: str, args: Sequence[str], port: int) -> Iterator[str]:
-    """A detached container of `image` running `args`, its 7447 published on 127.0.0.1:`port`;
+    """A detached container of `image` running `args`, its 7448 published on 127.0.0.1:`port`;
     stopped (SIGTERM) on the way out, its exit code 0 asserted, then removed."""
     name = f"simbot-test-{unique_namespace()}"
-    started = engine("run", "--detach", "--name", name, "--publish", f"127.0.0.1:{port}:7447", image, *args)
+    started = engine("run", "--detach", "--name", name, "--publish", f"127.0.0.1:{port}:{IMAGE_PORT}", image, *args)
     assert started.returncode == 0, started.stderr
     try:
         yield name
@@ -361,7 +365,7 @@ def test_the_built_images_server_serves_a_client_on_this_host(built_image: str, 
     """The image's CMD told to listen on the container's interfaces, as compose does; the image's
     health check run here against the published port, then a subscriber on this host gets `clock`."""
     check, port = health_check(final), free_port()
-    server = [*exec_form(final.last("CMD")), "--listen", "tcp/0.0.0.0:7447"]
+    server = [*exec_form(final.last("CMD")), "--listen", f"tcp/0.0.0.0:{IMAGE_PORT}"]
     with image_container(built_image, server, port) as name:
         deadline = time.monotonic() + 2 * check.options["start-period"]  # the start period, twice: a loaded machine
         # A client on this host, not the engine's check: no kill at the check's timeout (a loaded
@@ -484,6 +488,8 @@ def test_clients_connect_where_the_server_listens(
     (listen,) = parsed["server"]["listen"]
     host, port = re.fullmatch(r"tcp/([^:]+):(\d+)", listen).groups()  # type: ignore[union-attr]
     assert host == "0.0.0.0", "the other containers reach the server only on the network's interface"
+    assert port == IMAGE_PORT, "the image's port: its EXPOSE and health check"
+    assert parsed["server"]["ros_router"] == "none", "no ROS 2 router runs in the container"
     assert services["server"]["ports"] == [f"127.0.0.1:{port}:{port}"]
     clients = [name for name in services if name != "server"]
     assert set(clients) == {"merger", "stitcher", "foxglove", "teleop", "record"}

@@ -77,6 +77,6 @@ def test_the_fleet_compose_file_joins_its_servers_through_the_router_config() ->
         assert command[command.index("--namespace") + 1] == name == health[health.index("--namespace") + 1]
     assert "./zenoh-router.json5:/etc/zenoh/router.json5:ro" in services["router"]["volumes"]
     config = zenoh.Config.from_file(str(ROUTER_CONFIG))
-    assert json.loads(config.get_json("connect/endpoints")) == [f"tcp/{name}:7447" for name in sites]
+    assert json.loads(config.get_json("connect/endpoints")) == [f"tcp/{name}:7448" for name in sites]
     assert json.loads(config.get_json("mode")) == "router"
     assert json.loads(config.get_json("scouting/multicast/enabled")) is False
