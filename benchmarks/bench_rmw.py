@@ -31,7 +31,6 @@ import argparse
 import importlib.util
 import json
 import os
-import shlex
 import shutil
 import signal
 import statistics
@@ -49,7 +48,7 @@ from typing import Any
 
 import numpy as np
 import zenoh
-from bench_ros2 import INSIDE, SETUP, RosSide, bridge, free_port
+from bench_ros2 import INSIDE, RosSide, bridge, free_port, run_in_namespace
 from live_runs import connect, wait_ready
 from tables import publish
 
@@ -324,12 +323,7 @@ def latency_in_namespace(args: argparse.Namespace) -> list[str]:
         return image_latency(args)
     with tempfile.TemporaryDirectory(prefix="bench_rmw_") as folder:
         out = Path(folder) / "latency.json"
-        python, script = shlex.quote(sys.executable), shlex.quote(str(Path(__file__).resolve()))
-        command = f"{SETUP} && exec {python} {script} --frames {args.frames}"
-        env = dict(os.environ, **{INSIDE: "1", LATENCY_OUT: str(out)})
-        done = subprocess.run(["unshare", "-rn", "sh", "-c", command], env=env, check=False)
-        if done.returncode != 0:
-            raise SystemExit(done.returncode)
+        run_in_namespace(Path(__file__).resolve(), ["--frames", str(args.frames)], {LATENCY_OUT: str(out)})
         lines: list[str] = json.loads(out.read_text())
         return lines
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import os
 import queue
+import shlex
 import shutil
 import socket
 import statistics
@@ -31,7 +32,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
@@ -294,14 +295,21 @@ def whole_bus(args: argparse.Namespace) -> str:
         server.wait(timeout=10)
 
 
+def run_in_namespace(script: Path, argv: Sequence[str], env: Mapping[str, str] | None = None) -> None:
+    """Runs `script` with `argv` inside a private network namespace (SETUP, INSIDE set, `env` added);
+    its failure is this process's exit code."""
+    words = " ".join(shlex.quote(word) for word in (sys.executable, str(script), *argv))
+    environment = dict(os.environ, **{INSIDE: "1"}, **(env or {}))
+    done = subprocess.run(["unshare", "-rn", "sh", "-c", f"{SETUP} && exec {words}"], env=environment, check=False)
+    if done.returncode != 0:
+        raise SystemExit(done.returncode)
+
+
 def reexec_in_namespace() -> bool:
     """Run this benchmark again inside a private network namespace; False where none can be made."""
     if os.environ.get(INSIDE) or shutil.which("unshare") is None:
         return False
-    command = f"{SETUP} && exec {sys.executable} {Path(__file__).resolve()} {' '.join(sys.argv[1:])}"
-    done = subprocess.run(["unshare", "-rn", "sh", "-c", command], env=dict(os.environ, **{INSIDE: "1"}), check=False)
-    if done.returncode != 0:
-        raise SystemExit(done.returncode)
+    run_in_namespace(Path(__file__).resolve(), sys.argv[1:])
     return True
 
 

@@ -34,7 +34,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, Literal, Protocol, TypeVar
 
 import zenoh
 import zenoh.ext
@@ -65,6 +65,8 @@ CDR_ENCODING = zenoh.Encoding.APPLICATION_CDR
 TIMEOUT_REPLY = "Timeout"  # the error payload Zenoh delivers to a get when its timeout expires
 
 M = TypeVar("M")
+WarningPolicy = Literal["rate-limited", "always", "none"]
+"""How a refused input is logged: at most once a second per key, every time, or not at all."""
 
 
 class BusOpenError(OSError):
@@ -254,8 +256,9 @@ class Refused:
     """A sample an inbox refused on arrival, and why: the loop counts it with the key's drops."""
 
     reason: str
-    warn: bool = True
-    """False for a foreign type after its first sample: one warning per publisher's type, not one a second."""
+    warning: WarningPolicy = "rate-limited"
+    """A foreign type warns on its first sample whatever else was warned of, and never again: one
+    warning per publisher's type, not one a second."""
 
 
 class Inbox:
@@ -299,7 +302,8 @@ class Inbox:
             kind = "/".join(key.split("/")[-2:])
             first = kind not in self._foreign
             self._foreign.add(kind)
-            return Refused(f"a publisher of another type ({kind}) on this topic is ignored", warn=first)
+            reason = f"a publisher of another type ({kind}) on this topic is ignored"
+            return Refused(reason, "always" if first else "none")
         if sample.attachment is not None:
             try:
                 parse_attachment(sample.attachment.to_bytes())

@@ -16,7 +16,7 @@ from typing import Any
 
 from simbot.bus import DecodeError, Node, Publisher, RosService, decode
 from simbot.bus.frames import prefixed_frame
-from simbot.bus.node import Refused
+from simbot.bus.node import Refused, WarningPolicy
 
 log = logging.getLogger(__name__)
 
@@ -32,12 +32,13 @@ class Drops:
     last_error: dict[str, str] = field(default_factory=dict)
     _last_warning: dict[str, float] = field(default_factory=dict)
 
-    def drop(self, key: str, reason: str, count: int = 1, warn: bool = True) -> None:
-        """Counts dropped inputs and warns, rate-limited per key (`warn=False`: counts only)."""
+    def drop(self, key: str, reason: str, count: int = 1, warning: WarningPolicy = "rate-limited") -> None:
+        """Counts dropped inputs and warns, rate-limited per key (or `always`, or `none`: counts only)."""
         self.counts[key] = self.counts.get(key, 0) + count
         self.last_error[key] = reason
         now = time.monotonic()
-        if warn and now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S:
+        due = now - self._last_warning.get(key, -math.inf) >= WARN_INTERVAL_S
+        if warning == "always" or (warning == "rate-limited" and due):
             self._last_warning[key] = now
             log.warning("dropped input on %s (%d so far): %s", key, self.counts[key], reason)
 
@@ -75,7 +76,7 @@ class Input:
         messages = []
         for payload in self._inbox.drain():
             if isinstance(payload, Refused):
-                self._drops.drop(self.key, payload.reason, warn=payload.warn)
+                self._drops.drop(self.key, payload.reason, warning=payload.warning)
                 continue
             try:
                 message = decode(payload, self._typename)
