@@ -385,25 +385,10 @@ class Node:
         serves the latest message to late joiners (TRANSIENT_LOCAL), `drop=False` blocks (RELIABLE);
         `frame_prefix` puts the frames of what it sends under a robot's namespace; `announced=False`:
         the key's owner announces it (a server's render worker puts what the server announces)."""
-        return self.publisher_on(
-            self.key(topic), msgtype, latched=latched, drop=drop, frame_prefix=frame_prefix, announced=announced
-        )
-
-    def publisher_on(
-        self,
-        name: str,
-        msgtype: type[Any] | str,
-        *,
-        latched: bool = False,
-        drop: bool = True,
-        frame_prefix: str = "",
-        announced: bool = True,
-    ) -> Publisher:
-        """`publisher` on a topic named as `key` gives it (`ns/camera_front`), in no further namespace."""
         typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
         message_type(typename)
         qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
-        route = self.route(name, typename, "MP" if announced else None, qos)
+        route = self.route(self.key(topic), typename, "MP" if announced else None, qos)
         return self._keep(Publisher(self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix))
 
     def subscribe(

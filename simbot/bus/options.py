@@ -149,13 +149,12 @@ class BusOptions:
 def helper_options(options: BusOptions) -> BusOptions:
     """The bus options of a process the server starts to publish for it (a render worker): a client
     of the server itself, at the endpoints it listens on (a wildcard address as the loopback one),
-    or, for a server that listens on none, where it connects; in the server's namespace."""
+    or, for a server that listens on none, where it connects; in no namespace of its own: the
+    server names its keys in full."""
     config = zenoh_config(options, "server")
     listening = tuple(_local(endpoint) for endpoint in _endpoints(config, "listen/endpoints"))
     connect = listening or _endpoints(config, "connect/endpoints")
-    return BusOptions(
-        connect=connect, namespace=options.namespace, connect_timeout=options.connect_timeout, ros=options.ros
-    )
+    return BusOptions(connect=connect, connect_timeout=options.connect_timeout, ros=options.ros)
 
 
 def ros_router_endpoint(options: BusOptions) -> str | None:

@@ -50,16 +50,40 @@ def undeclare(entity: Undeclarable | None) -> None:
         logger.debug("undeclare: %s", zenoh_reason(exc))
 
 
-class Request:
-    """One service request: its JSON payload, and a reply that may come later from any thread."""
+class Answer:
+    """A query answered exactly once, now or later from any thread; then finalised, so that the
+    caller's get returns at once rather than at its timeout."""
 
-    def __init__(self, query: zenoh.Query, key: str) -> None:
-        self.key = key
+    def __init__(self, query: zenoh.Query, name: str) -> None:
         self._query = query
-        payload = query.payload
-        self.payload = payload.to_bytes() if payload is not None else b""
+        self._name = name
         self._replied = False
         self._lock = threading.Lock()
+
+    def reply_error(self, message: str) -> None:
+        """Answer with a Zenoh error reply (`Node.call` raises ServiceError with `message`; a ROS
+        client reports the call as failed)."""
+        self._finish(lambda: self._query.reply_err(message))
+
+    def _finish(self, send: Callable[[], None]) -> None:
+        with self._lock:
+            if self._replied:
+                raise RuntimeError(f"{self._name}: request already answered")
+            self._replied = True
+            try:
+                send()
+            finally:
+                self._query.drop()
+
+
+class Request(Answer):
+    """One JSON service request: its payload, and a reply that may come later from any thread."""
+
+    def __init__(self, query: zenoh.Query, key: str) -> None:
+        super().__init__(query, key)
+        self.key = key
+        payload = query.payload
+        self.payload = payload.to_bytes() if payload is not None else b""
 
     def json(self) -> dict[str, Any]:
         """The payload as a JSON object; no payload is `{}`. BadRequest when malformed."""
@@ -79,20 +103,6 @@ class Request:
         """Answer with `obj` as JSON and finish the request."""
         text = json.dumps(dict(obj), allow_nan=False)
         self._finish(lambda: self._query.reply(self.key, text, encoding=JSON_ENCODING))
-
-    def reply_error(self, message: str) -> None:
-        """Answer with a Zenoh error reply (`Node.call` raises ServiceError with `message`)."""
-        self._finish(lambda: self._query.reply_err(message))
-
-    def _finish(self, send: Callable[[], None]) -> None:
-        with self._lock:
-            if self._replied:
-                raise RuntimeError(f"{self.key}: request already answered")
-            self._replied = True
-            try:
-                send()
-            finally:
-                self._query.drop()  # finalizes the query: the caller's get returns now, not at its timeout
 
 
 class Queryable:
@@ -141,14 +151,12 @@ def parse_reply(key: str, data: bytes) -> dict[str, Any]:
     return value
 
 
-class RosRequest:
+class RosRequest(Answer):
     """One ROS 2 service request: its decoded message, and a reply that may come later from any thread."""
 
     def __init__(self, query: zenoh.Query, service: RosService) -> None:
+        super().__init__(query, service.name)
         self.service = service
-        self._query = query
-        self._replied = False
-        self._lock = threading.Lock()
 
     def message(self) -> Any:
         """The request message; BadRequest for a payload that is not the service's request or a
@@ -180,20 +188,6 @@ class RosRequest:
             self._query.reply(self._query.key_expr, data, encoding=CDR_ENCODING, attachment=attachment)
 
         self._finish(send)
-
-    def reply_error(self, message: str) -> None:
-        """Answer with a Zenoh error reply (a ROS client reports the call as failed)."""
-        self._finish(lambda: self._query.reply_err(message))
-
-    def _finish(self, send: Callable[[], None]) -> None:
-        with self._lock:
-            if self._replied:
-                raise RuntimeError(f"{self.service.name}: request already answered")
-            self._replied = True
-            try:
-                send()
-            finally:
-                self._query.drop()
 
 
 class RosService:

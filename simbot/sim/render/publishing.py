@@ -56,7 +56,7 @@ class Bus:
     options: BusOptions
     """A client of the server (`helper_options`)."""
     barrier: str | None = None
-    """The server's barrier queryable (lockstep); None: the worker never waits for its samples."""
+    """The server's barrier queryable, its key in full (lockstep); None: the worker never waits for its samples."""
 
 
 @dataclass(frozen=True)
@@ -165,7 +165,7 @@ class FramePublisher:
         """In lockstep a sample is never dropped (the step waits for it, as it waits for the frame);
         in real time one that the network cannot take is (a late frame is worth nothing)."""
         drop = self.bus.barrier is None
-        return self.node.publisher_on(key, typename, drop=drop, announced=False)
+        return self.node.publisher(key, typename, drop=drop, announced=False)
 
     def publish(self, camera: int, stamp_ns: int, arrays: Mapping[str, Array]) -> None:
         """The camera's products somebody subscribes to, then its camera_info, under `stamp_ns`; in

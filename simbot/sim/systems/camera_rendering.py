@@ -119,7 +119,7 @@ class Rendering:
         node = ctx.bus.node
         if self.lockstep:
             node.answering(BARRIER)
-        self.bus = Bus(helper_options(node.options), BARRIER if self.lockstep else None)
+        self.bus = Bus(helper_options(node.options), node.key("/" + BARRIER) if self.lockstep else None)
         """Where the render workers publish."""
         self.status = RenderStatus()
         self.cameras: list[RenderedSensor] = []
