@@ -433,6 +433,7 @@ class Node:
         bytes as they are."""
         key = self.key("/" + key_suffix.lstrip("/"))
         body = bytes(payload) if isinstance(payload, (bytes, bytearray)) else json.dumps(dict(payload)).encode()
+        asked = time.monotonic()
         replies = self.session.get(
             key,
             payload=body,
@@ -446,6 +447,10 @@ class Node:
             error = reply.err.payload.to_string() if reply.err is not None else ""
             if error != TIMEOUT_REPLY:
                 raise ServiceError(f"{key}: {error}")
+        if time.monotonic() - asked < timeout / 2:  # the query ended early: no queryable took it
+            raise TimeoutError(
+                f"{key}: nothing answers (is the server running, with the same namespace, and may this session ask it?)"
+            )
         raise TimeoutError(f"{key}: no reply within {timeout:g} s (is the server running, with the same namespace?)")
 
     def close(self) -> None:

@@ -148,13 +148,20 @@ class BusOptions:
 
 def helper_options(options: BusOptions) -> BusOptions:
     """The bus options of a process the server starts to publish for it (a render worker): a client
-    of the server itself, at the endpoints it listens on (a wildcard address as the loopback one),
+    of the server itself, at the endpoints it listens on (a unix socket first, a wildcard address as
+    the loopback one),
     or, for a server that listens on none, where it connects; in no namespace of its own: the
     server names its keys in full."""
     config = zenoh_config(options, "server")
-    listening = tuple(_local(endpoint) for endpoint in _endpoints(config, "listen/endpoints"))
+    listening = tuple(sorted((_local(e) for e in _endpoints(config, "listen/endpoints")), key=_not_a_socket))
     connect = listening or _endpoints(config, "connect/endpoints")
     return BusOptions(connect=connect, connect_timeout=options.connect_timeout, ros=options.ros)
+
+
+def _not_a_socket(endpoint: str) -> bool:
+    """Sorts a unix socket first: a worker has no certificate for a TLS endpoint, and a Zenoh client
+    keeps retrying its first endpoint while that one's handshake fails."""
+    return not endpoint.startswith("unixsock-stream/")
 
 
 def ros_router_endpoint(options: BusOptions) -> str | None:
