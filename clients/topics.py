@@ -3,7 +3,8 @@
 What `ros2 topic list -v` plus `ros2 topic hz` and `bw` give. The graph (`simbot.bus.graph`)
 says which keys are live and what they carry, including inputs nobody publishes (`cmd_vel`) and
 services (world control). Rates and bandwidth are measured by a raw Zenoh subscriber on
-`<namespace>/**` for `--window` seconds, whose callback only counts arrival times and bytes.
+`<domain>/<namespace>/**` (rmw_zenoh's data keys) for `--window` seconds, whose callback only
+counts arrival times and bytes.
 
 Cameras render only while someone subscribes, but they are on the graph from the start (the
 server's publishers announce their type when declared). Measuring subscribes to every key,

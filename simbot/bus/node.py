@@ -12,10 +12,10 @@ simulation (SPEC §4); `drop=False` gives BLOCK for data that must arrive.
 Latched topics ("transient local": `robot_description`, `tf_static`, `detachable_joint/state`)
 use Zenoh's own mechanism, the `zenoh.ext` advanced publisher with a cache of one sample and
 publisher detection, read by an advanced subscriber with history and late-publisher detection.
-It is what zenoh-bridge-ros2dds (since PR #524) and rmw_zenoh use for TRANSIENT_LOCAL, so a ROS 2
-host behind the bridge gets the latest value on joining, and it also covers a subscriber that
-starts before the publisher. A plain Zenoh user (`z_sub`) receives every later put, and for the
-latest value the latched publisher also answers a plain `get` on the key (`z_get -s KEY`) from
+It is what rmw_zenoh uses for TRANSIENT_LOCAL, so a ROS 2 node on rmw_zenoh gets the latest
+value on joining, and it also covers a subscriber that starts before the publisher. A plain Zenoh
+user (`z_sub -k '0/ns/tf_static/**'`) receives every later put, and for the latest value the
+latched publisher also answers a plain `get` on the key (`z_get -s '0/ns/tf_static/*/*'`) from
 a queryable of its own. `Node.subscribe(..., latched=True)` does all this for our programs.
 
 Zenoh runs callbacks on its own threads: the callbacks given here must only queue (append to a
