@@ -55,7 +55,7 @@ import zenoh.ext
 from simbot.bus import Node, messages
 from simbot.bus.codec import DecodeError, decode
 
-from .common import CLOCK, ClientError, SimTimeWatch, StatusLine, client_parser, run_client
+from .common import CLOCK, ClientError, SimTimeWatch, StatusLine, client_parser, number, run_client
 from .record import Selection
 from .state import NoWorld, ask
 from .topics import Topic, latched, live_topics, topic_name, world_names
@@ -403,7 +403,9 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     context = rclpy.Context()
-    rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)  # Ctrl-C is run_client's
+    rclpy.init(  # Ctrl-C is run_client's
+        args=[], context=context, domain_id=args.dds_domain, signal_handler_options=SignalHandlerOptions.NO
+    )
     ros = rclpy.create_node(NODE_NAME, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(ros)
@@ -431,6 +433,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--deny", action="append", default=[], metavar="GLOB", help="never carry keys matching (repeatable)"
+    )
+    parser.add_argument(
+        "--dds-domain",
+        type=number(int, at_least_zero=True),
+        metavar="N",
+        help="the DDS domain to carry the bus into (default: ROS_DOMAIN_ID, the bus's own domain)",
     )
     return run_client(parser, argv, _run, check=_require_rclpy)
 
