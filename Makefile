@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed-stamp
 
 EXAMPLE := examples/simbot-example-sensor
 
-.PHONY: run test test-browser lint bench docs urdf meshes textures layout image clean
+.PHONY: run test test-browser lint bench bench-learning docs urdf meshes textures layout image clean
 
 # The example plug-in goes in too: tests/test_example_plugin.py runs a server on its sensor, the
 # proof that a package outside simbot extends it through the entry points (docs/write-a-system.md).
@@ -57,6 +57,15 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_actors.py
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
 	$(BIN)/python benchmarks/bench_products.py
+	$(BIN)/python benchmarks/bench_gym.py
+
+## PPO on Navigate-v0's easy variant (empty world, goal 2 m ahead) for a fixed budget of env steps, on the CPU, against the random policy over the same seeded episodes, after Stable-Baselines3's env checker on both environments: about 11 minutes on two cores. Installs the learning extra, which `make test` does not.
+# torch first, pinned: 2.13.0 is the CPU build that lies on this machine's disk (pip's find-links), while
+# stable-baselines3's plain `torch` requirement, met by nothing installed, would take a CUDA build of several GB.
+bench-learning: $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check 'torch==2.13.0'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[learning]'
+	$(BIN)/python benchmarks/bench_learning.py
 
 ## An hour of the warehouse in real time, every sensor and the clients running: losses per key, RSS and CPU per process (`make soak MINUTES=2` to try it).
 MINUTES ?= 60

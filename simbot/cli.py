@@ -42,6 +42,16 @@ CLIENTS: dict[str, str] = {
 }
 """Client subcommands: each is the module `simbot.clients.<name>`, whose `main(argv)` takes the rest of the line."""
 
+COMMANDS: dict[str, tuple[str, str]] = {
+    "experiment": (
+        "simbot.gym.experiment",
+        "run episodes of a policy in a simbot Gymnasium environment across Ray actors, into a CSV "
+        "(pip install 'simbot[gym,ray]')",
+    ),
+}
+"""Other subcommands run the same way: name → (the module whose `main(argv)` takes the rest of the
+line, its summary); imported only when asked for, as the clients are."""
+
 
 def _sdf2urdf(args: argparse.Namespace) -> int:
     model = load_model(args.input)
@@ -84,6 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     describe.set_defaults(run=_describe)
     for name, summary in CLIENTS.items():
         commands.add_parser(name, help=summary, add_help=False)
+    for name, (_module, summary) in COMMANDS.items():
+        commands.add_parser(name, help=summary, add_help=False)
     return parser
 
 
@@ -93,6 +105,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv and argv[0] in CLIENTS:
         client: Callable[[Sequence[str]], int] = importlib.import_module(f"simbot.clients.{argv[0]}").main
         return client(argv[1:])
+    if argv and argv[0] in COMMANDS:
+        command: Callable[[Sequence[str]], int] = importlib.import_module(COMMANDS[argv[0]][0]).main
+        return command(argv[1:])
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
     run: Callable[[argparse.Namespace], int] = args.run

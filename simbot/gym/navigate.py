@@ -1,0 +1,62 @@
+"""simbot/Navigate-v0: drive the tug from a free pose to a goal pose without touching anything.
+
+The start is drawn anywhere free in the world, the goal `goal_distance` metres from it (both with a
+uniform heading), from the episode's seed; `reset(options={"start": (x, y, yaw), "goal": (x, y,
+yaw)})` sets either instead, and one that is not free is an EnvConfigError naming it. Success: the
+robot's model frame within `goal_tolerance` (0.3 m, 0.3 rad) of the goal. docs/learning.md has the
+spaces, the reward and the options.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from simbot.gym.base import Rewards, SimbotEnv, View, env_options
+from simbot.gym.errors import EnvConfigError
+from simbot.gym.geometry import Planar
+from simbot.gym.places import parse_pose
+
+RESET_OPTIONS = ("start", "goal")
+
+
+class NavigateEnv(SimbotEnv):
+    """Reach a goal pose; see the module docstring."""
+
+    task = "navigate"
+
+    def __init__(
+        self,
+        goal_distance: tuple[float, float] = (1.0, 5.0),
+        goal_tolerance: tuple[float, float] = (0.3, 0.3),
+        rewards: Rewards | Mapping[str, float] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        low, high = (float(v) for v in goal_distance)
+        if not 0 <= low <= high:
+            raise EnvConfigError(f"goal_distance {goal_distance!r}: expected (min, max) with 0 ≤ min ≤ max metres")
+        self.goal_distance = (low, high)
+        self.goal_tolerance = (float(goal_tolerance[0]), float(goal_tolerance[1]))
+        super().__init__(env_options(kwargs), rewards)
+
+    def _draw(self, rng: np.random.Generator, options: Mapping[str, Any]) -> tuple[Planar, Planar]:
+        unknown = set(options) - set(RESET_OPTIONS)
+        if unknown:
+            raise EnvConfigError(
+                f"reset options: unknown {', '.join(sorted(unknown))} (known: {', '.join(RESET_OPTIONS)})"
+            )
+        start = self.places.draw(rng, "start")
+        if "start" in options:
+            start = parse_pose(options["start"], "start")
+            self.places.check(start, "start")
+        goal = self.places.draw_near(rng, start, self.goal_distance, "goal")
+        if "goal" in options:
+            goal = parse_pose(options["goal"], "goal")
+            self.places.check(goal, "goal")
+        return start, goal
+
+    def _judge(self, view: View) -> tuple[float, bool, dict[str, Any]]:
+        reached = view.distance <= self.goal_tolerance[0] and view.heading_error <= self.goal_tolerance[1]
+        return 0.0, reached, {}
