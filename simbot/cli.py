@@ -106,7 +106,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         client: Callable[[Sequence[str]], int] = importlib.import_module(f"simbot.clients.{argv[0]}").main
         return client(argv[1:])
     if argv and argv[0] in COMMANDS:
-        command: Callable[[Sequence[str]], int] = importlib.import_module(COMMANDS[argv[0]][0]).main
+        try:
+            command: Callable[[Sequence[str]], int] = importlib.import_module(COMMANDS[argv[0]][0]).main
+        except ImportError as exc:  # an optional extra not installed: say which, not a traceback
+            print(f"simbot {argv[0]}: needs {exc.name or exc}: {COMMANDS[argv[0]][1]}", file=sys.stderr)
+            return 2
         return command(argv[1:])
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
