@@ -29,11 +29,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from simbot.description.actor_legs import ActorRig
 from simbot.description.missing_meshes import visuals_with_fallbacks
 from simbot.description.model import Capsule, Collision, Joint, Link, Material, Mesh, Model, Plugin, Visual
 from simbot.description.poses import Pose
 from simbot.description.resources import resolve
 from simbot.description.sdf_frames import read_pose
+from simbot.description.skeleton_poses import load_rig
+from simbot.description.skeletons import SkeletonError
 from simbot.description.xml import Element, Reader
 
 logger = logging.getLogger(__name__)
@@ -93,6 +96,15 @@ class Skin:
 
 
 @dataclass(frozen=True)
+class SkinnedMesh(Mesh):
+    """A skin with a skeleton: the cameras pose it as the frame's `body_skin_*` joints say
+    (simbot.description.actor_legs), from these animations' clips."""
+
+    animations: tuple[tuple[Path, bool], ...] = ()
+    """Each `<animation>`'s file and `<interpolate_x>`, in order."""
+
+
+@dataclass(frozen=True)
 class ActorModel(Model):
     """A model that moves along its script, kinematically: what `<actor>` reads into."""
 
@@ -112,22 +124,72 @@ def read_actor(
     """An `<actor>` whose `<link>`s and `<plugin>`s the SDF reader has read (it knows their frames)."""
     name = reader.attr(element, "name")
     skin = _read_skin(reader, element.find("skin"))
-    body = _body(reader, skin)
-    if any(link.name == BODY for link in links):
-        raise reader.error(element, f"actor {name!r}: a link may not be named {BODY!r} (the actor's own root link)")
+    animations = tuple(_read_animation(reader, name, e) for e in element.findall("animation"))
+    rig = _rig(reader, name, skin, animations)
+    body = _body(reader, skin) if rig is None else _animated_body(skin, animations, rig)  # type: ignore[arg-type]
+    if any(link.name == BODY or link.name.startswith(f"{BODY}_") for link in links):
+        raise reader.error(element, f"actor {name!r}: a link may not be named {BODY!r} or {BODY}_* (the actor's own)")
+    legs = rig.links(BODY) if rig is not None else ((), ())
     joints = tuple(Joint(f"{BODY}_to_{link.name}", "fixed", BODY, link.name, link.pose) for link in links)
     return ActorModel(
         name=name,
         pose=pose,
         canonical_link=BODY,
-        links=(body, *links),
-        joints=joints,
+        links=(body, *legs[0], *links),
+        joints=(*legs[1], *joints),
         plugins=plugins,
         source=reader.file,
         skin=skin,
-        animations=tuple(_read_animation(reader, name, e) for e in element.findall("animation")),
+        animations=animations,
         script=_read_script(reader, name, element.find("script")),
     )
+
+
+def _rig(reader: Reader, actor: str, skin: Skin | None, animations: tuple[Animation, ...]) -> ActorRig | None:
+    """The skin's skeleton and clips with its legs found, where the skin has a skeleton and every
+    animation is found and fits it; else None (the bind pose and one capsule), with a warning
+    naming the actor and the element where there was a skeleton to read."""
+    if skin is None or skin.path is None or not animations:
+        return None
+    missing = next((a for a in animations if a.path is None), None)
+    if missing is not None:
+        logger.warning(
+            "%s: actor %r: <animation name=%r> %s is not found; the skin is drawn unanimated",
+            reader.file,
+            actor,
+            missing.name,
+            missing.filename,
+        )
+        return None
+    try:
+        files = tuple((a.path, a.interpolate_x) for a in animations if a.path is not None)
+        rig = ActorRig.of(load_rig(skin.path, files), skin.scale)
+    except SkeletonError as exc:
+        logger.warning("%s: actor %r: <skin>/<animation>: %s; the skin is drawn unanimated", reader.file, actor, exc)
+        return None
+    if not rig.legs:
+        logger.warning(
+            "%s: actor %r: <skin> %s: no left and right leg found in its skeleton; one capsule is its proxy",
+            reader.file,
+            actor,
+            skin.filename,
+        )
+    return rig
+
+
+def _animated_body(skin: Skin, animations: tuple[Animation, ...], rig: ActorRig) -> Link:
+    """The root link of an animated actor: the skinned mesh, and the torso (the legs hang from it)."""
+    files = tuple((a.path, a.interpolate_x) for a in animations)
+    visual = Visual("skin", SkinnedMesh(skin.filename, (skin.scale,) * 3, skin.path, files))  # type: ignore[arg-type]
+    if not rig.legs:
+        proxy = Collision(
+            "proxy",
+            Capsule(PROXY_RADIUS, PROXY_HEIGHT - 2 * PROXY_RADIUS),
+            Pose((0.0, 0.0, rig.lowest() + PROXY_HEIGHT / 2)),
+        )
+        return Link(BODY, collisions=(proxy,), visuals=(visual,))
+    torso = rig.torso()
+    return Link(BODY, collisions=() if torso is None else (torso,), visuals=(visual,))
 
 
 def _read_skin(reader: Reader, element: Element | None) -> Skin | None:

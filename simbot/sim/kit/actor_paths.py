@@ -237,6 +237,16 @@ class ScriptPath:
         """The actor in its own frame at `sim_time` seconds of the world's clock."""
         if not self.paths:
             return Transform()
+        index, time = self._playing(sim_time)
+        position, (w, x, y, z) = self.paths[index].at(time)
+        return Transform(position, (x, y, z, w))
+
+    def trajectory_at(self, sim_time: float) -> int | None:
+        """Which trajectory plays at `sim_time` (its index in the script); None without any."""
+        return self._playing(sim_time)[0] if self.paths else None
+
+    def _playing(self, sim_time: float) -> tuple[int, float]:
+        """The trajectory playing at `sim_time` and the time into it."""
         total = sum(path.duration for path in self.paths)
         time = sim_time - self.script.delay_start if self.script.auto_start else 0.0
         time = max(time, 0.0)
@@ -244,9 +254,9 @@ class ScriptPath:
             time = min(time, total)
         elif time > total > 0:  # gz-sim subtracts the whole sequence while time exceeds it
             time -= total * (math.ceil(time / total) - 1)
-        for path in self.paths:
+        index = 0
+        for index, path in enumerate(self.paths):  # noqa: B007 - the one it stops at plays
             if time <= path.duration:
                 break
             time -= path.duration
-        position, (w, x, y, z) = path.at(time)
-        return Transform(position, (x, y, z, w))
+        return index, time

@@ -5,6 +5,8 @@ the world is read-only."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from simbot.sim.bullet import pb
@@ -50,6 +52,14 @@ class Commands(Queries):
         (a kinematic world turns it at `velocity`: see `stepping`)."""
         body = self.body(model)
         self._stepper.joint_velocity(body.id, body.joint_index(joint), velocity, max_effort)
+
+    @changes_world
+    def set_joint_positions(self, model: str, positions: Mapping[str, float]) -> None:
+        """Puts joints at `positions` at rest, kinematically (an actor's legs as its skeleton has them)."""
+        body = self.body(model)
+        indices = [body.joint_index(joint) for joint in positions]
+        values = [[value] for value in positions.values()]
+        pb.resetJointStatesMultiDof(body.id, indices, values, physicsClientId=self.client)
 
     @changes_world
     def drive_base(self, model: str, forward: float, lateral: float, turn: float) -> None:

@@ -4,6 +4,7 @@ system depends on these calls and not on the `Physics` class (a test may hand it
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Protocol
 
 import numpy as np
@@ -65,6 +66,8 @@ class WorldCommands(Protocol):
     def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None: ...
 
     def set_joint_force(self, model: str, joint: str, force: float) -> None: ...
+
+    def set_joint_positions(self, model: str, positions: Mapping[str, float]) -> None: ...
 
     def drive_base(self, model: str, forward: float, lateral: float, turn: float) -> None: ...
 

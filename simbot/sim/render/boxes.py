@@ -26,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.actor_scripts import SkinnedMesh
 from simbot.description.kinematics import KinematicTree, UrdfJoint
+from simbot.description.model import Visual
 from simbot.sim.render.kinds import Optics
 from simbot.sim.render.label_bits import MAX_INSTANCE, labelled
 from simbot.sim.render.specs import Frame, SceneBody
@@ -49,6 +51,8 @@ class Shape:
     label: int
     points: npt.NDArray[np.float64]
     """The visual's vertices in its link's frame."""
+    skinned: Visual | None = None
+    """A skin's visual, posed at each frame's joint positions (`visuals.visual_points`)."""
 
 
 @dataclass(frozen=True)
@@ -66,7 +70,8 @@ class BodyShapes:
         for drawn in body.visuals:
             label, _ = body.annotated(drawn.link, drawn.visual.name)
             if label:
-                shapes.append(Shape(drawn.link, label, visual_points(drawn.visual).astype(np.float64)))
+                skinned = drawn.visual if isinstance(drawn.visual.geometry, SkinnedMesh) else None
+                shapes.append(Shape(drawn.link, label, visual_points(drawn.visual).astype(np.float64), skinned))
         tree = KinematicTree.of_urdf(body.urdf)
         children = {joint.child for joint in tree.joints}
         root = next(link for link in tree.links if link not in children)
@@ -190,7 +195,8 @@ class Objects:
             shapes = self._shapes(body)
             state = frame.states.get(body.name)
             links = shapes.links(state.base if state else body.base, state.joints if state else {})
-            parts = [(links[s.link], s.points) for s in shapes.shapes if s.label == label and s.link in links]
+            joints = state.joints if state else {}
+            parts = [(links[s.link], _points(s, joints)) for s in shapes.shapes if s.label == label and s.link in links]
             if not parts:
                 continue
             root_inverse = rigid_inverse(links[shapes.root])
@@ -204,6 +210,13 @@ class Objects:
         """Drops the shapes of bodies no longer in the scene."""
         for name in set(self._read) - names:
             del self._read[name]
+
+
+def _points(shape: Shape, joints: Mapping[str, float]) -> npt.NDArray[np.float64]:
+    """A shape's vertices at the frame's instant: a skin posed as its joints say."""
+    if shape.skinned is None:
+        return shape.points
+    return np.asarray(visual_points(shape.skinned, joints), dtype=np.float64)
 
 
 def draw_box(image: npt.NDArray[np.uint8], corners: Corners) -> None:

@@ -42,6 +42,7 @@ from simbot.sim.render.gl_shadow import ShadowMap
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import LUMA
 from simbot.sim.render.scene import BulletScene, Matrix, projection_matrix, view_matrix
+from simbot.sim.render.skinning import Skinned
 from simbot.sim.render.specs import MAX_LIGHTS, CameraSpec, Light, SceneBody
 from simbot.sim.render.surfaces import Piece, Surface
 from simbot.sim.render.visuals import body_pieces
@@ -92,6 +93,10 @@ class _Part:
     centre: npt.NDArray[np.float64]
     """Its bounding sphere's centre, in its own frame (the world's, or its link's), and radius (`culling.py`)."""
     radius: float
+    skin: Skinned | None = None
+    """A skinned part: its vertices are posed anew for each pose (`skinning.py`) ..."""
+    rows: Rows | None = None
+    """... into these rows, then its buffer."""
 
     def release(self) -> None:
         for item in (self.vao, self.depth_vao, self.annotation_vao, self.buffer):
@@ -209,6 +214,10 @@ class GlRenderer:
             self._static[body.name] = [(p.surface, _rows(p, frames[p.link])) for p in pieces]
             return
         identity = np.eye(4)
+        for piece in pieces:
+            if piece.skin is not None and len(piece.positions):
+                self.parts.append(self._part(_rows(piece, identity), body.name, piece.link, piece.surface, piece.skin))
+        pieces = [piece for piece in pieces if piece.skin is None]
         for link, surface in dict.fromkeys((p.link, p.surface) for p in pieces):
             data = _stack([_rows(p, identity) for p in pieces if p.link == link and p.surface == surface])
             if len(data):
@@ -246,7 +255,7 @@ class GlRenderer:
         for body in {p.body for p in self.parts if p.body is not None}:
             yield from self.scene.link_matrices(body).values()
 
-    def _part(self, data: Rows, body: str | None, link: int, surface: Surface) -> _Part:
+    def _part(self, data: Rows, body: str | None, link: int, surface: Surface, skin: Skinned | None = None) -> _Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
         normal_map = self._textures.get(surface.normal_map) if surface.normal_map else None
@@ -273,6 +282,8 @@ class GlRenderer:
             material,
             centre,
             radius,
+            skin,
+            data if skin is not None else None,
         )
 
     def _texture(self, path: str | None) -> None:
@@ -406,6 +417,7 @@ class GlRenderer:
         """Each part's model matrix for the scene's current pose, its bounding sphere's centre in
         the world, and the sun's moving map, worked out once per pose (the cameras of a set share them)."""
         if self._posed != self.scene.version:
+            self._skin()
             frames = {
                 body: self.scene.link_matrices(body) for body in {p.body for p in self.parts if p.body is not None}
             }
@@ -419,6 +431,18 @@ class GlRenderer:
             self._posed = self.scene.version
             self._shadow_moving()
         return self._model_matrices
+
+    def _skin(self) -> None:
+        """Each skinned part's vertices at the pose the scene's joint positions give, into its buffer."""
+        posed = self.scene.posed or {}
+        for part in self.parts:
+            if part.skin is None or part.rows is None or part.body is None:
+                continue
+            state = posed.get(part.body)
+            positions, normals = part.skin.posed(state.joints if state is not None else {})
+            part.rows[:, 0:3], part.rows[:, 3:6] = positions, normals
+            part.buffer.write(part.rows.tobytes())
+            part.centre, part.radius = culling.sphere(part.rows[:, :3])
 
     def _shadow_moving(self) -> None:
         """The moving casters into the sun's second map, as posed now."""

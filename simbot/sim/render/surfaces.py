@@ -14,6 +14,7 @@ Textures are named by file; a worker reads each image once when the scene loads.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -62,3 +63,5 @@ class Piece:
     """The label and instance of its visual, packed (`label_bits.py`)."""
     temperature: float = float("nan")
     """Its temperature (K) from the Thermal system; NaN: the atmosphere's where it is."""
+    skin: Any = None
+    """A skinned part's `skinning.Skinned` (posed each frame; `positions` are its bind pose), else None."""

@@ -11,21 +11,28 @@ file, and the rest is drawn: a texture keeps its visual's colour, a mesh file is
 
 from __future__ import annotations
 
+import logging
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from simbot.description.actor_scripts import SkinnedMesh
 from simbot.description.model import RGBA, Box, Capsule, Cylinder, Geometry, Material, Mesh, Sphere, Visual
+from simbot.description.skeleton_poses import Rig, load_rig
+from simbot.description.skeletons import SkeletonError, SkinPart
 from simbot.sim.render.label_bits import pack
 from simbot.sim.render.mesh_materials import pbr_specular, readable_image, scaled, submeshes
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.shapes import GEOM_BOX, GEOM_CAPSULE, GEOM_CYLINDER, GEOM_SPHERE, Tessellated, primitive
+from simbot.sim.render.skinning import Skinned
 from simbot.sim.render.surfaces import RGB, Piece, Surface
 from simbot.transform import matmul
 
+log = logging.getLogger(__name__)
 UNCOLOURED = Surface(diffuse=(1.0, 1.0, 1.0), ambient=(1.0, 1.0, 1.0))
 """A visual without any material: white, as PyBullet draws it."""
 WHITE: RGBA = (1.0, 1.0, 1.0, 1.0)
@@ -57,16 +64,20 @@ def link_indices(scene: BulletScene, name: str) -> dict[str, int]:
     return indices
 
 
-def visual_points(visual: Visual) -> np.ndarray:
+def visual_points(visual: Visual, joints: Mapping[str, float] | None = None) -> np.ndarray:
     """The vertices a visual is drawn with, in its link's frame (N×3): what a bounding box of it is
-    fitted to (simbot/sim/render/boxes.py)."""
+    fitted to (simbot/sim/render/boxes.py); a skin posed as `joints` say, where given."""
     pieces = _visual_pieces(-1, visual)
-    return np.concatenate([p.positions for p in pieces]) if pieces else np.zeros((0, 3), np.float32)
+    points = [p.skin.posed(joints)[0] if p.skin is not None and joints is not None else p.positions for p in pieces]
+    return np.concatenate(points) if points else np.zeros((0, 3), np.float32)
 
 
 def _visual_pieces(link: int, visual: Visual) -> list[Piece]:
     origin = visual.pose.matrix()
     surface = _surface(visual)
+    if isinstance(visual.geometry, SkinnedMesh) and (rig := _rig(visual.geometry)) is not None:
+        scale = np.asarray(visual.geometry.scale[:3], dtype=np.float64)
+        return [_skinned(link, origin, scale, rig, part, surface) for part in rig.skeleton.parts]
     if isinstance(visual.geometry, Mesh):
         parts = _mesh_parts(visual.geometry)
         return [_piece(link, origin, part, surface or own or UNCOLOURED) for part, own in parts]
@@ -81,6 +92,30 @@ def _piece(link: int, origin: np.ndarray, tessellated: Tessellated, surface: Sur
     return Piece(
         link, placed.astype(np.float32), matmul(normals, rotation.T).astype(np.float32), uvs.astype(np.float32), surface
     )
+
+
+def _rig(mesh: SkinnedMesh) -> Rig | None:
+    """The skin's rig; None (drawn as a plain mesh) where it cannot be read now, with a warning."""
+    assert mesh.path is not None  # a SkinnedMesh is made only for a skin that was found
+    try:
+        return load_rig(mesh.path, mesh.animations)
+    except SkeletonError as exc:
+        log.warning("%s; it is drawn unanimated", exc)
+        return None
+
+
+def _skinned(link: int, origin: np.ndarray, scale: np.ndarray, rig: Rig, part: SkinPart, own: Surface | None) -> Piece:
+    """A skinned part as a piece in its bind pose, flat-shaded, carrying what poses it each frame."""
+    corners = part.positions.reshape(-1, 3, 3)
+    faces = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    faces /= np.maximum(np.sqrt((faces * faces).sum(axis=1, keepdims=True)), 1e-12)
+    skinned = Skinned(rig, part.positions, np.repeat(faces, 3, axis=0), part.joints, part.weights, scale, origin)
+    positions, normals = skinned.posed({})
+    colour = _rgb(part.colour)
+    texture = _image(part.texture)
+    surface = own or Surface(diffuse=colour, ambient=colour, opacity=part.colour[3], albedo_map=texture)
+    uvs = part.uvs.astype(np.float32)
+    return Piece(link, positions.astype(np.float32), normals.astype(np.float32), uvs, surface, skin=skinned)
 
 
 def _primitive(geometry: Geometry) -> Tessellated | None:

@@ -15,7 +15,7 @@ SDF parameters, each actor's own (`<actor>`; read by simbot.description.actor_sc
 | --- | --- | --- |
 | `<pose>` | 0 | the actor's frame: the waypoints' origin |
 | `<skin><filename>`, `<scale>` | none, 1 | COLLADA drawn by the cameras (bind pose); none: no proxy |
-| `<animation name><filename>`, `<scale>`, `<interpolate_x>` | —, 1, false | read and kept; the skin is not animated |
+| `<animation name><filename>`, `<scale>`, `<interpolate_x>` | —, 1, false | the clip a trajectory of that `type` plays (else the first); `interpolate_x`: its phase follows the distance walked |
 | `<script><loop>` | true | repeat the trajectories |
 | `<script><delay_start>` | 0 s | stand at the start this long |
 | `<script><auto_start>` | true | false: stand at the start (gz-sim ignores it; SDF says the script waits) |
@@ -27,13 +27,24 @@ origin, as Gazebo's set_pose sets an actor's Pose component), so it walks its sc
 `reset` returns it to its SDF frame at time zero; `remove` and `create` (an SDF whose root is an
 `<actor>`) take it out and put one in. An actor whose own systems include one that moves it
 (`ActorDriver`: FollowActor) is left to that system, as a TrajectoryPose overrides the script in gz-sim.
+
+An actor whose skin has a skeleton and animations (simbot.description.actor_legs) has its legs
+posed here too, each step, whoever moves it: the clip's time from the distance its frame has
+moved in the floor plane (summed each step; a jump over MAX_STRIDE_M, a teleport, is not walked)
+or from the sim time, the clip its trajectory's `type` names; the legs' joints and the
+`body_skin_*` joints that the cameras pose the skin from are set to it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
-from simbot.description.actor_scripts import ActorModel
+import numpy as np
+
+from simbot.description.actor_legs import GAIT_SAMPLES, ActorRig
+from simbot.description.actor_scripts import BODY, ActorModel, SkinnedMesh
+from simbot.description.skeleton_poses import load_rig
 from simbot.sim.kit.actor_paths import ActorDriver, ScriptPath
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
@@ -44,6 +55,52 @@ MOVED_TOLERANCE = 1e-4
 control's set_pose): PyBullet's transforms round to single precision, a few µm at tens of metres."""
 TURNED_TOLERANCE = 1e-6
 """1 − |q·q'| beyond which it counts as turned (about 3 mrad)."""
+MAX_STRIDE_M = 1.0
+"""Metres an actor's frame may move in one step and count as walked (more: it was put there)."""
+
+
+@dataclass
+class _Gait:
+    """An animated actor's leg joint positions tabled over each clip, and the distance it has walked."""
+
+    rig: ActorRig
+    names: tuple[str, ...]
+    tables: tuple[np.ndarray, ...]
+    """Per clip: (GAIT_SAMPLES + 1) × joints, at evenly spaced clip times."""
+    animations: dict[str, int]
+    distance: float = 0.0
+    last: tuple[float, float] | None = None
+
+    @staticmethod
+    def of(model: ActorModel) -> _Gait | None:
+        skin = next((v.geometry for v in model.link(BODY).visuals if isinstance(v.geometry, SkinnedMesh)), None)
+        if skin is None or skin.path is None:
+            return None
+        rig = ActorRig.of(load_rig(skin.path, skin.animations), skin.scale[0])
+        tables = []
+        for index, clip in enumerate(rig.rig.clips):
+            rows = [rig.positions(index, clip.duration * k / GAIT_SAMPLES) for k in range(GAIT_SAMPLES + 1)]
+            tables.append(np.array([list(row.values()) for row in rows]))
+        names = tuple(rig.positions(0, 0.0))
+        return _Gait(rig, names, tuple(tables), {a.name: i for i, a in enumerate(model.animations)})
+
+    def walked(self, x: float, y: float) -> None:
+        if self.last is not None:
+            step = math.hypot(x - self.last[0], y - self.last[1])
+            self.distance += step if step <= MAX_STRIDE_M else 0.0
+        self.last = (x, y)
+
+    def positions(self, animation: int, sim_time: float) -> dict[str, float]:
+        """The joints at the clip's time (linear between the table's rows), the clip's time exact."""
+        time = self.rig.rig.clip_time(animation, sim_time, self.distance)
+        duration = self.rig.rig.clips[animation].duration
+        table = self.tables[animation]
+        at = time / duration * GAIT_SAMPLES if duration > 0 else 0.0
+        k = min(int(at), GAIT_SAMPLES - 1)
+        row = table[k] + (table[k + 1] - table[k]) * (at - k)
+        out = dict(zip(self.names, row.tolist(), strict=True))
+        out[self.names[0]] = time
+        return out
 
 
 @dataclass
@@ -57,6 +114,10 @@ class _Actor:
     origin: Transform
     put: Transform | None = None
     """The world pose it was last put at."""
+    scripted: bool = True
+    """False: another system moves it (an `ActorDriver`); its legs are posed here all the same."""
+    gait: _Gait | None = field(default=None, repr=False)
+    """Its legs' posing, where its skin is animated."""
 
 
 class Actors:
@@ -71,15 +132,17 @@ class Actors:
 
     def model_added(self, event: ModelEvent) -> None:
         """An actor enters: from now on it follows its script, placed at once where the script has it now."""
-        if any(isinstance(system, ActorDriver) for system in event.systems):
-            return
+        driven = any(isinstance(system, ActorDriver) for system in event.systems)
         for body in event.bodies:
             model = self._physics.model_of(body)
-            if isinstance(model, ActorModel):
+            if not isinstance(model, ActorModel):
+                continue
+            gait = _Gait.of(model) if model.animations else None
+            if gait is not None or not driven:
                 frame = self._physics.model_pose(body)
-                actor = _Actor(body, ScriptPath.of(model.script), frame, frame)
+                actor = _Actor(body, ScriptPath.of(model.script), frame, frame, scripted=not driven, gait=gait)
                 self._actors[body] = actor
-                self._place(actor, self._now_ns)
+                self._update(actor, self._now_ns)
 
     def model_removed(self, event: ModelEvent) -> None:
         for body in event.bodies:
@@ -89,19 +152,34 @@ class Actors:
         """Every actor where its script puts it at the time this step reaches."""
         self._now_ns = info.sim_time_ns
         for actor in self._actors.values():
-            self._follow_teleport(actor)
-            self._place(actor, info.sim_time_ns)
+            if actor.scripted:
+                self._follow_teleport(actor)
+            self._update(actor, info.sim_time_ns)
 
     def reset(self, info: UpdateInfo) -> None:
         """Each actor back in its first frame, where its script has it at time zero."""
         self._now_ns = info.sim_time_ns
         for actor in self._actors.values():
             actor.origin, actor.put = actor.initial, None
-            self._place(actor, info.sim_time_ns)
+            if actor.gait is not None:
+                actor.gait.distance, actor.gait.last = 0.0, None
+            self._update(actor, info.sim_time_ns)
 
-    def _place(self, actor: _Actor, now_ns: int) -> None:
-        actor.put = compose(actor.origin, actor.path.pose_at(now_ns / 1e9))
-        self._physics.set_model_pose(actor.name, actor.put)
+    def _update(self, actor: _Actor, now_ns: int) -> None:
+        """A scripted actor where its script has it; an animated one's legs as its gait has them."""
+        if actor.scripted:
+            actor.put = compose(actor.origin, actor.path.pose_at(now_ns / 1e9))
+            self._physics.set_model_pose(actor.name, actor.put)
+        gait = actor.gait
+        if gait is None:
+            return
+        x, y, _ = (
+            actor.put if actor.scripted and actor.put is not None else self._physics.model_pose(actor.name)
+        ).position
+        gait.walked(x, y)
+        playing = actor.path.trajectory_at(now_ns / 1e9) if actor.scripted else None
+        kind = actor.path.script.trajectories[playing].type if playing is not None else ""
+        self._physics.set_joint_positions(actor.name, gait.positions(gait.animations.get(kind, 0), now_ns / 1e9))
 
     def _follow_teleport(self, actor: _Actor) -> None:
         """An actor put elsewhere since the last step (world control's set_pose) has its frame there:
