@@ -48,6 +48,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "run episodes of a policy in a simbot Gymnasium environment across Ray actors, into a CSV "
         "(pip install 'simbot[gym,ray]')",
     ),
+    "map": ("simbot.mapping.command", "write a world's ground-truth occupancy map for Nav2 (map.pgm, map.yaml)"),
 }
 """Other subcommands run the same way: name → (the module whose `main(argv)` takes the rest of the
 line, its summary); imported only when asked for, as the clients are."""

@@ -41,7 +41,7 @@ from simbot.bus.messages.images import (
     image_pixels,
 )
 from simbot.bus.messages.markers import NO_COLOUR, delete_all, marker, marker_array
-from simbot.bus.messages.nav import COVARIANCE_SIZE, odometry
+from simbot.bus.messages.nav import COVARIANCE_SIZE, occupancy_grid, odometry
 from simbot.bus.messages.sensors import fluid_pressure, imu, joint_state, laser_scan, magnetic_field, nav_sat_fix
 from simbot.bus.messages.std import NS_PER_S, clock, empty, float64, header, stamp_ns, string, time_msg
 from simbot.bus.messages.typestore import (
@@ -68,6 +68,7 @@ from simbot.bus.messages.typestore import (
     MarkerArray,
     NavSatFix,
     NavSatStatus,
+    OccupancyGrid,
     Odometry,
     Point,
     PointCloud2,
@@ -128,6 +129,7 @@ __all__ = [
     "MarkerArray",
     "NavSatFix",
     "NavSatStatus",
+    "OccupancyGrid",
     "Odometry",
     "Point",
     "PointCloud2",
@@ -172,6 +174,7 @@ __all__ = [
     "marker",
     "marker_array",
     "nav_sat_fix",
+    "occupancy_grid",
     "odometry",
     "point_cloud",
     "point_cloud_array",

@@ -34,6 +34,8 @@ WrenchStamped = _ros.geometry_msgs__msg__WrenchStamped
 TFMessage = _ros.tf2_msgs__msg__TFMessage
 # nav_msgs
 Odometry = _ros.nav_msgs__msg__Odometry
+MapMetaData = _ros.nav_msgs__msg__MapMetaData
+OccupancyGrid = _ros.nav_msgs__msg__OccupancyGrid
 # sensor_msgs
 CameraInfo = _ros.sensor_msgs__msg__CameraInfo
 FluidPressure = _ros.sensor_msgs__msg__FluidPressure
