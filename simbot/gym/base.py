@@ -30,12 +30,12 @@ from gymnasium import spaces
 from simbot.bus import messages
 from simbot.bus.tf_tree import Matrix
 from simbot.description import load_model
+from simbot.description.footprints import Planar, relative
+from simbot.description.free_poses import NoFreePose, Places
 from simbot.description.model import Model, World
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.geometry import Planar, relative
 from simbot.gym.observe import Observer, Source, merged_scan, pixels, planar, scan_merger, twist
 from simbot.gym.options import RENDER_CAMERA, EnvOptions, check_cameras, check_limits, read_world, steps_per_period
-from simbot.gym.places import Places
 from simbot.gym.robot import CONTACT_SENSOR, CONTACT_TOPIC, RobotFacts
 from simbot.gym.serve import server_spec, task_additions
 from simbot.gym.session import Session
@@ -98,10 +98,7 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         check_cameras(options, self.robot)
         self._check_robot()
         self.limits = check_limits(options, self.robot)
-        self.places = Places.of_world(
-            self._world_for_places(), self.robot.footprint, self.robot.rest_height + self.robot.top,
-            options.clearance, options.area,
-        )  # fmt: skip
+        self.places = self._places(self._world_for_places())
         self.render_mode = options.render_mode
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / options.control_period}
         self.action_space = self._action_space()  # type: ignore[assignment]
@@ -203,6 +200,16 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
             sources[camera] = (self.robot.cameras[camera], "sensor_msgs/msg/Image")
         return {**sources, **self._extra_sources()}
 
+    def _places(self, world: World) -> Places:
+        """Where the robot may stand in `world`; EnvConfigError naming why when nowhere."""
+        try:
+            return Places.of_world(
+                world, self.robot.footprint, self.robot.rest_height + self.robot.top,
+                self.options.clearance, self.options.area,
+            )  # fmt: skip
+        except NoFreePose as exc:
+            raise EnvConfigError(str(exc)) from None
+
     # --- the API ---------------------------------------------------------------------------------
 
     def reset(
@@ -212,7 +219,10 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
             seed = self.options.seed  # an environment made with seed=S starts as reset(seed=S) would
         super().reset(seed=seed)
         episode_seed = seed if seed is not None else int(self.np_random.integers(2**31 - 1))
-        start, target = self._draw(np.random.default_rng(episode_seed), options or {})
+        try:
+            start, target = self._draw(np.random.default_rng(episode_seed), options or {})
+        except NoFreePose as exc:
+            raise EnvConfigError(str(exc)) from None
         if not self._primed:
             self._prime()
         session = self._session

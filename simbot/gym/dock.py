@@ -26,11 +26,11 @@ import numpy.typing as npt
 from gymnasium import spaces
 
 from simbot.bus import messages
+from simbot.description.footprints import Planar
 from simbot.gym.base import POSE, Rewards, SimbotEnv, View, env_options
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.geometry import Planar
 from simbot.gym.observe import Source, planar
-from simbot.gym.places import parse_pose
+from simbot.gym.options import parse_pose
 from simbot.gym.serve import TROLLEY
 
 DOCK_HOLD_S = 0.4

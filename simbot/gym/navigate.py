@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from simbot.description.footprints import Planar
 from simbot.gym.base import Rewards, SimbotEnv, View, env_options
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.geometry import Planar
-from simbot.gym.places import parse_pose
+from simbot.gym.options import parse_pose
 
 RESET_OPTIONS = ("start", "goal")
 

@@ -28,8 +28,8 @@ import numpy.typing as npt
 from simbot.bus import Node, Subscription, messages
 from simbot.bus.tf_tree import Matrix, TransformTree
 from simbot.clients.merger import Binning, ScanMerger
+from simbot.description.footprints import Planar
 from simbot.gym.errors import SimServerError
-from simbot.gym.geometry import Planar
 from simbot.transform import yaw_of
 
 log = logging.getLogger(__name__)

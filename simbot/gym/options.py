@@ -9,12 +9,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from simbot.description import DescriptionError, load_world
+from simbot.description.footprints import Planar
+from simbot.description.free_poses import Area
 from simbot.description.model import World
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.places import Area
 from simbot.gym.robot import RobotFacts
 
 RENDER_MODES = ("rgb_array",)
@@ -135,3 +137,14 @@ def check_limits(options: EnvOptions, robot: RobotFacts) -> tuple[float, float]:
             raise EnvConfigError(f"{name} {asked!r}: must be in (0, {limit:g}], the drive's limit in the robot's SDF")
         bounds.append(limit if asked is None else float(asked))
     return bounds[0], bounds[1]
+
+
+def parse_pose(value: Any, what: str) -> Planar:
+    """(x, y, yaw) of a reset option; EnvConfigError naming it when it is not three finite numbers."""
+    try:
+        x, y, yaw = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise EnvConfigError(f"{what} {value!r}: expected (x, y, yaw)") from None
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise EnvConfigError(f"{what} {value!r}: expected finite numbers")
+    return x, y, yaw

@@ -25,9 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from simbot.description import load_model
+from simbot.description.footprints import Rectangle, collision_corners
 from simbot.description.model import Model, Param, Plugin, Sensor
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.geometry import Rectangle, collision_corners
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)

@@ -1,13 +1,18 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
     simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
-                  [--mode realtime|fast|lockstep] [--physics dynamic|kinematic] [--seed N] [--renderer auto|gl|tiny]
+                  [--mode realtime|fast|lockstep] [--physics dynamic|kinematic] [--seed N] [--randomise SEED[:PROFILE]] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--render-threads N] [--listen E] [--connect E] [--zenoh-config F]
 
 `--robot none` runs the world alone, with the models it holds or includes. `--add` (repeatable)
 puts the models and actors of another SDF file into the world as if its file held them: SDF has
 no way for one world to include another, so the warehouse's people (`--add warehouse_people`,
 worlds/additions/) live in a file of their own and the plain warehouse stays still for the tests.
+
+`--randomise SEED[:PROFILE]` loads the world that SEED draws from a variation profile (the world's
+own `<world>.variation.toml` beside it when PROFILE is left out; simbot.variation): the sun, the
+textures, clutter on free floor, the trolley's pose, the people's pace and routes, the cameras' noise.
+With a profile, world control's `reset` takes a seed and loads that seed's world.
 
 A user's mistake (a world that is not there, a broken SDF, bad plugin parameters, a bad Zenoh
 config) is one line on stderr and exit code 2. SIGINT and SIGTERM end it cleanly.
@@ -22,12 +27,14 @@ import signal
 import sys
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
-from simbot.description import DescriptionError, World, load_description, load_world
+from simbot.description import DescriptionError, World, load_world
+from simbot.description.additions import addition_path, with_additions, world_path
+from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.loop.bus_view import SimBus
@@ -38,6 +45,7 @@ from simbot.sim.loop.world_control import WorldControl
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
 from simbot.transform import yaw_of
+from simbot.variation import Variations, profile_beside, read_profile
 
 log = logging.getLogger("simbot.server")
 
@@ -49,8 +57,6 @@ ROW_SPACING = 1.5
 """Metres between the tugs of `--robots N` (a tug is 0.5 m wide; its side cameras and lidars see the next)."""
 NO_ROBOT = "none"
 """`--robot none`: the world alone."""
-ADDITIONS = "worlds/additions"
-"""Where simbot's own files for `--add` are, by name."""
 
 
 @dataclass(frozen=True)
@@ -67,6 +73,8 @@ class ServerConfig:
     """`--robots N`: N tugs `tug_1..tug_N` in namespaces of their names; 0: the one `flexley_tug`."""
     additions: tuple[Path, ...] = ()
     """`--add`: SDF files whose models and actors join the world's own (`with_additions`)."""
+    randomise: tuple[int, Path] | None = None
+    """`--randomise SEED[:PROFILE]`: the variant to start with and the profile it is drawn from."""
     kinematic: bool = False
     """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic_stepper),
     as a world's `<physics type="kinematic">` asks."""
@@ -74,50 +82,6 @@ class ServerConfig:
     def run_options(self) -> RunOptions:
         """What every system is told: lockstep follows the mode."""
         return RunOptions(self.mode is Mode.LOCKSTEP, self.overrides)
-
-
-def world_path(name_or_path: str) -> Path:
-    """A world file, or the name of one of simbot's own worlds (`warehouse`, `empty`)."""
-    return _sdf_file(name_or_path, "worlds", "world file or built-in world")
-
-
-def addition_path(name_or_path: str) -> Path:
-    """An SDF file to add, or the name of one of simbot's own (`warehouse_people`, in worlds/additions/)."""
-    return _sdf_file(name_or_path, ADDITIONS, "file or built-in addition")
-
-
-def _sdf_file(name_or_path: str, folder: str, what: str) -> Path:
-    """A path as given (an .sdf, or anything that exists), else simbot's own `folder/<name>.sdf`;
-    DescriptionError listing the built-in names when neither."""
-    path = Path(name_or_path)
-    if path.suffix == ".sdf" or path.exists():
-        return path
-    own = asset(f"{folder}/{name_or_path}.sdf")
-    if own.is_file():
-        return own
-    known = sorted(p.stem for p in asset(folder).glob("*.sdf"))
-    raise DescriptionError(path, f"no such {what} (built-in: {', '.join(known)})")
-
-
-def with_additions(world: World, paths: Sequence[Path]) -> World:
-    """`world` with the models and actors of each file (a `<world>` holding them, or one model or
-    actor), loaded as the world's own: reset puts them back where they started, as their file says.
-    Only models join: an added world's lights, plugins and settings are a warning, not applied."""
-    models = list(world.models)
-    for path in paths:
-        loaded = load_description(path)
-        added = list(loaded.models) if isinstance(loaded, World) else [loaded]
-        if not added:
-            raise DescriptionError(path, "holds no <model> or <actor> to add to the world")
-        if isinstance(loaded, World) and (loaded.plugins or loaded.lights):
-            log.warning("%s: only its models and actors are added, not its lights or world plugins", path)
-        taken = {model.name for model in models}
-        for model in added:
-            if model.name in taken:
-                raise DescriptionError(path, f"model {model.name!r} is already in world {world.name!r}", "model")
-            taken.add(model.name)
-        models += added
-    return replace(world, models=tuple(models))
 
 
 def robot_places(spawn: tuple[float, float, float, float], robots: int) -> list[Placement]:
@@ -132,21 +96,34 @@ def robot_places(spawn: tuple[float, float, float, float], robots: int) -> list[
     ]
 
 
+def _variations(config: ServerConfig, world: World, robot: Model | None) -> Variations | None:
+    """The variants a seeded reset may load: from `--randomise`'s profile, else the world's own when it has one."""
+    if config.randomise is not None:
+        return Variations(world, robot, read_profile(config.randomise[1]))
+    own = profile_beside(config.world)
+    return Variations(world, robot, read_profile(own)) if own.is_file() else None
+
+
 class Server:
     """A running world (`SimWorld`), its loop and world control, all on one bus node."""
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
         robot = load_robot(config.robot) if config.robot is not None else None
         world = with_additions(load_world(config.world), config.additions)
+        world = kinematic(world) if config.kinematic else world
+        variations = _variations(config, world, robot)
+        variant = variations.draw(config.randomise[0]) if variations and config.randomise else None
         self.world = SimWorld(
-            kinematic(world) if config.kinematic else world,
-            robot,
+            variant.world if variant else world,
+            variant.robot if variant else robot,
             robot_places(config.spawn, config.robots),
             SimBus(node),
             config.seed,
             config.run_options(),
             config.mode,
+            variations,
         )
+        self.world.variant = variant
         self.physics, self.bus, self.sim = self.world.physics, self.world.bus, self.world.sim
         self.control = WorldControl(node, self.world.description.name, self.sim, self.world.bus, self.world)
 
@@ -216,6 +193,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
     parser.add_argument(
+        "--randomise",
+        type=_randomise,
+        metavar="SEED[:PROFILE]",
+        help="start in the world SEED draws from a variation profile (default: the world's own <world>.variation.toml)",
+    )
+    parser.add_argument(
         "--renderer",
         choices=RENDERERS,
         default="auto",
@@ -271,6 +254,14 @@ def _rate(text: str) -> float:
 MAX_ROBOTS = 100
 
 
+def _randomise(text: str) -> tuple[int, Path | None]:
+    """`SEED[:PROFILE]`: a whole number ≥ 0, and the profile's file if given."""
+    seed, _, profile = text.partition(":")
+    if not seed.strip().isdigit():
+        raise argparse.ArgumentTypeError(f"expected SEED[:PROFILE] with SEED a whole number >= 0, got {text!r}")
+    return int(seed), Path(profile) if profile else None
+
+
 def _whole(most: int) -> Callable[[str], int]:
     """An argparse type: a whole number from 1 to `most`."""
 
@@ -301,8 +292,13 @@ def _config(args: argparse.Namespace) -> ServerConfig:
         raise DescriptionError(Path(NO_ROBOT), "--robots N needs a robot; --robot none holds none")
     spawn = tuple(args.spawn)
     additions = tuple(addition_path(name) for name in args.add)
+    world = world_path(args.world)
+    randomise = None
+    if args.randomise is not None:
+        seed, profile = args.randomise
+        randomise = (seed, profile or profile_beside(world))
     return ServerConfig(
-        world_path(args.world),
+        world,
         robot,
         spawn,
         Mode(args.mode),
@@ -310,6 +306,7 @@ def _config(args: argparse.Namespace) -> ServerConfig:
         overrides,
         args.robots or 0,
         additions,
+        randomise,
         args.physics == KINEMATIC,
     )
 

@@ -32,6 +32,7 @@ from simbot.sim.loop.system import ModelEvent, ModelObserver, RunOptions, System
 from simbot.sim.loop.world_control import CreateRequest
 from simbot.sim.physics import Physics
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
+from simbot.variation import Variant, Variations
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +103,7 @@ class SimWorld:
         seed: int = 0,
         options: RunOptions | None = None,
         mode: Mode = Mode.REALTIME,
+        variations: Variations | None = None,
     ) -> None:
         self.description = kinematic(world) if world.physics.type == KINEMATIC else world
         self.physics = Physics(self.description)
@@ -112,6 +114,10 @@ class SimWorld:
         self.models: dict[str, Placed] = {}
         self._world_systems: list[Scheduled] = []
         self._left_out: list[LeftOut] = []
+        self._placements = placements
+        self._variations = variations
+        self.variant: Variant | None = None
+        """The variant loaded by the last seeded reset (or given at start); None: the world as its file says."""
         try:
             self._load(robot, placements)
         except BaseException:
@@ -244,11 +250,43 @@ class SimWorld:
         del self.models[name]
         log.info("removed %s", name)
 
-    def reset(self) -> None:
-        """Gazebo's reset: the world as it started, so models created since leave it."""
+    def reset(self, seed: int | None = None) -> None:
+        """Gazebo's reset: the world as it started, so models created since leave it. With a seed, the
+        variant it draws from the world's variation profile (simbot.variation) instead: every model and
+        system is taken out and the variant loaded in their place, as a server started with
+        `--randomise SEED` loads it. ValueError naming the field, with the world as it was, when the
+        world has no profile or the profile cannot be drawn from."""
+        if seed is not None:
+            self._rebuild(self._draw(seed))
+            return
         for placed in [p for p in self.models.values() if p.created]:
             self.remove(placed.name)
         self.sim.reset()
+
+    def _draw(self, seed: int) -> Variant:
+        if self._variations is None:
+            raise ValueError(
+                f"reset.seed: world {self.description.name!r} has no variation profile (simbot-server --randomise)"
+            )
+        try:
+            return self._variations.draw(seed)
+        except DescriptionError as exc:
+            raise ValueError(f"reset.seed: {exc}") from None
+
+    def _rebuild(self, variant: Variant) -> None:
+        """Every model and system out, `variant`'s in, time at zero."""
+        for name in list(self.models):
+            self.remove(name)
+        systems = [entry.system for entry in self._world_systems]
+        self.sim.remove_systems(systems)
+        Simulation.close_all(systems)
+        self._world_systems, self._left_out = [], []
+        world = variant.world
+        self.description = self.physics.world = kinematic(world) if world.physics.type == KINEMATIC else world
+        self._load(variant.robot, self._placements)
+        self.variant = variant
+        self.sim.reset()
+        log.info("world %s drawn from seed %d: %d clutter models", world.name, variant.seed, len(variant.clutter))
 
     def close(self) -> None:
         Simulation.close_all(self.systems)

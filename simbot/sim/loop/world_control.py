@@ -3,8 +3,9 @@
 Keys (with the namespace prefix when one is set) and payloads, shaped like Gazebo's messages:
 
 - `world/<name>/control`: `{"pause": true}`, `{"pause": false}`, `{"step": true}`,
-  `{"multi_step": N}`, `{"reset": {"all": true}}` (or `"reset": true`). The reply comes when
-  the steps are done: `{"ok": true, "sim_time": s, "iterations": n}`.
+  `{"multi_step": N}`, `{"reset": {"all": true}}` (or `"reset": true`), `{"reset": {"seed": N}}`
+  (the world N draws from its variation profile, simbot.variation). The reply comes when the steps
+  are done: `{"ok": true, "sim_time": s, "iterations": n}`.
 - `world/<name>/set_pose`: `{"name": "trolley", "position": {"x": 1, "y": 0, "z": 0},
   "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}`; orientation defaults to identity.
 - `world/<name>/create`: `{"sdf_filename": PATH}` or `{"sdf": TEXT}`, with optional `"name"`
@@ -20,7 +21,8 @@ Keys (with the namespace prefix when one is set) and payloads, shaped like Gazeb
   steps), the dropped-input counters with their last reasons, and `systems_left_out`: each
   system the world runs without because its SDF parameters are bad, as `{"name", "kind",
   "reason"}` (its scoped name, its sensor type or plugin filename, the one-line error; an empty
-  list when none).
+  list when none), and `variation`: the seed, profile and clutter of the variant loaded (null for
+  the world as its file says).
 
 A malformed request gets `{"ok": false, "error": "..."}` and is counted with the dropped inputs.
 A reset removes the models created since the start, as Gazebo's does.
@@ -43,6 +45,7 @@ from simbot.sim.loop.sdf_systems import LeftOut
 from simbot.sim.loop.simulation import Mode, Simulation
 from simbot.sim.loop.system import Reporting
 from simbot.transform import Transform
+from simbot.variation import Variant
 
 MAX_STEPS = 10_000_000
 """A multi_step beyond this (2.8 h at 1 kHz) is a mistake, not a request."""
@@ -83,7 +86,10 @@ class Models(Protocol):
 
     def remove(self, name: str) -> None: ...
 
-    def reset(self) -> None: ...
+    @property
+    def variant(self) -> Variant | None: ...
+
+    def reset(self, seed: int | None = None) -> None: ...
 
 
 class WorldControl:
@@ -127,14 +133,14 @@ class WorldControl:
         unknown = set(body) - {"pause", "step", "multi_step", "reset"}
         if unknown:
             raise ValueError(f"unknown field(s) {', '.join(sorted(unknown))}; expected pause, step, multi_step, reset")
-        reset = "reset" in body and _reset(body["reset"])
+        reset, seed = _reset(body["reset"]) if "reset" in body else (False, None)
         pause = _pause(body["pause"]) if "pause" in body else None
         if pause is False and self.sim.mode is Mode.LOCKSTEP:
             raise ValueError("in lockstep mode the world advances only on step or multi_step")
         steps = _steps(body)
         # Everything is valid: only now does anything change.
         if reset:
-            self.models.reset()
+            self.models.reset(seed)
         if pause is not None:
             self.sim.set_paused(pause)
         self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
@@ -166,6 +172,7 @@ class WorldControl:
             "dropped": dict(self.drops.counts),
             "last_errors": dict(self.drops.last_error),
             "systems_left_out": [entry.as_dict() for entry in self.models.left_out],
+            "variation": _variation(self.models.variant),
         }
         request.reply(state)
 
@@ -229,13 +236,24 @@ def _unit_quaternion(values: list[float]) -> tuple[float, float, float, float]:
     return x, y, z, w
 
 
-def _reset(value: Any) -> bool:
-    """Whether a reset field asks for a reset (Gazebo's all, model_only and time_only all reset everything here)."""
-    if value is True or (
-        isinstance(value, dict) and (value.get("all") or value.get("model_only") or value.get("time_only"))
-    ):
-        return True
-    raise ValueError(f'reset expects true or {{"all": true}}, got {value!r}')
+def _reset(value: Any) -> tuple[bool, int | None]:
+    """Whether a reset field asks for a reset (Gazebo's all, model_only and time_only all reset
+    everything here), and the seed of the variant to load (None: the world as it started)."""
+    if value is True:
+        return True, None
+    if isinstance(value, dict) and set(value) <= {"all", "model_only", "time_only", "seed"}:
+        seed = value.get("seed")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63):
+            raise ValueError(f"reset.seed expects a whole number from 0 to 2^63 - 1, got {seed!r}")
+        if seed is not None or value.get("all") or value.get("model_only") or value.get("time_only"):
+            return True, seed
+    raise ValueError(f'reset expects true, {{"all": true}} or {{"seed": N}}, got {value!r}')
+
+
+def _variation(variant: Variant | None) -> dict[str, Any] | None:
+    if variant is None:
+        return None
+    return {"seed": variant.seed, "clutter": list(variant.clutter)}
 
 
 def _pause(value: Any) -> bool:

@@ -1,4 +1,5 @@
-"""Free poses for the robot, from the world's description: where an episode may start and end.
+"""Free poses on a world's floor, from its description: where a robot may start and end (the
+Gymnasium environments), where clutter may stand (simbot.variation).
 
 An obstacle is any collision of the world's models (static, and dynamic ones where they start:
 the trolley) that reaches into the height the robot occupies, from just above the floor
@@ -19,13 +20,11 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from simbot.description.footprints import Floats, Planar, Rectangle, collision_corners, convex_hull, overlap
 from simbot.description.model import Model, Plane, World
-from simbot.gym.errors import EnvConfigError
-from simbot.gym.geometry import Floats, Planar, Rectangle, collision_corners, convex_hull, overlap
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
@@ -36,6 +35,11 @@ MAX_HALF_WIDTH = 10.0
 """Metres: the default area reaches at most this far from the origin along x and y."""
 MAX_TRIES = 2000
 """Draws before a free pose is given up on (the warehouse needs a handful)."""
+
+
+class NoFreePose(ValueError):
+    """A pose asked for is not free, or none could be found: one line naming it and the obstacle."""
+
 
 Area = tuple[float, float, float, float]
 """(xmin, ymin, xmax, ymax) in the world."""
@@ -80,7 +84,7 @@ class Places:
             area = _default_area(floor)
         xmin, ymin, xmax, ymax = area
         if not (xmin < xmax and ymin < ymax):
-            raise EnvConfigError(f"area {area}: needs xmin < xmax and ymin < ymax")
+            raise NoFreePose(f"area {area}: needs xmin < xmax and ymin < ymax")
         log.debug("%s: %d obstacles, area %s", world.name, len(obstacles), area)
         return Places(obstacles, area, footprint, clearance)
 
@@ -101,11 +105,11 @@ class Places:
         return None
 
     def check(self, pose: Planar, what: str) -> None:
-        """EnvConfigError naming `what` (\"goal\") and the obstacle when `pose` is not free."""
+        """NoFreePose naming `what` (\"goal\") and the obstacle when `pose` is not free."""
         why = self.blocker(pose)
         if why is not None:
             x, y, yaw = pose
-            raise EnvConfigError(f"{what} ({x:g}, {y:g}, {yaw:g}) is not free for the robot: {why}")
+            raise NoFreePose(f"{what} ({x:g}, {y:g}, {yaw:g}) is not free for the robot: {why}")
 
     def draw(self, rng: np.random.Generator, what: str) -> Planar:
         """A free pose anywhere in the area, uniformly, with a uniform heading."""
@@ -118,7 +122,7 @@ class Places:
             )
             if self.blocker(pose) is None:
                 return pose
-        raise EnvConfigError(f"no free {what} found in {MAX_TRIES} draws in the area {self.area}")
+        raise NoFreePose(f"no free {what} found in {MAX_TRIES} draws in the area {self.area}")
 
     def draw_near(self, rng: np.random.Generator, centre: Planar, distance: tuple[float, float], what: str) -> Planar:
         """A free pose `distance` (min, max) metres from `centre`, in a uniform direction, with a uniform heading."""
@@ -132,7 +136,7 @@ class Places:
             )
             if self.blocker(pose) is None:
                 return pose
-        raise EnvConfigError(
+        raise NoFreePose(
             f"no free {what} found {low:g}–{high:g} m from ({centre[0]:g}, {centre[1]:g}) in {MAX_TRIES} draws"
         )
 
@@ -167,7 +171,7 @@ def _shadows(model: Model, robot_top: float, obstacles: list[Obstacle], floor: l
 
 def _default_area(floor: list[Area]) -> Area:
     if not floor:
-        raise EnvConfigError("the world has no floor (a <plane>, or a collision whose top is at z = 0): give an area")
+        raise NoFreePose("the world has no floor (a <plane>, or a collision whose top is at z = 0): give an area")
     m = MAX_HALF_WIDTH
     return (
         max(-m, float(min(a[0] for a in floor))),
@@ -175,14 +179,3 @@ def _default_area(floor: list[Area]) -> Area:
         min(m, float(max(a[2] for a in floor))),
         min(m, float(max(a[3] for a in floor))),
     )
-
-
-def parse_pose(value: Any, what: str) -> Planar:
-    """(x, y, yaw) of a reset option; EnvConfigError naming it when it is not three finite numbers."""
-    try:
-        x, y, yaw = (float(v) for v in value)
-    except (TypeError, ValueError):
-        raise EnvConfigError(f"{what} {value!r}: expected (x, y, yaw)") from None
-    if not all(math.isfinite(v) for v in (x, y, yaw)):
-        raise EnvConfigError(f"{what} {value!r}: expected finite numbers")
-    return x, y, yaw
