@@ -17,8 +17,10 @@ from conftest import REPO, run_cli
 from golden_helpers import Tolerance, text_differences
 
 from simbot.description import load_sdf
-from simbot.description.actor_scripts import PROXY_HEIGHT, PROXY_RADIUS, ActorModel
+from simbot.description.actor_legs import ActorRig
+from simbot.description.actor_scripts import PROXY_HEIGHT, PROXY_RADIUS, ActorModel, SkinnedMesh
 from simbot.description.model import Box, Capsule, Mesh
+from simbot.description.skeleton_poses import load_rig
 
 SCRIPT_OK = """<waypoint><time>0</time><pose>0 0 0 0 0 0</pose></waypoint>
           <waypoint><time>2</time><pose>1 0 0 0 0 0</pose></waypoint>"""
@@ -141,6 +143,9 @@ def test_the_workers_skin_is_made_by_its_script_and_stands_on_its_soles(tmp_path
     assert not found, "the committed skin is stale: run meshes/make_worker.py: " + "; ".join(found)
     actor = load_sdf(REPO / "worlds" / "models" / "worker" / "model.sdf")
     assert isinstance(actor, ActorModel) and actor.skin is not None and actor.skin.path == committed
-    proxy = actor.links[0].collisions[0]
-    assert proxy.pose.xyz[2] - PROXY_HEIGHT / 2 == pytest.approx(-1.0, abs=1e-6)
-    assert isinstance(actor.links[0].visuals[0].geometry, Mesh)
+    skin = actor.links[0].visuals[0].geometry
+    assert isinstance(skin, SkinnedMesh)  # animated: a capsule per thigh and shin, and the torso's
+    shapes = {c.name for link in actor.links for c in link.collisions}
+    assert shapes == {"torso", "thigh_left", "shin_left", "thigh_right", "shin_right"}
+    rig = ActorRig.of(load_rig(committed, skin.animations), 1.0)
+    assert rig.lowest() == pytest.approx(-1.0, abs=1e-6)
