@@ -36,9 +36,10 @@ from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
 
-LIDAR_HEIGHT = 0.26
-"""Metres above the floor of the Flexley Tug's lidars' beams (base_scan_front's link at 0.04 m,
-its sensor 0.22 m above that: urdf/flexley_tug.sdf): the default height of a map."""
+LIDAR_HEIGHT = 0.355
+"""Metres above the floor of the Flexley Tug's lidar beams, the default height of a map: 0.26 m above
+base_footprint (base_scan_front's link at 0.04 m, its sensor 0.22 m above that: urdf/flexley_tug.sdf),
+which rests 0.0955 m up on its tyres (tests/test_map_outside.py checks both on a running tug)."""
 RESOLUTION = 0.05
 """Metres per cell: Nav2's usual."""
 NOTHING = (-0.5, -0.5, 0.5, 0.5)
