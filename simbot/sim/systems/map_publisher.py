@@ -18,7 +18,7 @@ It follows the model events: a static model created through world control (a ran
 clutter) joins the map, a removed one (a reset takes created models out) leaves it. Each model is
 cut once, when it enters (the models there at start at their description's poses, so the map is
 `simbot map`'s, cell for cell; a created one where the physics put it); a step in which static
-models came or went re-fills the grid once, from the cut pieces (the warehouse: about 10 ms),
+models came or went re-fills the grid once, from the cut pieces (the warehouse: about 5 ms of CPU),
 and never in another step; the message is encoded and put on the scene's sender thread, at once
 in lockstep (simbot.sim.systems.scene_publisher.LatestSender).
 """
