@@ -355,6 +355,9 @@ CASES: dict[tuple[str, str], Case] = {
     (WORLD_GROUP, "Rendering"): Case(sensors=CAMERA, key="eye"),
     # the scene goes out once (latched, on change); the moving robot's frames go on tf every period
     (WORLD_GROUP, "ScenePublisher"): Case(key="tf"),
+    # the map goes out once (latched, at the first step: the static models do not change here), so no
+    # key of its own is asked twice; its one message is among the keys whose bytes both runs compare
+    (WORLD_GROUP, "MapPublisher"): Case(),
     (GROUP, "FollowActor"): Case(world_plugins=FOLLOWER, key="model/follower/pose"),
     (GROUP, "TrajectoryFollower"): Case(plugins=TRAJECTORY_FOLLOWER, key="model/flexley_tug/pose"),
     (WORLD_GROUP, "Actors"): Case(world_plugins=ACTORS, sensors=_lidar("gpu_lidar"), key="model/runner/pose"),
