@@ -56,6 +56,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_rmw.py
 	$(BIN)/python benchmarks/bench_actors.py
 	$(BIN)/python benchmarks/bench_map.py
+	$(BIN)/python benchmarks/bench_variation.py
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
 	$(BIN)/python benchmarks/bench_products.py
 	$(BIN)/python benchmarks/bench_gym.py

@@ -1,5 +1,11 @@
-"""`simbot dataset --out DIR [--cameras KEY…] [--every N] [--count N]`: synchronised camera frames
-as a training set, in the layout of simbot/dataset_format.py (PNGs, COCO annotations.json, manifest.json).
+"""`simbot dataset --out DIR [--cameras KEY…] [--every N] [--count N] [--randomise SEEDS]`: synchronised
+camera frames as a training set, in the layout of simbot/dataset_format.py (PNGs, COCO
+annotations.json, manifest.json).
+
+`--randomise SEEDS` (a count N: seeds 0..N-1; or FIRST:END) asks the world, for each seed in turn,
+for the world that seed draws from its variation profile (world control's `reset` with the seed,
+simbot.variation) and writes `--count` sets of each, their files and sets marked with the seed. The
+server runs the world (real time or fast); a lockstep world is the caller's to step.
 
 Each KEY names a camera by its key (relative to `--robot-namespace`), and is one of:
 - an image key (sensor_msgs/Image): rgb8, bgr8 or mono8 → `rgb` PNG; 32FC1 depth → `depth` PNG (mm);
@@ -56,7 +62,7 @@ from .common import (
     number,
     run_client,
 )
-from .topics import Topic, live_topics
+from .topics import Topic, live_topics, world_names
 
 logger = logging.getLogger(__name__)
 
@@ -71,6 +77,8 @@ POSE_WAIT_S = 3.0
 """Wall seconds a set waits for ground truth that never came, before its poses are left null."""
 GRAPH_POLL_S = 0.5
 QUEUE = 64
+RESET_S = 60.0
+"""Seconds a seeded reset may take beyond `--timeout`: the server loads the whole world anew."""
 
 Kind = Literal["image", "segmentation", "boxes"]
 
@@ -177,6 +185,12 @@ class PoseTrack:
                 self._samples.clear()  # sim time went back: another run
             self._samples.append((stamp, Transform.of((p.x, p.y, p.z), (o.x, o.y, o.z, o.w))))
 
+    def forget(self) -> None:
+        """Sim time starts again (a reset): the samples so far are another run's."""
+        self._samples.clear()
+        while self._inbox.get(0.0) is not None:
+            pass
+
     def reached(self, stamp_ns: int) -> bool:
         """Whether a sample at or after `stamp_ns` has come (so the pose there is known)."""
         return bool(self._samples) and self._samples[-1][0] >= stamp_ns
@@ -263,7 +277,15 @@ class Collector:
         self.tf = StaticTransforms(node, "base_link")
         self.pending: deque[tuple[float, dict[str, Any]]] = deque()
         self.seen = self.written = self.incomplete = self.unreadable = 0
+        self.world_seed: int | None = None
         self._warned = False
+
+    def restart(self, seed: int) -> None:
+        """The world was drawn anew from `seed`: sim time starts again, what waited belongs to the last one."""
+        self.sync = StampSync(self.sync.streams, 0, MAX_WAIT_NS)
+        self.pending.clear()
+        self.poses.forget()
+        self.world_seed = seed
 
     def _receive(self, stream: str, msg: Any) -> None:
         for ready in self.sync.add(stream, messages.stamp_ns(msg.header), msg):
@@ -309,7 +331,7 @@ class Collector:
         for source in self.sources:
             msg = ready[source.camera]
             info = ready.get(source.info) if source.info else None
-            shot = Shot(source.camera, stamp, None if info is None else intrinsics_of(info))
+            shot = Shot(source.camera, stamp, None if info is None else intrinsics_of(info), world_seed=self.world_seed)
             shot.pose = self.pose(msg.header.frame_id, stamp)
             fill(shot, source, msg)
             shots.append(shot)
@@ -372,17 +394,49 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     collector = Collector(node, sources, writer, args)
     status = StatusLine()
     try:
-        while not stop.is_set() and not collector.done:
-            collector.take(timeout=0.1)
-            status.show(time.monotonic(), collector.progress)
+        if args.randomise is None:
+            _collect(collector, status, stop)
+        for index, seed in enumerate(args.randomise or ()):
+            _reset(node, seed, args.timeout)
+            collector.restart(seed)
+            collector.count = args.count * (index + 1)
+            _collect(collector, status, stop)
     finally:
         collector.flush()
     print(f"wrote {writer.root}: {collector.progress()}", file=sys.stderr)
     return 0
 
 
+def _collect(collector: Collector, status: StatusLine, stop: threading.Event) -> None:
+    while not stop.is_set() and not collector.done:
+        collector.take(timeout=0.1)
+        status.show(time.monotonic(), collector.progress)
+
+
+def _reset(node: Node, seed: int, timeout: float) -> None:
+    """The world drawn from `seed`; ClientError naming the seed when the world cannot."""
+    world = next(iter(world_names(live_topics(node).values())), None)
+    if world is None:
+        raise ClientError("--randomise: no world control on the bus")
+    reply = node.call(f"world/{world}/control", {"reset": {"seed": seed}}, timeout=timeout + RESET_S)
+    if not reply.get("ok"):
+        raise ClientError(f"--randomise: seed {seed}: {reply.get('error')}")
+
+
+def seeds(text: str) -> range:
+    """`N` (seeds 0..N-1) or `FIRST:END` (FIRST..END-1)."""
+    first, _, end = text.rpartition(":")
+    try:
+        span = range(int(first or 0), int(end))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N or FIRST:END, whole numbers, got {text!r}") from None
+    if not span or span.start < 0:
+        raise argparse.ArgumentTypeError(f"expected at least one seed, all >= 0, got {text!r}")
+    return span
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """`simbot dataset --out DIR [--cameras KEY…] [--every N] [--count N]`."""
+    """`simbot dataset --out DIR [--cameras KEY…] [--every N] [--count N] [--randomise SEEDS]`."""
     parser = client_parser(
         "simbot dataset",
         "Write synchronised camera frames (RGB, depth, label maps, boxes) with intrinsics and poses as a dataset.",
@@ -397,6 +451,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--timeout", type=number(float), default=10.0, metavar="S", help="seconds to wait for the cameras (10)"
     )
+    parser.add_argument(
+        "--randomise",
+        type=seeds,
+        metavar="SEEDS",
+        help="for each seed (N: 0..N-1, or FIRST:END) the world that seed draws, --count sets of each",
+    )
+    args = parser.parse_args(argv)
+    if args.randomise is not None and args.count is None:
+        parser.error("--randomise needs --count (the sets of each world)")
     return run_client(parser, argv, _run)
 
 

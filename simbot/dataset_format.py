@@ -14,7 +14,9 @@ layouts are the same.
     DIR/<camera>/instances/<stamp>.png   16-bit grey: each pixel's instance (0: background)
 
 `<camera>` is the camera's key (its slashes make folders), `<stamp>` its frame's stamp in
-nanoseconds of sim time, 19 digits, so that names sort by time. A pose is the camera's optical
+nanoseconds of sim time, 19 digits, so that names sort by time; a frame of a randomised world
+(`simbot dataset --randomise`) is `<seed>-<stamp>.png`, its seed in 10 digits, and its set in the
+manifest says `world_seed`. A pose is the camera's optical
 frame (z forward, x right, y down: the frame its intrinsics K project from) in the world, as a
 4×4 matrix mapping points of the optical frame into the world. A COCO image's `file_name` is the
 colour image of the same set taken from the same place with the same intrinsics (a colour camera
@@ -85,6 +87,9 @@ class Shot:
     """Each pixel's instance, 0 for background (with `labels`)."""
     labels: npt.NDArray[np.uint8] | None = None
     boxes: Sequence[Box] | None = None
+    world_seed: int | None = None
+    """The seed of the randomised world it shows (simbot.variation), None for the world as its file says:
+    a stamp recurs in each world, so the seed leads its file names and its set's key."""
 
 
 @dataclass
@@ -103,7 +108,8 @@ class DatasetWriter:
     def __init__(self, root: Path, flush_period_s: float = 1.0) -> None:
         self.root = root
         self.flush_period_s = flush_period_s
-        self.sets: dict[int, list[_Frame]] = {}
+        self.sets: dict[tuple[int, int], list[_Frame]] = {}
+        """By (world seed, or -1, and stamp)."""
         self.categories: set[int] = set()
         self._next_flush = 0.0
         root.mkdir(parents=True, exist_ok=True)
@@ -116,7 +122,7 @@ class DatasetWriter:
             frame = _Frame(shot, self._write_images(shot))
             frame.annotations = annotations_of(shot)
             self.categories.update(a["category_id"] for a in frame.annotations)
-            self.sets.setdefault(shot.stamp_ns, []).append(frame)
+            self.sets.setdefault((-1 if shot.world_seed is None else shot.world_seed, shot.stamp_ns), []).append(frame)
         if time.monotonic() >= self._next_flush:
             self.flush()
 
@@ -128,7 +134,8 @@ class DatasetWriter:
     close = flush
 
     def _write_images(self, shot: Shot) -> dict[str, str]:
-        stamp = f"{shot.stamp_ns:019d}.png"
+        world = "" if shot.world_seed is None else f"{shot.world_seed:010d}-"
+        stamp = f"{world}{shot.stamp_ns:019d}.png"
         files: dict[str, str] = {}
         for kind, pixels in _images(shot):
             relative = f"{shot.camera.strip('/')}/{kind}/{stamp}"
@@ -156,7 +163,8 @@ class DatasetWriter:
             "coco": COCO,
             "sets": [
                 {"stamp_ns": stamp, "frames": [_frame_json(f, ids.get(id(f))) for f in frames]}
-                for stamp, frames in sorted(self.sets.items())
+                | ({} if seed < 0 else {"world_seed": seed})
+                for (seed, stamp), frames in sorted(self.sets.items())
             ],
         }
 

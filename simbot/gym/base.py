@@ -29,16 +29,28 @@ from gymnasium import spaces
 
 from simbot.bus import messages
 from simbot.bus.tf_tree import Matrix
-from simbot.description import load_model
+from simbot.description import DescriptionError
+from simbot.description.actor_scripts import is_actor
+from simbot.description.additions import addition_path, with_additions
 from simbot.description.footprints import Planar, relative
 from simbot.description.free_poses import NoFreePose, Places
-from simbot.description.model import Model, World
+from simbot.description.model import World
 from simbot.gym.errors import EnvConfigError
 from simbot.gym.observe import Observer, Source, merged_scan, pixels, planar, scan_merger, twist
-from simbot.gym.options import RENDER_CAMERA, EnvOptions, check_cameras, check_limits, read_world, steps_per_period
+from simbot.gym.options import (
+    PEOPLE,
+    RENDER_CAMERA,
+    EnvOptions,
+    check_cameras,
+    check_limits,
+    profile_file,
+    read_world,
+    steps_per_period,
+)
 from simbot.gym.robot import CONTACT_SENSOR, CONTACT_TOPIC, RobotFacts
 from simbot.gym.serve import server_spec, task_additions
 from simbot.gym.session import Session
+from simbot.variation import Variations, read_profile
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +110,10 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         check_cameras(options, self.robot)
         self._check_robot()
         self.limits = check_limits(options, self.robot)
-        self.places = self._places(self._world_for_places())
+        self._variations = self._variations_of(options)
+        self.layout = _still(self._base_world())
+        """What stands in the world as an episode starts (no people): where the robot may be placed."""
+        self.places = self._places(self.layout)
         self.render_mode = options.render_mode
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / options.control_period}
         self.action_space = self._action_space()  # type: ignore[assignment]
@@ -169,9 +184,29 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
 
     # --- the server -----------------------------------------------------------------------------
 
-    def _world_for_places(self) -> World:
-        added: list[Model] = [load_model(path) for path in self._additions()]
-        return replace(self.world, models=self.world.models + tuple(added))
+    def _base_world(self) -> World:
+        """The world as the server loads it: its file, the task's additions, the people if asked."""
+        people = (addition_path(PEOPLE),) if self.options.people else ()
+        return with_additions(self.world, (*self._additions(), *people))
+
+    def _variations_of(self, options: EnvOptions) -> Variations | None:
+        """The variants resets draw (the same as the server's, drawn here for the places); None when not randomised."""
+        path = profile_file(options)
+        if path is None:
+            return None
+        try:
+            return Variations(self._base_world(), None, read_profile(path))
+        except DescriptionError as exc:
+            raise EnvConfigError(f"randomise: {exc}") from None
+
+    def _vary(self, seed: int) -> None:
+        """The episode's world drawn from `seed`: where the robot may stand in it."""
+        assert self._variations is not None
+        try:
+            self.layout = _still(self._variations.draw(seed).world)
+        except DescriptionError as exc:
+            raise EnvConfigError(f"randomise: {exc}") from None
+        self.places = self._places(self.layout)
 
     def _open(self) -> Session:
         options = self.options
@@ -219,6 +254,8 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
             seed = self.options.seed  # an environment made with seed=S starts as reset(seed=S) would
         super().reset(seed=seed)
         episode_seed = seed if seed is not None else int(self.np_random.integers(2**31 - 1))
+        if self._variations is not None:
+            self._vary(episode_seed)
         try:
             start, target = self._draw(np.random.default_rng(episode_seed), options or {})
         except NoFreePose as exc:
@@ -227,7 +264,7 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
             self._prime()
         session = self._session
         session.send([self._stop()])
-        session.reset()
+        session.reset(episode_seed if self._variations is not None else None)
         if self._spawn_z is None:
             self._spawn_z = float(session.state()["models"][ROBOT]["position"][2])
         session.set_pose(ROBOT, start[0], start[1], self._spawn_z, start[2])
@@ -394,3 +431,8 @@ def env_options(kwargs: Mapping[str, Any]) -> EnvOptions:
     if unknown:
         raise EnvConfigError(f"unknown option(s) {', '.join(sorted(unknown))} (options: {', '.join(sorted(known))})")
     return EnvOptions(**kwargs)
+
+
+def _still(world: World) -> World:
+    """`world` without its people: they move, so they are no obstacle to a placement."""
+    return replace(world, models=tuple(model for model in world.models if not is_actor(model)))

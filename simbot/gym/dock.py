@@ -65,7 +65,6 @@ class DockEnv(SimbotEnv):
         self._near: deque[bool] = deque(maxlen=self._checks)
         self._refused = 0
         self._asked = self._refused_now = False
-        self._trolley: Planar | None = None
         super().__init__(options, rewards)
 
     # --- the task -------------------------------------------------------------------------------
@@ -95,11 +94,10 @@ class DockEnv(SimbotEnv):
         return start, trolley
 
     def _trolley_start(self) -> Planar:
-        """Where the trolley stands after a world reset: its pose in the world's file (or its own)."""
-        if self._trolley is None:
-            model = next(m for m in self._world_for_places().models if m.name == TROLLEY)
-            self._trolley = (float(model.pose.xyz[0]), float(model.pose.xyz[1]), float(model.pose.rpy[2]))
-        return self._trolley
+        """Where the trolley stands after a world reset: its pose in the world's file (or its own, or
+        where the episode's variant moved it)."""
+        model = next(m for m in self.layout.models if m.name == TROLLEY)
+        return (float(model.pose.xyz[0]), float(model.pose.xyz[1]), float(model.pose.rpy[2]))
 
     def _target(self, msgs: Mapping[str, Any]) -> Planar:
         return planar(msgs[TROLLEY])

@@ -18,6 +18,7 @@ from simbot.description.model import World
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
 from simbot.gym.robot import RobotFacts
+from simbot.variation import profile_beside
 
 RENDER_MODES = ("rgb_array",)
 PEOPLE = "warehouse_people"
@@ -48,6 +49,9 @@ class EnvOptions:
     max_linear: float | None = None
     max_angular: float | None = None
     terminate_on_collision: bool = True
+    randomise: bool | str = False
+    """Each reset loads the world its episode's seed draws (simbot.variation): True, from the world's
+    own profile; a path, from that profile."""
     timeout: float = 60.0
     robot: Path = field(default_factory=lambda: asset("urdf/flexley_tug.sdf"))
 
@@ -67,6 +71,8 @@ class EnvOptions:
             raise EnvConfigError(f"clearance {self.clearance!r}: must be ≥ 0 m")
         if not self.timeout > 0:
             raise EnvConfigError(f"timeout {self.timeout!r}: must be > 0 s")
+        if self.randomise is not False and not isinstance(self.randomise, (bool, str)):
+            raise EnvConfigError(f"randomise {self.randomise!r}: True, or a variation profile's path")
         if self.endpoint is not None and self.people:
             raise EnvConfigError(
                 "people=True starts the server with the people: give it to the server, not with endpoint="
@@ -148,3 +154,13 @@ def parse_pose(value: Any, what: str) -> Planar:
     if not all(math.isfinite(v) for v in (x, y, yaw)):
         raise EnvConfigError(f"{what} {value!r}: expected finite numbers")
     return x, y, yaw
+
+
+def profile_file(options: EnvOptions) -> Path | None:
+    """The variation profile resets draw from: the world's own (`randomise=True`) or the path given."""
+    if options.randomise is False:
+        return None
+    path = profile_beside(world_file(options.world)) if options.randomise is True else Path(str(options.randomise))
+    if not path.is_file():
+        raise EnvConfigError(f"randomise: no variation profile {path}")
+    return path.resolve()

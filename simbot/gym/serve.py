@@ -25,7 +25,7 @@ from pathlib import Path
 
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.options import PEOPLE, EnvOptions, read_world, world_file
+from simbot.gym.options import PEOPLE, EnvOptions, profile_file, read_world, world_file
 from simbot.gym.robot import RobotFacts, write_gym_robot
 from simbot.gym.session import ServerSpec, server_command
 
@@ -51,6 +51,7 @@ def server_spec(options: EnvOptions, robot: RobotFacts, additions: Sequence[Path
         camera_size=options.camera_size if cameras else None,
         camera_rate=rate if cameras else None,
         render_workers=min(len(options.observed_cameras), os.cpu_count() or 1) if cameras else None,
+        profile=profile_file(options),
     )
 
 

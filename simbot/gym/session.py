@@ -59,6 +59,8 @@ class ServerSpec:
     camera_size: tuple[int, int] | None = None
     camera_rate: float | None = None
     render_workers: int | None = None
+    profile: Path | None = None
+    """The variation profile its seeded resets draw from, when not the world's own."""
 
     def args(self) -> list[str]:
         args = ["--world", str(self.world), "--robot", str(self.robot), "--mode", "lockstep", "--seed", str(self.seed)]
@@ -70,6 +72,8 @@ class ServerSpec:
             args += ["--camera-rate", repr(self.camera_rate)]
         if self.render_workers is not None:
             args += ["--render-workers", str(self.render_workers)]
+        if self.profile is not None:
+            args += ["--randomise", f"0:{self.profile}"]
         return args
 
 
@@ -230,9 +234,10 @@ class Session:
         reply = self.call("control", {"multi_step": steps})
         return round(float(reply["sim_time"]) * 1e9)
 
-    def reset(self) -> None:
-        """Every model back where the server started it, sim time 0."""
-        self.call("control", {"reset": {"all": True}})
+    def reset(self, seed: int | None = None) -> None:
+        """Every model back where the server started it, sim time 0; with a seed, the world that
+        seed draws from the server's variation profile."""
+        self.call("control", {"reset": {"all": True} if seed is None else {"seed": seed}})
         self._expected.clear()  # counted again from the state that follows
 
     def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:

@@ -1,10 +1,12 @@
 """`simbot map`: a world's ground-truth map as Nav2's map_server files (docs/map.md).
 
-    simbot map --world NAME|PATH [--add NAME|PATH ...] [--resolution M] [--height Z | --band ZMIN:ZMAX]
-               [--people] -o DIR
+    simbot map --world NAME|PATH [--add NAME|PATH ...] [--randomise SEED[:PROFILE]] [--resolution M]
+               [--height Z | --band ZMIN:ZMAX] [--people] -o DIR
 
 The world and its additions are found and loaded as simbot-server finds and loads them (its
-`world_path`, `addition_path`, `with_additions`), so the map is of the world a server would run.
+`world_path`, `addition_path`, `with_additions`), so the map is of the world a server would run;
+with `--randomise`, of the variant a server started with the same option runs (its clutter, its
+trolley where the seed put it: docs/variation.md).
 A mistake (a resolution that is not a positive number, a band whose low end is above its high end
 or that is not two numbers, a world file that is not there or does not read) is one line naming
 the option or the file, and exit code 2.
@@ -21,10 +23,11 @@ from pathlib import Path
 from typing import NoReturn
 
 from simbot.description import DescriptionError, load_world
+from simbot.description.additions import addition_path, with_additions, world_path
 from simbot.mapping.nav2_map import write_map
 from simbot.mapping.occupancy import LIDAR_HEIGHT, RESOLUTION, world_map
 from simbot.mapping.shapes import Band
-from simbot.sim.server import addition_path, with_additions, world_path
+from simbot.variation import profile_beside, read_profile, seed_option, vary
 
 PROG = "simbot map"
 EXIT_USAGE = 2
@@ -85,6 +88,12 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"cut at this height, metres (default {LIDAR_HEIGHT}: the tug's lidars)",
     )
     cut.add_argument("--band", dest="band", type=_band, metavar="ZMIN:ZMAX", help="everything between two heights")
+    parser.add_argument(
+        "--randomise",
+        type=seed_option,
+        metavar="SEED[:PROFILE]",
+        help="the world SEED draws from a variation profile (default: the world's own), as simbot-server --randomise",
+    )
     parser.add_argument("--people", action="store_true", help="the actors' collision proxies at time 0 too")
     parser.add_argument(
         "-o", "--output", required=True, type=Path, metavar="DIR", help="folder for map.pgm and map.yaml"
@@ -101,7 +110,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code or 0)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s: %(message)s")
     try:
-        world = with_additions(load_world(world_path(args.world)), [addition_path(name) for name in args.add])
+        path = world_path(args.world)
+        world = with_additions(load_world(path), [addition_path(name) for name in args.add])
+        if args.randomise is not None:
+            seed, profile = args.randomise
+            world = vary(world, None, read_profile(profile or profile_beside(path)), seed).world
         grid = world_map(world, args.band or Band.at(LIDAR_HEIGHT), args.resolution, args.people)
         image, yaml = write_map(grid, args.output)
     except DescriptionError as exc:

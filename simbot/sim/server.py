@@ -45,7 +45,7 @@ from simbot.sim.loop.world_control import WorldControl
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
 from simbot.transform import yaw_of
-from simbot.variation import Variations, profile_beside, read_profile
+from simbot.variation import Variations, profile_beside, read_profile, seed_option
 
 log = logging.getLogger("simbot.server")
 
@@ -194,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0, help="seed of every random process (sensor noise)")
     parser.add_argument(
         "--randomise",
-        type=_randomise,
+        type=seed_option,
         metavar="SEED[:PROFILE]",
         help="start in the world SEED draws from a variation profile (default: the world's own <world>.variation.toml)",
     )
@@ -252,14 +252,6 @@ def _rate(text: str) -> float:
 
 
 MAX_ROBOTS = 100
-
-
-def _randomise(text: str) -> tuple[int, Path | None]:
-    """`SEED[:PROFILE]`: a whole number ≥ 0, and the profile's file if given."""
-    seed, _, profile = text.partition(":")
-    if not seed.strip().isdigit():
-        raise argparse.ArgumentTypeError(f"expected SEED[:PROFILE] with SEED a whole number >= 0, got {text!r}")
-    return int(seed), Path(profile) if profile else None
 
 
 def _whole(most: int) -> Callable[[str], int]:

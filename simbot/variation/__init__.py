@@ -4,7 +4,7 @@
 environments' `reset(seed=...)` and `simbot dataset --randomise` all load `vary(...)`'s world.
 docs/variation.md describes the profile."""
 
-from simbot.variation.profile import Profile, ProfileError, profile_beside, read_profile
+from simbot.variation.profile import Profile, ProfileError, profile_beside, read_profile, seed_option
 from simbot.variation.vary import Variant, Variations, vary
 
-__all__ = ["Profile", "ProfileError", "Variant", "Variations", "profile_beside", "read_profile", "vary"]
+__all__ = ["Profile", "ProfileError", "Variant", "Variations", "profile_beside", "read_profile", "seed_option", "vary"]

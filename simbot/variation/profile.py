@@ -36,6 +36,7 @@ lacks, a file that is not there) is a `ProfileError`: one line naming the file a
 
 from __future__ import annotations
 
+import argparse
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -121,6 +122,14 @@ TABLES = {
     "people": {"speed", "reverse", "shift"},
     "cameras": {"noise_stddev"},
 }
+
+
+def seed_option(text: str) -> tuple[int, Path | None]:
+    """`--randomise SEED[:PROFILE]` (argparse type): a whole number ≥ 0, and the profile's file if given."""
+    seed, _, profile = text.partition(":")
+    if not seed.strip().isdigit():
+        raise argparse.ArgumentTypeError(f"expected SEED[:PROFILE] with SEED a whole number >= 0, got {text!r}")
+    return int(seed), Path(profile) if profile else None
 
 
 def profile_beside(world: Path) -> Path:

@@ -115,7 +115,7 @@ class SimWorld:
         self._world_systems: list[Scheduled] = []
         self._left_out: list[LeftOut] = []
         self._placements = placements
-        self._variations = variations
+        self.variations = variations
         self.variant: Variant | None = None
         """The variant loaded by the last seeded reset (or given at start); None: the world as its file says."""
         try:
@@ -264,12 +264,12 @@ class SimWorld:
         self.sim.reset()
 
     def _draw(self, seed: int) -> Variant:
-        if self._variations is None:
+        if self.variations is None:
             raise ValueError(
                 f"reset.seed: world {self.description.name!r} has no variation profile (simbot-server --randomise)"
             )
         try:
-            return self._variations.draw(seed)
+            return self.variations.draw(seed)
         except DescriptionError as exc:
             raise ValueError(f"reset.seed: {exc}") from None
 
