@@ -13,7 +13,7 @@ import pytest
 from simbot.description.actor_legs import ActorRig
 from simbot.description.actor_scripts import ActorModel, SkinnedMesh
 from simbot.description.sdf_reader import load_world
-from simbot.description.skeleton_poses import global_pose, load_rig
+from simbot.description.skeleton_poses import ClipFile, global_pose, load_rig
 from simbot.description.skeletons import read_skeleton
 from simbot.sim.physics import Physics
 from simbot.sim.render.bodies import scene_body
@@ -30,7 +30,7 @@ CYCLE_S, STRIDE_M = 1.1, 1.4
 
 @pytest.fixture(scope="module")
 def rig() -> ActorRig:
-    return ActorRig.of(load_rig(MESHES / "worker.dae", ((MESHES / "walk.dae", True),)), 1.0)
+    return ActorRig.of(load_rig(MESHES / "worker.dae", (ClipFile(MESHES / "walk.dae", True),)), 1.0)
 
 
 def test_the_skeleton_reads_its_joints_binds_and_weights() -> None:
@@ -117,3 +117,35 @@ def test_a_camera_sees_the_legs_swing_and_the_labels_follow_them(tmp_path: Path,
         assert widths[0] > widths[1] + 0.2 * focal / 4.0  # the feet a stride apart, then together
     finally:
         physics.close()
+
+
+def test_an_animations_scale_scales_its_stride() -> None:
+    """`<animation><scale>` 2: the clip's translations doubled, as Gazebo scales an animation's
+    skeleton, so with interpolate_x a cycle takes twice the distance."""
+    scaled = load_rig(MESHES / "worker.dae", (ClipFile(MESHES / "walk.dae", True, 2.0),))
+    assert scaled.clips[0].x_displacement == pytest.approx(2 * STRIDE_M, abs=1e-9)
+    assert scaled.clip_time(0, 0.0, STRIDE_M) == pytest.approx(CYCLE_S / 2)
+
+
+def test_tiny_renderer_draws_the_skin_in_its_bind_pose(tmp_path: Path) -> None:
+    """PyBullet reads no skinned COLLADA: TinyRenderer draws the worker from its bind-pose stand-in
+    (not its leg capsules), labelled, as tall in the image as the skin is."""
+    world = load_world(_world(tmp_path))
+    physics = Physics(world)
+    try:
+        physics.add_model(world.models[0])
+        body = scene_body(physics, "bob", (Annotation(label=7),), instance=1)
+        base, joints = physics.body_state("bob")
+        camera = CameraSpec("side", 160, 120, 1.0, 0.1, 20.0, outputs=("color", "labels"))
+        pose = Transform((0.0, -4.0, 0.9), (0.0, 0.0, 0.7071068, 0.7071068))
+        with RenderPool([body], [camera], workers=1, renderer="tiny") as pool:
+            pool.request(0, 0, pose, {"bob": BodyState(base, joints)})
+            person = (np.asarray(pool.collect(wait_for=0, timeout=60)[0]["labels"]) >> 16 & 0xFF) == 7
+    finally:
+        physics.close()
+    rows, columns = np.flatnonzero(person.any(axis=1)), np.flatnonzero(person.any(axis=0))
+    focal = 80 / np.tan(0.5)
+    points = np.concatenate([p.positions for p in read_skeleton(MESHES / "worker.dae").parts])
+    tall, deep = np.ptp(points[:, 2]), np.ptp(points[:, 1]) / 2  # its ends are within `deep` of 4 m
+    assert tall * focal / (4.0 + deep) - 2 <= rows.max() - rows.min() + 1 <= tall * focal / (4.0 - deep) + 2
+    assert columns.max() - columns.min() < 0.6 * focal / 4.0  # its legs together: no stride apart

@@ -46,6 +46,12 @@ _THIGH = re.compile(r"thigh|up_?leg|upper_?leg", re.IGNORECASE)
 _LEFT = re.compile(r"left|^l_|_l$|^l(?=[A-Z])", re.IGNORECASE)
 _RIGHT = re.compile(r"right|^r_|_r$|^r(?=[A-Z])", re.IGNORECASE)
 _FREE = Axis((0.0, 0.0, 1.0), lower=-1e6, upper=1e6)
+_LEG_LINK = re.compile(r"body_(thigh|shin)_(left|right)")
+
+
+def is_leg_link(name: str) -> bool:
+    """Whether a link is a leg's capsule of the proxy (`ActorRig.links`): collision only, never drawn."""
+    return _LEG_LINK.fullmatch(name) is not None
 
 
 @dataclass(frozen=True)
@@ -93,7 +99,7 @@ class ActorRig:
 
     def links(self, parent: str) -> tuple[tuple[Link, ...], tuple[Joint, ...]]:
         """The legs' links and joints, hanging from `parent` (see the module docstring)."""
-        radius = self._leg_radius()
+        radius = self.leg_radius()
         links = [Link("body_pelvis"), Link("body_skin_clip"), Link("body_skin_choice")]
         joints = [
             Joint(PELVIS, "prismatic", parent, "body_pelvis", axis=_FREE),
@@ -131,7 +137,7 @@ class ActorRig:
         """The skin's lowest z in the actor frame."""
         return min(float(p.positions[:, 2].min()) for p in self.rig.skeleton.parts) * self.scale
 
-    def _leg_radius(self) -> float:
+    def leg_radius(self) -> float:
         """The median distance of the shins' vertices from their axes."""
         distances = []
         for leg in self.legs:

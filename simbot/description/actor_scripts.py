@@ -35,7 +35,7 @@ from simbot.description.model import Capsule, Collision, Joint, Link, Material, 
 from simbot.description.poses import Pose
 from simbot.description.resources import resolve
 from simbot.description.sdf_frames import read_pose
-from simbot.description.skeleton_poses import load_rig
+from simbot.description.skeleton_poses import ClipFile, load_rig
 from simbot.description.skeletons import SkeletonError
 from simbot.description.xml import Element, Reader
 
@@ -100,8 +100,8 @@ class SkinnedMesh(Mesh):
     """A skin with a skeleton: the cameras pose it as the frame's `body_skin_*` joints say
     (simbot.description.actor_legs), from these animations' clips."""
 
-    animations: tuple[tuple[Path, bool], ...] = ()
-    """Each `<animation>`'s file and `<interpolate_x>`, in order."""
+    animations: tuple[ClipFile, ...] = ()
+    """Each `<animation>`'s file, `<interpolate_x>` and `<scale>`, in order."""
 
 
 @dataclass(frozen=True)
@@ -162,8 +162,7 @@ def _rig(reader: Reader, actor: str, skin: Skin | None, animations: tuple[Animat
         )
         return None
     try:
-        files = tuple((a.path, a.interpolate_x) for a in animations if a.path is not None)
-        rig = ActorRig.of(load_rig(skin.path, files), skin.scale)
+        rig = ActorRig.of(load_rig(skin.path, _clip_files(animations)), skin.scale)
     except SkeletonError as exc:
         logger.warning("%s: actor %r: <skin>/<animation>: %s; the skin is drawn unanimated", reader.file, actor, exc)
         return None
@@ -177,10 +176,14 @@ def _rig(reader: Reader, actor: str, skin: Skin | None, animations: tuple[Animat
     return rig
 
 
+def _clip_files(animations: tuple[Animation, ...]) -> tuple[ClipFile, ...]:
+    """The animations as the rig plays them (each found: `_rig` has checked)."""
+    return tuple(ClipFile(a.path, a.interpolate_x, a.scale) for a in animations if a.path is not None)
+
+
 def _animated_body(skin: Skin, animations: tuple[Animation, ...], rig: ActorRig) -> Link:
     """The root link of an animated actor: the skinned mesh, and the torso (the legs hang from it)."""
-    files = tuple((a.path, a.interpolate_x) for a in animations)
-    visual = Visual("skin", SkinnedMesh(skin.filename, (skin.scale,) * 3, skin.path, files))  # type: ignore[arg-type]
+    visual = Visual("skin", SkinnedMesh(skin.filename, (skin.scale,) * 3, skin.path, _clip_files(animations)))
     if not rig.legs:
         proxy = Collision(
             "proxy",

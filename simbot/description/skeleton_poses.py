@@ -6,6 +6,9 @@ workers (the skinned mesh), so both see one pose.
   time, looping.
 - The root's own walk along x is taken out (the actor's trajectory moves it), so the skin stays
   on its frame.
+- An `<animation>`'s `<scale>` multiplies the clip's translations (every joint's offset from its
+  parent, the root's walk with them), as Gazebo scales an animation's skeleton (gz-common's
+  `Skeleton::Scale`): a clip made for a taller or shorter figure.
 - Keys are interpolated per joint: translations linearly, rotations by normalised linear
   interpolation of their quaternions (the keys of a walk are dense; it stays within a degree of
   slerp).
@@ -21,6 +24,7 @@ import math
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -28,6 +32,14 @@ import numpy.typing as npt
 from simbot.description.skeletons import Clip, Skeleton, SkeletonError, read_clip, read_skeleton
 
 F64 = npt.NDArray[np.float64]
+
+
+class ClipFile(NamedTuple):
+    """An `<animation>` as the skin's rig plays it."""
+
+    path: Path
+    interpolate_x: bool = False
+    scale: float = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,20 +70,20 @@ class Rig:
 
 
 @cache
-def load_rig(skin: Path, animations: tuple[tuple[Path, bool], ...]) -> Rig:
-    """The skin's skeleton and each (animation file, interpolate_x)'s clip; SkeletonError saying which
-    file and why where one cannot be used."""
+def load_rig(skin: Path, animations: tuple[ClipFile, ...]) -> Rig:
+    """The skin's skeleton and each animation's clip, scaled; SkeletonError saying which file and why
+    where one cannot be used."""
     try:
         skeleton = read_skeleton(skin)
     except SkeletonError as exc:
         raise SkeletonError(f"skin {skin}: {exc}") from None
     clips = []
-    for path, _ in animations:
+    for animation in animations:
         try:
-            clips.append(read_clip(path, skeleton))
+            clips.append(read_clip(animation.path, skeleton).scaled(animation.scale))
         except SkeletonError as exc:
-            raise SkeletonError(f"animation {path}: {exc}") from None
-    return Rig(skeleton, tuple(clips), tuple(flag for _, flag in animations))
+            raise SkeletonError(f"animation {animation.path}: {exc}") from None
+    return Rig(skeleton, tuple(clips), tuple(a.interpolate_x for a in animations))
 
 
 def local_pose(clip: Clip, time: float) -> F64:

@@ -83,6 +83,14 @@ class Clip:
     def duration(self) -> float:
         return float(self.times[-1])
 
+    def scaled(self, scale: float) -> Clip:
+        """The clip with every joint's translation times `scale` (an `<animation>`'s `<scale>`)."""
+        if scale == 1.0:
+            return self
+        locals_ = self.locals.copy()
+        locals_[..., :3, 3] *= scale
+        return Clip(self.times, locals_)
+
     @property
     def x_displacement(self) -> float:
         """How far the root moves along x over the clip (gz-common's XDisplacement): a cycle's stride."""

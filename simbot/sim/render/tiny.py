@@ -9,6 +9,10 @@ says), no point or spot lights, no emissive, unlit or translucent surfaces, no t
 PyBullet reads itself, no shadows (PyBullet's own are not the sun's). Like OpenGL it cuts away
 geometry nearer than the near plane (a camera inside its housing sees out).
 
+PyBullet draws a link without a visual as its collision shapes; an actor's leg capsules
+(simbot.description.actor_legs) are made transparent, so it draws the skin, in its bind pose (the
+stand-in simbot.description.stand_in_meshes gives it), as the GL renderer draws an unposed skin.
+
 Labels and temperatures come from PyBullet's segmentation mask, which tells bodies and links
 apart but not the visuals of one link: a link shows its first visual's label and temperature,
 and geometry without a temperature shows the atmosphere's at z = 0 (OpenGL: at its height)."""
@@ -21,11 +25,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.actor_legs import is_leg_link
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import luminance
 from simbot.sim.render.scene import BulletScene, projection_matrix, view_matrix
 from simbot.sim.render.specs import CameraSpec, Light
-from simbot.sim.render.visuals import body_pieces
+from simbot.sim.render.visuals import body_pieces, link_indices
 from simbot.transform import Transform
 
 CLEARED_DEPTH = 1.0 - 1e-6
@@ -49,6 +54,8 @@ class TinyRenderer:
         self.projections: dict[int, Sequence[float]] = {}
         for index, spec in cameras.items():
             self.add_camera(index, spec)
+        for name in scene.ids:
+            self.add_body(name)
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.cameras[index] = spec
@@ -57,7 +64,11 @@ class TinyRenderer:
         )
 
     def add_body(self, name: str) -> None:
-        """Nothing to do: PyBullet draws the scene's bodies as they are."""
+        """PyBullet draws the body as it is, but for its leg capsules (see the module docstring)."""
+        pb, body = self.scene.pb, self.scene.ids[name]
+        for link, index in link_indices(self.scene, name).items():
+            if is_leg_link(link):
+                pb.changeVisualShape(body, index, rgbaColor=[1.0, 1.0, 1.0, 0.0], physicsClientId=self.scene.client)
 
     def remove_body(self, name: str) -> None:
         """Nothing to do: PyBullet draws the scene's bodies as they are."""
