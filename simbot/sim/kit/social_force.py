@@ -1,0 +1,350 @@
+"""Helbing & Molnár's social-force model of people walking, in the plane: the arithmetic alone.
+
+A person is a disc of `radius` at a position with a velocity. Its acceleration is the sum of
+
+- a driving term (v0·e − v)/τ towards its goal (e the unit vector to it, v0 its desired speed,
+  τ its relaxation time), slowing to arrive where the goal is the last;
+- a repulsion A·exp((r_ij − d_ij)/B)·n_ij from each other person j (d_ij the distance between
+  centres, r_ij the two radii, n_ij the unit vector from j to i), weighted by the anisotropy
+  w = λ + (1 − λ)(1 + cos φ)/2 (φ between e and −n_ij: who is ahead counts more than who is behind);
+- a repulsion A_w·exp((r − d)/B_w)·n from each obstacle (d the distance to the nearest point of
+  its shadow on the floor, n the unit vector from that point), and the same with the robots' own
+  strength and range (and the anisotropy) from each body that moves by itself (a robot, a cart).
+
+Integrated by semi-implicit Euler (the velocity first, its speed clamped to `max_speed_factor`·v0,
+then the position with it), after which a hard constraint holds: the person is put back outside
+every other person (2·radius between centres), obstacle and robot grown by its radius, robots
+last, so that a person the tug drives at steps aside rather than being walked through. Numpy, no
+physics: the same inputs give the same outputs, bit for bit, on one machine.
+
+Shadows are rectangles (`Boxes`): a collision's box, or the box holding a round or tilted shape.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+Floats = npt.NDArray[np.float64]
+
+RESTING_SPEED = 0.05
+"""m/s: below this a person keeps its heading (a standing person does not spin with the jitter)."""
+
+
+@dataclass(frozen=True)
+class Crowd:
+    """The model's parameters (the SDF elements of the same names; see simbot.sim.systems.crowd)."""
+
+    desired_speed: float = 1.34
+    relaxation_time: float = 0.5
+    radius: float = 0.3
+    max_speed_factor: float = 1.3
+    people_strength: float = 2.1
+    people_range: float = 0.3
+    anisotropy: float = 0.5
+    look_ahead: float = 2.0
+    obstacle_strength: float = 10.0
+    obstacle_range: float = 0.2
+    robot_strength: float = 2.1
+    robot_range: float = 0.4
+    noise: float = 0.05
+    turn_rate: float = math.pi
+    waypoint_tolerance: float = 0.3
+
+    @property
+    def reach(self) -> float:
+        """Metres beyond which a repulsion is under 10⁻⁴ of its strength: what is farther is left out."""
+        return 2 * self.radius + 9.3 * max(self.people_range, self.obstacle_range, self.robot_range)
+
+
+@dataclass(frozen=True)
+class Boxes:
+    """Rectangles on the floor (n of them): shadows a person keeps out of."""
+
+    centres: Floats
+    """n × 2."""
+    axes: Floats
+    """n × 2: each rectangle's x axis (cos, sin of its yaw)."""
+    halves: Floats
+    """n × 2: half its extent along its own x and y."""
+
+    @staticmethod
+    def of(rectangles: Sequence[tuple[float, float, float, float, float]]) -> Boxes:
+        """From (x, y, yaw, half length, half width) each."""
+        table = np.asarray(rectangles, dtype=np.float64).reshape(-1, 5)
+        axes = np.stack([np.cos(table[:, 2]), np.sin(table[:, 2])], axis=1)
+        return Boxes(table[:, :2].copy(), axes, table[:, 3:5].copy())
+
+    @staticmethod
+    def joined(parts: Sequence[Boxes]) -> Boxes:
+        """All the rectangles of `parts`, in one."""
+        if not parts:
+            return Boxes.of([])
+        return Boxes(*(np.concatenate([getattr(b, name) for b in parts]) for name in ("centres", "axes", "halves")))
+
+    def outline(self) -> Boxes:
+        """The one rectangle, along this frame's axes, holding them all (a machine's whole footprint)."""
+        if not len(self):
+            return self
+        extent = np.abs(self.axes[:, :1] * self.halves[:, :1]) + np.abs(self.axes[:, 1:] * self.halves[:, 1:])
+        reach = np.abs(self.axes[:, 1:] * self.halves[:, :1]) + np.abs(self.axes[:, :1] * self.halves[:, 1:])
+        low = (self.centres - np.hstack([extent, reach])).min(axis=0)
+        high = (self.centres + np.hstack([extent, reach])).max(axis=0)
+        return Boxes.of([((low[0] + high[0]) / 2, (low[1] + high[1]) / 2, 0.0, *((high - low) / 2))])
+
+    def __len__(self) -> int:
+        return len(self.centres)
+
+    def placed(self, x: float, y: float, yaw: float) -> Boxes:
+        """These rectangles, given in a body's frame, where the body stands at (x, y, yaw)."""
+        c, s = math.cos(yaw), math.sin(yaw)
+        rotation = np.array([[c, -s], [s, c]])
+        return Boxes(self.centres @ rotation.T + (x, y), self.axes @ rotation.T, self.halves)
+
+    def within(self, point: Floats, reach: float) -> Boxes:
+        """Those whose nearest point may lie within `reach` of `point` (by their bounding circles)."""
+        far = np.hypot(*(self.centres - point).T) - np.hypot(*self.halves.T)
+        keep = far <= reach
+        return Boxes(self.centres[keep], self.axes[keep], self.halves[keep])
+
+    def nearest(self, point: Floats) -> tuple[Floats, Floats]:
+        """(distance, normal) of `point` from each rectangle: the distance to its nearest point (negative
+        inside, by the depth to its nearest side) and the unit vector from there out towards `point`."""
+        offset = point - self.centres
+        cos, sin = self.axes[:, 0], self.axes[:, 1]
+        local = np.stack([offset[:, 0] * cos + offset[:, 1] * sin, offset[:, 1] * cos - offset[:, 0] * sin], axis=1)
+        outside = local - np.clip(local, -self.halves, self.halves)
+        distance = np.hypot(*outside.T)
+        depth = self.halves - np.abs(local)
+        side = np.argmin(depth, axis=1)
+        inside = distance == 0.0
+        rows = np.arange(len(local))
+        escape = np.zeros_like(local)
+        escape[rows, side] = np.where(local[rows, side] < 0, -1.0, 1.0)
+        normal_local = np.where(inside[:, None], escape, outside / np.where(inside, 1.0, distance)[:, None])
+        distance = np.where(inside, -depth[rows, side], distance)
+        normal = np.stack(
+            [normal_local[:, 0] * cos - normal_local[:, 1] * sin, normal_local[:, 0] * sin + normal_local[:, 1] * cos],
+            axis=1,
+        )
+        return distance, normal
+
+
+@dataclass(frozen=True)
+class Walker:
+    """A person's state: position and velocity (m, m/s, in the world's plane) and heading (rad)."""
+
+    position: Floats
+    velocity: Floats
+    yaw: float
+
+
+@dataclass(frozen=True)
+class Surroundings:
+    """What a person keeps its distance from, at one step."""
+
+    people: Floats
+    """k × 2: the other people's positions."""
+    motions: Floats
+    """k × 2: their velocities."""
+    obstacles: Boxes
+    robots: Boxes
+    outlines: Boxes
+    """One rectangle per robot, holding its footprint: what a person walks round (`detour`)."""
+
+
+def driving(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool) -> tuple[Floats, Floats]:
+    """(the driving acceleration, e): towards `goal` at the desired speed, slowing into it when `arriving`."""
+    to_goal = goal - walker.position
+    distance = float(np.hypot(*to_goal))
+    direction = to_goal / distance if distance > 0 else np.zeros(2)
+    speed = crowd.desired_speed
+    if arriving:
+        speed = min(speed, distance / crowd.relaxation_time)
+    return (speed * direction - walker.velocity) / crowd.relaxation_time, direction
+
+
+def _repulsion(strength: float, reach: float, gaps: Floats, normals: Floats, weights: Floats) -> Floats:
+    """Σ strength·exp(−gap/reach)·w·n."""
+    if len(gaps) == 0:
+        return np.zeros(2)
+    magnitude = strength * np.exp(-gaps / reach) * weights
+    total: Floats = (normals * magnitude[:, None]).sum(axis=0)
+    return total
+
+
+def _anisotropy(crowd: Crowd, direction: Floats, normals: Floats) -> Floats:
+    """λ + (1 − λ)(1 + cos φ)/2, φ between the walking direction and the way to each other (−n)."""
+    cos = -(normals @ direction)
+    weights: Floats = crowd.anisotropy + (1 - crowd.anisotropy) * (1 + cos) / 2
+    return weights
+
+
+def _look_ahead(offset: Floats, distance: Floats, motion: Floats, step: float) -> tuple[Floats, Floats]:
+    """Helbing & Molnár's ellipse through me with foci at each other person and where it will be `step`
+    seconds on: (its semi-minor axis b, 2b = √((|r| + |r − v·Δt|)² − |v·Δt|²), and the direction b
+    grows fastest, the bisector of r and r − v·Δt). Someone walking towards me is nearer than they
+    stand, and pushes me aside of their path rather than back along it."""
+    ahead = motion * step
+    later = offset - ahead
+    gone = np.hypot(*later.T) if len(later) else np.zeros(0)
+    semi: Floats = 0.5 * np.sqrt(np.maximum((distance + gone) ** 2 - (ahead**2).sum(axis=1), 0.0))
+    bisector = offset / np.maximum(distance, 1e-9)[:, None] + later / np.maximum(gone, 1e-9)[:, None]
+    length = np.hypot(*bisector.T) if len(bisector) else np.zeros(0)
+    normal: Floats = np.where(
+        (length > 1e-9)[:, None],
+        bisector / np.maximum(length, 1e-9)[:, None],
+        offset / np.maximum(distance, 1e-9)[:, None],
+    )
+    return semi, normal
+
+
+def _from_people(point: Floats, people: Floats) -> tuple[Floats, Floats]:
+    """(distance between centres, unit vector from each person to `point`)."""
+    offset = point - people
+    distance = np.hypot(*offset.T) if len(people) else np.zeros(0)
+    safe = np.where(distance > 0, distance, 1.0)
+    normal = np.where((distance > 0)[:, None], offset / safe[:, None], np.array([1.0, 0.0]))
+    return distance, normal
+
+
+def acceleration(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool, around: Surroundings) -> Floats:
+    """The social force on `walker` per unit mass (see the module docstring)."""
+    drive, direction = driving(crowd, walker, goal, arriving)
+    distance, normal = _from_people(walker.position, around.people)
+    semi, normal = _look_ahead(walker.position - around.people, distance, around.motions, crowd.look_ahead)
+    people = _repulsion(
+        crowd.people_strength,
+        crowd.people_range,
+        semi - 2 * crowd.radius,
+        normal,
+        _anisotropy(crowd, direction, normal),
+    )
+    distance, normal = around.obstacles.nearest(walker.position)
+    walls = _repulsion(
+        crowd.obstacle_strength, crowd.obstacle_range, distance - crowd.radius, normal, np.ones(len(distance))
+    )
+    distance, normal = around.robots.nearest(walker.position)
+    robots = _repulsion(
+        crowd.robot_strength, crowd.robot_range, distance - crowd.radius, normal, _anisotropy(crowd, direction, normal)
+    )
+    total: Floats = drive + people + walls + robots
+    return total
+
+
+def advance(crowd: Crowd, walker: Walker, accel: Floats, dt: float, kick: Floats) -> Walker:
+    """One semi-implicit Euler step of `dt` s (the velocity, plus the random `kick`, then the position),
+    the speed no more than `max_speed_factor`·v0, the heading turned towards the velocity."""
+    velocity = walker.velocity + accel * dt + kick
+    speed = float(np.hypot(*velocity))
+    top = crowd.max_speed_factor * crowd.desired_speed
+    if speed > top:
+        velocity = velocity * (top / speed)
+    return Walker(walker.position + velocity * dt, velocity, turned(crowd, walker.yaw, velocity, dt))
+
+
+def turned(crowd: Crowd, yaw: float, velocity: Floats, dt: float) -> float:
+    """The heading turned towards the velocity at no more than `turn_rate`; kept when barely moving."""
+    if float(np.hypot(*velocity)) < RESTING_SPEED:
+        return yaw
+    wanted = math.atan2(float(velocity[1]), float(velocity[0]))
+    error = math.atan2(math.sin(wanted - yaw), math.cos(wanted - yaw))
+    limit = crowd.turn_rate * dt
+    turned = yaw + max(-limit, min(limit, error))
+    return math.atan2(math.sin(turned), math.cos(turned))
+
+
+def _crosses(start: Floats, end: Floats, half: Floats) -> bool:
+    """Whether the segment start → end (in a rectangle's frame) passes through the rectangle of `half` extents."""
+    enter, leave = 0.0, 1.0
+    for axis in range(2):
+        span = end[axis] - start[axis]
+        if abs(span) < 1e-12:
+            if abs(start[axis]) >= half[axis]:
+                return False
+            continue
+        a, b = (-half[axis] - start[axis]) / span, (half[axis] - start[axis]) / span
+        enter, leave = max(enter, min(a, b)), min(leave, max(a, b))
+    return enter < leave
+
+
+def detour(crowd: Crowd, point: Floats, goal: Floats, robots: Boxes) -> Floats:
+    """Where to head for on the way to `goal`: round the nearest robot whose footprint, grown by the
+    radius and as far again as its repulsion is half the drive, lies across the straight way, by its corner that makes the way
+    round shortest (one not yet reached); the goal itself when the way is clear. The forces alone would hold a person
+    still before a long machine across its way (the social-force model's local minimum)."""
+    margin = crowd.radius + crowd.robot_range * math.log(
+        max(1.0, 2 * crowd.robot_strength * crowd.relaxation_time / crowd.desired_speed)
+    )
+    best: tuple[float, Floats] | None = None
+    for index in range(len(robots)):
+        (cos, sin), half = robots.axes[index], robots.halves[index] + margin
+        rotation = np.array([[cos, -sin], [sin, cos]])
+        start, end = (point - robots.centres[index]) @ rotation, (goal - robots.centres[index]) @ rotation
+        if np.all(np.abs(start) < half) or not _crosses(start, end, half):
+            continue
+        corners = [np.array((sx * half[0], sy * half[1])) for sx in (-1, 1) for sy in (-1, 1)]
+        seen = [
+            c
+            for c in corners
+            if not _crosses(start, c, half * (1 - 1e-6)) and np.hypot(*(c - start)) > crowd.waypoint_tolerance
+        ]
+        if not seen:
+            continue
+        corner = min(seen, key=lambda c: float(np.hypot(*(c - start)) + np.hypot(*(end - c))))
+        away = float(np.hypot(*(corner - start)))
+        if best is None or away < best[0]:
+            best = (away, rotation @ corner + robots.centres[index])
+    return goal if best is None else best[1]
+
+
+def kept_clear(crowd: Crowd, point: Floats, around: Surroundings) -> Floats:
+    """`point` moved out of every other person (2·radius), then every obstacle and robot grown by the
+    radius, robots last: the hard constraint after the force step."""
+    distance, normal = _from_people(point, around.people)
+    for gap, n in zip(2 * crowd.radius - distance, normal):
+        if gap > 0:
+            point = point + gap * n
+    for boxes in (around.obstacles, around.robots):
+        for index in range(len(boxes)):
+            one = Boxes(
+                boxes.centres[index : index + 1], boxes.axes[index : index + 1], boxes.halves[index : index + 1]
+            )
+            distance, normal = one.nearest(point)
+            if distance[0] < crowd.radius:
+                point = point + (crowd.radius - distance[0]) * normal[0]
+    return point
+
+
+@dataclass(frozen=True)
+class Route:
+    """Waypoints walked in turn (x, y each), from the first again where it loops."""
+
+    points: Floats
+    """n × 2."""
+    loop: bool
+
+    @staticmethod
+    def of(points: Sequence[tuple[float, float]], loop: bool) -> Route:
+        """Consecutive repeats dropped (a script turning on the spot), and the closing point where it loops."""
+        kept: list[tuple[float, float]] = []
+        for point in points:
+            if not kept or math.dist(kept[-1], point) > 1e-6:
+                kept.append(point)
+        if loop and len(kept) > 1 and math.dist(kept[0], kept[-1]) <= 1e-6:
+            kept.pop()
+        return Route(np.asarray(kept, dtype=np.float64).reshape(-1, 2), loop)
+
+    def arriving(self, index: int) -> bool:
+        """Whether waypoint `index` is the last one walked to (no loop)."""
+        return not self.loop and index == len(self.points) - 1
+
+    def after(self, index: int, position: Floats, tolerance: float) -> int:
+        """The goal's index once the person at `position` has reached waypoint `index` (within `tolerance`)."""
+        if float(np.hypot(*(self.points[index] - position))) > tolerance or self.arriving(index):
+            return index
+        return (index + 1) % len(self.points)

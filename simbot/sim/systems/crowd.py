@@ -1,0 +1,289 @@
+"""SocialForce: a person who walks its route and gives way, by Helbing & Molnár's social-force model.
+
+A `<plugin>` of an `<actor>` (`<plugin name="simbot::systems::SocialForce"
+filename="simbot-social-force-system">`). It moves the actor in place of its script
+(`ActorDriver`): the person walks towards each waypoint of its route in turn and keeps its
+distance from other people, from the static world (walls, racks, pillars) and from every body
+that moves by itself (the tug, a cart), by the forces of simbot.sim.kit.social_force, integrated at
+every physics step in sim time. A hard constraint after each step keeps it `radius` clear of the
+robots' footprints: a person the tug blocks or drives at slows, steps aside or stops, never walks
+through it; a robot put onto a person (set_pose) pushes it aside at the next step.
+
+The route: the positions of the actor's own `<script>` waypoints (in the actor's frame, the turns
+on the spot dropped), walked from where the script has it at time 0 and looped as the script
+loops; or the plugin's `<waypoints>` (x y in the world frame, as TrajectoryFollower reads them,
+walked from the same start, looped with `loop`). A route that does not loop ends at its last
+waypoint, where the person stands (still giving way).
+
+| parameter | default | source | what |
+| --- | --- | --- | --- |
+| `desired_speed` | the script's mean speed along its route, else 1.34 | Helbing & Molnár 1995 (v0 1.34 m/s, σ 0.26) | m/s: v0 |
+| `relaxation_time` | 0.5 | Helbing & Molnár 1995; Helbing, Farkas & Vicsek 2000 | s: τ, how fast the person takes up v0 |
+| `radius` | 0.3 | Helbing, Farkas & Vicsek 2000 (r 0.25–0.35 m) | m: the person's disc (the proxy is 0.25) |
+| `max_speed_factor` | 1.3 | Helbing & Molnár 1995 (v_max = 1.3 v0) | the speed never exceeds it times v0 |
+| `people_strength` | 2.1 | Helbing & Molnár 1995 (V⁰ 2.1 m²/s²) | m/s²: A between people |
+| `people_range` | 0.3 | Helbing & Molnár 1995 (σ 0.3 m) | m: B between people |
+| `anisotropy` | 0.5 | Helbing & Molnár 1995 (c 0.5 behind) | λ: weight of who is behind (1: all alike) |
+| `obstacle_strength` | 10 | Helbing & Molnár 1995 (U⁰ 10 m²/s²) | m/s²: from walls and static shapes |
+| `obstacle_range` | 0.2 | Helbing & Molnár 1995 (R 0.2 m) | m: from walls and static shapes |
+| `robot_strength` | 10 | as obstacles | m/s²: from bodies that move by themselves |
+| `robot_range` | 0.4 | simbot: twice a wall's, room for a 2 m machine that may move | m |
+| `noise` | 0.05 | simbot (Helbing, Farkas & Vicsek 2000's fluctuation term) | m/s per √s: velocity jitter, breaks ties |
+| `turn_rate` | π | simbot | rad/s: the heading turns towards the velocity at most this fast |
+| `waypoint_tolerance` | 0.3 | simbot | m: a waypoint this near is reached |
+| `loop` | the script's | — | the plugin's waypoints: walk them for ever |
+| `waypoints`/`waypoint` | the script's | — | x y, world frame |
+
+The forces' strengths are Helbing & Molnár's potentials' V⁰ and U⁰ taken as accelerations at
+contact, A·exp((r − d)/B). A value out of range (a negative speed, τ ≤ 0, λ outside 0..1) leaves
+the plugin out with one line naming the actor and the element: the actor walks its script.
+Obstacles: the collisions of static models reaching into the person's height (its proxy's),
+each as the rectangle holding its shadow (meshes are not obstacles); read when the set of bodies
+changes. Robots and other moving bodies (not actors): the same shadows, moved with the body at
+every step. Other people are discs of this person's radius, read from the physics. The jitter is
+drawn from this system's own random stream: lockstep runs repeat bit for bit. `set_pose` on the
+actor moves its route with it (its start where it was put); `reset` takes it back to its start.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields, replace
+
+import numpy as np
+
+from simbot.description.actor_scripts import PROXY_HEIGHT, ActorModel, Script, is_actor
+from simbot.description.footprints import collision_corners
+from simbot.description.model import Model, Plugin
+from simbot.sim.kit.actor_paths import ScriptPath
+from simbot.sim.kit.plugin_params import bool_param, number_param
+from simbot.sim.kit.social_force import (
+    Boxes,
+    Crowd,
+    Floats,
+    Route,
+    Surroundings,
+    Walker,
+    acceleration,
+    advance,
+    detour,
+    kept_clear,
+)
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.physics import compose
+from simbot.sim.physics.protocols import WorldAccess
+from simbot.sim.systems.trajectory_follower import waypoints
+from simbot.transform import Transform
+
+MOVED_TOLERANCE = 1e-4
+"""Metres by which the actor must stand off where it was put to count as moved by world control."""
+STEP_HEIGHT = 0.05
+"""Metres above the soles below which a shape is stepped over, not walked round (the floor, a mat)."""
+FALLBACK_SPEED = 1.34
+"""m/s: v0 where neither the plugin nor a moving script gives one (Helbing & Molnár 1995)."""
+RANGES: dict[str, tuple[float, bool, float]] = {
+    "desired_speed": (0.0, False, math.inf),
+    "relaxation_time": (0.0, False, math.inf),
+    "radius": (0.0, False, math.inf),
+    "max_speed_factor": (1.0, True, math.inf),
+    "people_strength": (0.0, True, math.inf),
+    "people_range": (0.0, False, math.inf),
+    "anisotropy": (0.0, True, 1.0),
+    "look_ahead": (0.0, True, math.inf),
+    "obstacle_strength": (0.0, True, math.inf),
+    "obstacle_range": (0.0, False, math.inf),
+    "robot_strength": (0.0, True, math.inf),
+    "robot_range": (0.0, False, math.inf),
+    "noise": (0.0, True, math.inf),
+    "turn_rate": (0.0, False, math.inf),
+    "waypoint_tolerance": (0.0, False, math.inf),
+}
+"""Each parameter's lower bound, whether the bound itself is allowed, and its upper bound (allowed)."""
+
+
+def read_crowd(plugin: Plugin, actor: str, script_speed: float | None) -> Crowd:
+    """The plugin's parameters over the defaults; SystemConfigError naming the actor and the element
+    for one that is not a number or out of range."""
+    defaults = replace(Crowd(), desired_speed=script_speed or FALLBACK_SPEED)
+    values: dict[str, float] = {}
+    for item in fields(Crowd):
+        default = getattr(defaults, item.name)
+        try:
+            value = number_param(plugin, item.name, default=default)
+        except SystemConfigError as exc:
+            raise SystemConfigError(f"actor {actor!r}: {exc}; it walks its script") from None
+        assert value is not None
+        low, inclusive, high = RANGES[item.name]
+        if not (value >= low if inclusive else value > low) or value > high:
+            rule = f"{'at least' if inclusive else 'more than'} {low:g}" + (
+                f" and at most {high:g}" if high < math.inf else ""
+            )
+            raise SystemConfigError(
+                f"{plugin.name}: actor {actor!r}: <{item.name}> must be {rule}, got {value:g}; it walks its script"
+            )
+        values[item.name] = value
+    return Crowd(**values)
+
+
+def script_route(script: Script, frame: Transform) -> tuple[list[tuple[float, float]], float | None]:
+    """The script's waypoint positions in the world, and its mean speed along them (None if it does not move)."""
+    points = [compose(frame, Transform(w.pose.xyz)).position[:2] for t in script.trajectories for w in t.waypoints]
+    duration = sum(t.waypoints[-1].time - t.waypoints[0].time for t in script.trajectories)
+    length = sum(math.dist(a, b) for a, b in zip(points, points[1:]))
+    return [(p[0], p[1]) for p in points], (length / duration if duration > 0 and length > 0 else None)
+
+
+def shadows(model: Model, low: float, high: float) -> Boxes:
+    """The rectangles holding the shadows of the model's collisions that reach from `low` to `high`
+    (heights in the model's frame), in the model's frame."""
+    rectangles = []
+    for link in model.links:
+        for collision in link.collisions:
+            corners = collision_corners(collision, link.pose.matrix())
+            if corners is None or corners[:, 2].max() <= low or corners[:, 2].min() >= high:
+                continue
+            along, across = corners[4] - corners[0], corners[2] - corners[0]
+            if abs(along[2]) < 1e-9 and abs(across[2]) < 1e-9:  # upright: its own rectangle
+                centre = corners.mean(axis=0)
+                yaw = math.atan2(along[1], along[0])
+                rectangles.append((centre[0], centre[1], yaw, np.hypot(*along[:2]) / 2, np.hypot(*across[:2]) / 2))
+            else:  # tilted (a wheel): the axis-aligned box holding it
+                (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+                rectangles.append(((x0 + x1) / 2, (y0 + y1) / 2, 0.0, (x1 - x0) / 2, (y1 - y0) / 2))
+    return Boxes.of(rectangles)
+
+
+def _planar(pose: Transform) -> tuple[float, float, float]:
+    return pose.position[0], pose.position[1], pose.yaw
+
+
+class _World:
+    """What one person sees of the others: their names by kind, the static shadows, the robots' own."""
+
+    def __init__(self, physics: WorldAccess, me: str, low: float, high: float) -> None:
+        self._physics, self._me, self._low, self._high = physics, me, low, high
+        self._names: tuple[str, ...] = ()
+        self.people: list[str] = []
+        self.robots: dict[str, Boxes] = {}
+        self.obstacles = Boxes.of([])
+        self._seen: dict[str, Floats] = {}
+
+    def refresh(self) -> None:
+        """Sorts the bodies again when the world's set of them has changed (a model created or removed)."""
+        names = tuple(self._physics.body_names())
+        if names == self._names:
+            return
+        self._names = names
+        moving = set(self._physics.moving_bodies())
+        self.people, self.robots, static = [], {}, []
+        for name in names:
+            model = self._physics.model_of(name)
+            if isinstance(model, ActorModel):
+                if name != self._me:
+                    self.people.append(name)
+                continue
+            pose = self._physics.model_pose(name)
+            boxes = shadows(model, self._low - pose.position[2], self._high - pose.position[2])
+            if name in moving:
+                self.robots[name] = boxes
+            else:
+                static.append(boxes.placed(*_planar(pose)))
+        self.obstacles = Boxes.joined(static)
+
+    def around(self, point: Floats, reach: float, dt: float) -> Surroundings:
+        """The people (their velocities from where they were a step ago) and shadows within `reach` of `point`."""
+        now = {name: np.array(self._physics.model_pose(name).position[:2]) for name in self.people}
+        near = [name for name, at in now.items() if float(np.hypot(*(at - point))) <= reach]
+        people = np.array([now[name] for name in near]).reshape(-1, 2)
+        motions = np.array([(now[n] - self._seen[n]) / dt if n in self._seen else np.zeros(2) for n in near])
+        self._seen = now
+        poses = [_planar(self._physics.model_pose(name)) for name in self.robots]
+        robots = Boxes.joined([boxes.placed(*pose) for boxes, pose in zip(self.robots.values(), poses)])
+        outlines = Boxes.joined([boxes.outline().placed(*pose) for boxes, pose in zip(self.robots.values(), poses)])
+        near = self.obstacles.within(point, reach)
+        return Surroundings(
+            people, motions.reshape(-1, 2), near, robots.within(point, reach), outlines.within(point, reach)
+        )
+
+
+def _height(model: Model, frame: Transform) -> tuple[float, float]:
+    """The world heights a person takes up: from its proxy's soles (else its frame) up PROXY_HEIGHT."""
+    proxy = next((c for link in model.links[:1] for c in link.collisions), None)
+    feet = frame.position[2] + (proxy.pose.xyz[2] - PROXY_HEIGHT / 2 if proxy is not None else 0.0)
+    return feet + STEP_HEIGHT, feet + PROXY_HEIGHT
+
+
+class SocialForce:
+    """See the module docstring."""
+
+    name = "SocialForce"
+    drives_actor = True
+    """Moves its actor in place of the script (simbot.sim.kit.actor_paths.ActorDriver)."""
+
+    def __init__(self, ctx: SystemContext) -> None:
+        assert ctx.plugin is not None
+        model, self._actor = ctx.require_model("SocialForce")
+        plugin = ctx.plugin
+        if not is_actor(model):
+            raise SystemConfigError(f"{plugin.name}: SocialForce belongs in an <actor>, not in model {self._actor!r}")
+        assert isinstance(model, ActorModel)
+        frame = ctx.physics.model_pose(self._actor)
+        points, speed = script_route(model.script, frame)
+        self._crowd = read_crowd(plugin, self._actor, speed)
+        start = compose(frame, ScriptPath.of(model.script).pose_at(0.0))
+        listed = waypoints(plugin, start)
+        try:
+            loop = bool_param(plugin, "loop", default=model.script.loop)
+        except SystemConfigError as exc:
+            raise SystemConfigError(f"actor {self._actor!r}: {exc}; it walks its script") from None
+        self._initial_route = Route.of(listed or points or [start.position[:2]], loop)
+        self._height = self._initial_height = start.position[2]
+        self._initial = Walker(np.array(start.position[:2]), np.zeros(2), start.yaw)
+        self._initial_goal = self._initial_route.after(0, self._initial.position, self._crowd.waypoint_tolerance)
+        self._physics, self._rng = ctx.physics, ctx.rng
+        self._world = _World(ctx.physics, self._actor, *_height(model, frame))
+        self._route, self._walker, self._goal, self._last_ns = self._initial_route, self._initial, self._initial_goal, 0
+        self._put = self._place()
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        """One step of the model: forces, integration, the hard constraint, the actor put there."""
+        dt = (info.sim_time_ns - self._last_ns) / 1e9
+        if info.paused or dt <= 0:
+            return
+        self._last_ns = info.sim_time_ns
+        self._follow_teleport()
+        self._world.refresh()
+        crowd, walker = self._crowd, self._walker
+        around = self._world.around(walker.position, crowd.reach, dt)
+        self._goal = self._route.after(self._goal, walker.position, crowd.waypoint_tolerance)
+        goal = self._route.points[self._goal]
+        heading = detour(crowd, walker.position, goal, around.outlines)
+        arriving = self._route.arriving(self._goal) and heading is goal
+        accel = acceleration(crowd, walker, heading, arriving, around)
+        kick = self._rng.standard_normal(2) * (crowd.noise * math.sqrt(dt))
+        moved = advance(crowd, walker, accel, dt, kick)
+        position = kept_clear(crowd, moved.position, around)
+        self._walker = replace(moved, position=position, velocity=(position - walker.position) / dt)
+        self._put = self._place()
+
+    def reset(self, info: UpdateInfo) -> None:
+        """Back at its start, at rest, its route as the SDF gives it."""
+        self._route, self._walker, self._goal = self._initial_route, self._initial, self._initial_goal
+        self._height, self._last_ns = self._initial_height, info.sim_time_ns
+        self._put = self._place()
+
+    def _place(self) -> Transform:
+        (x, y), yaw = self._walker.position, self._walker.yaw
+        pose = Transform((float(x), float(y), self._height), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+        self._physics.set_model_pose(self._actor, pose)
+        return pose
+
+    def _follow_teleport(self) -> None:
+        """Put elsewhere (world control's set_pose): at rest there, its route moved with it."""
+        now = self._physics.model_pose(self._actor)
+        if math.dist(now.position, self._put.position) <= MOVED_TOLERANCE:
+            return
+        shift = np.array(now.position[:2]) - self._walker.position
+        self._route = Route(self._route.points + shift, self._route.loop)
+        self._walker = Walker(np.array(now.position[:2]), np.zeros(2), now.yaw)
+        self._height = now.position[2]

@@ -1,0 +1,157 @@
+"""A crowd that gives way (simbot.sim.systems.crowd, simbot.sim.kit.social_force).
+
+The kit's arithmetic alone: two people walking head-on pass each other at least two radii apart;
+a person alone takes up its desired speed within a few relaxation times and reaches its goal.
+
+Then a real server in lockstep (tests/fixtures/crowd.sdf, the tug at its spawn (−2.5, 0), its
+chassis 2.1 × 0.5 m): `crosser`'s route runs across the standing tug, 0.2 m off its middle; it
+goes round at ≥ 0.5 m from the chassis and reaches the far waypoint. Driven at `stander` (cmd_vel),
+the tug never comes nearer any person than its radius (the hard constraint, less the 0.5 mm the
+tug moves in one step). Two runs of one world give the same poses, bit for bit. A parameter out of
+range leaves the plugin out with one line naming the actor and the element, and the actor walks
+its script.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from server_helpers import REPO, SimServer, running_server
+
+from simbot.sim.kit.social_force import Boxes, Crowd, Surroundings, Walker, acceleration, advance, kept_clear
+
+WORLD = REPO / "tests" / "fixtures" / "crowd.sdf"
+DT = 0.001
+RADIUS = Crowd().radius
+TUG_HALF = (1.05, 0.25)
+"""The chassis collision box 2.1 × 0.5 m, centred on the model frame (SPEC.md)."""
+STEP_TRAVEL = 0.5 * DT
+"""Metres the tug driven at 0.5 m/s moves in one step, after the person was placed."""
+NONE = Boxes.of([])
+
+
+def _walk(crowd: Crowd, walkers: list[Walker], goals: list[np.ndarray], steps: int) -> list[list[Walker]]:
+    """`steps` steps of the kit's model for every walker, each seeing the others; every step's states."""
+    rng = np.random.default_rng(3)
+    track = []
+    for _ in range(steps):
+        moved = []
+        for i, walker in enumerate(walkers):
+            others = [w for j, w in enumerate(walkers) if j != i]
+            around = Surroundings(
+                np.array([w.position for w in others]).reshape(-1, 2),
+                np.array([w.velocity for w in others]).reshape(-1, 2),
+                NONE,
+                NONE,
+                NONE,
+            )
+            accel = acceleration(crowd, walker, goals[i], False, around)
+            moved.append(advance(crowd, walker, accel, DT, rng.standard_normal(2) * crowd.noise * math.sqrt(DT)))
+        walkers = moved
+        track.append(walkers)
+    return track
+
+
+def test_two_people_walking_head_on_pass_each_other_two_radii_apart() -> None:
+    crowd = Crowd()
+    a, b = Walker(np.array([-5.0, 0.0]), np.zeros(2), 0.0), Walker(np.array([5.0, 0.0]), np.zeros(2), math.pi)
+    track = _walk(crowd, [a, b], [np.array([6.0, 0.0]), np.array([-6.0, 0.0])], 14000)
+    nearest = min(float(np.hypot(*(x.position - y.position))) for x, y in track)
+    assert nearest >= 2 * crowd.radius, f"they came {nearest:.3f} m apart"
+    a, b = track[-1]
+    assert a.position == pytest.approx((6.0, 0.0), abs=0.05) and b.position == pytest.approx((-6.0, 0.0), abs=0.05)
+
+
+def test_a_person_alone_takes_up_its_desired_speed_and_reaches_its_goal() -> None:
+    crowd = Crowd()
+    track = _walk(crowd, [Walker(np.zeros(2), np.zeros(2), 0.0)], [np.array([20.0, 0.0])], 16000)
+    after = track[int(3 * crowd.relaxation_time / DT)][0]
+    assert float(np.hypot(*after.velocity)) == pytest.approx(crowd.desired_speed, rel=0.06)
+    assert min(float(np.hypot(*(w.position - (20.0, 0.0)))) for (w,) in track) < crowd.waypoint_tolerance
+
+
+def test_the_hard_constraint_puts_a_person_outside_a_footprint_grown_by_its_radius() -> None:
+    crowd = Crowd()
+    tug = Boxes.of([(0.0, 0.0, 0.3, 1.05, 0.25)])
+    for inside in ((0.0, 0.1), (1.0, -0.2), (0.2, 0.4)):
+        point = kept_clear(crowd, np.array(inside), Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), NONE, tug, tug))
+        assert tug.nearest(point)[0][0] == pytest.approx(crowd.radius, abs=1e-9)
+
+
+# --- the running world ---------------------------------------------------------------------
+
+
+def _footprint_distance(state: dict, person: str) -> float:
+    """Metres from the person's axis to the tug's chassis (its rectangle on the floor)."""
+    tug, walker = state["models"]["flexley_tug"], state["models"][person]
+    (x, y, _), (qx, qy, qz, qw) = tug["position"], tug["orientation"]
+    yaw = math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
+    chassis = Boxes.of([(x, y, yaw, *TUG_HALF)])
+    return float(chassis.nearest(np.array(walker["position"][:2]))[0][0])
+
+
+@pytest.fixture(scope="module")
+def sim() -> Iterator[SimServer]:
+    with running_server(str(WORLD), "lockstep") as server:
+        yield server
+
+
+def _run(sim: SimServer, seconds: float, people: tuple[str, ...]) -> list[dict]:
+    """World states every 50 ms for `seconds`."""
+    states = []
+    for _ in range(round(seconds / 0.05)):
+        sim.step(50)
+        states.append(sim.state())
+    return states
+
+
+def test_a_worker_crossing_the_standing_tug_goes_round_it_and_rejoins_its_route(sim: SimServer) -> None:
+    sim.reset()
+    states = _run(sim, 14.0, ("crosser",))
+    nearest = min(_footprint_distance(state, "crosser") for state in states)
+    assert nearest >= 0.5, f"the crosser came {nearest:.3f} m from the tug's chassis"
+    far = min(math.dist(state["models"]["crosser"]["position"][:2], (-2.3, 3.0)) for state in states)
+    assert far <= Crowd().waypoint_tolerance + 0.05, f"the crosser came no nearer its far waypoint than {far:.2f} m"
+
+
+def test_a_tug_driven_at_a_person_never_comes_nearer_than_its_radius(sim: SimServer) -> None:
+    sim.reset()
+    sim.drive(0.5)
+    states = _run(sim, 9.0, ("stander",))
+    sim.drive(0.0)
+    assert states[-1]["models"]["flexley_tug"]["position"][0] > 0.5, "the tug did not drive through the stander's place"
+    for person in ("stander", "crosser"):
+        nearest = min(_footprint_distance(state, person) for state in states)
+        assert nearest >= RADIUS - STEP_TRAVEL - 1e-4, f"{person} came {nearest:.4f} m from the tug's chassis"
+
+
+def _poses(seconds: float) -> dict[str, list[float]]:
+    with running_server(str(WORLD), "lockstep") as server:
+        server.step(round(seconds * 1000))
+        models = server.state()["models"]
+    return {name: [*models[name]["position"], *models[name]["orientation"]] for name in ("crosser", "stander")}
+
+
+def test_two_lockstep_runs_give_the_same_poses_bit_for_bit() -> None:
+    first, second = _poses(3.0), _poses(3.0)
+    assert first == second
+
+
+def test_a_parameter_out_of_range_leaves_the_plugin_out_and_the_actor_walks_its_script(tmp_path: Path) -> None:
+    world = tmp_path / "crowd_bad.sdf"
+    world.write_text(
+        WORLD.read_text().replace("<relaxation_time>0.5</relaxation_time>", "<relaxation_time>-1</relaxation_time>")
+    )
+    with running_server(str(world), "lockstep", world_name="crowd") as server:
+        server.step(1000)
+        (x, y, _), _ = server.pose("crosser")
+        errors = server.errors()
+    lines = [line for line in errors if "crosser" in line]
+    assert len(lines) == 1 and "<relaxation_time>" in lines[0], errors
+    # its script: from (−2.3, −3) to (−2.3, 3) in 7.5 s at tension 1 (eased in: s² (3 − 2s) of the way)
+    s = 1.0 / 7.5
+    assert (x, y) == pytest.approx((-2.3, -3.0 + 6.0 * s * s * (3 - 2 * s)), abs=0.01)
