@@ -55,6 +55,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_ros2.py
 	$(BIN)/python benchmarks/bench_rmw.py
 	$(BIN)/python benchmarks/bench_actors.py
+	$(BIN)/python benchmarks/bench_crowd.py
 	$(BIN)/python benchmarks/bench_map.py
 	$(BIN)/python benchmarks/bench_variation.py
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
