@@ -293,6 +293,17 @@ ACTORS = _actor("walker", -0.5, 0.0) + _actor("runner", 0.5, 0.7)
 FOLLOWER = """<actor name="follower"><pose>1 1 1 0 0 0</pose><skin><filename>absent.dae</filename></skin>
   <plugin name="gz::sim::systems::FollowActor" filename="gz-sim-follow-actor-system"><target>cart</target>
   <min_distance>0.5</min_distance><velocity>1.5</velocity></plugin></actor>"""
+
+
+def _crowd_person(name: str, x: float) -> str:
+    """A SocialForce person walking across to the other side of the origin (its jitter from its own stream)."""
+    return f"""<actor name="{name}"><pose>{x} 0.6 1 0 0 0</pose><skin><filename>absent.dae</filename></skin>
+  <script><trajectory id="0" type="walk"><waypoint><time>0</time><pose>0 0 0 0 0 0</pose></waypoint>
+  <waypoint><time>2</time><pose>{-2 * x} 0 0 0 0 0</pose></waypoint></trajectory></script>
+  <plugin name="simbot::systems::SocialForce" filename="simbot-social-force-system"/></actor>"""
+
+
+CROWD = _crowd_person("walker", -0.8) + _crowd_person("runner", 0.8)
 TRAJECTORY_FOLLOWER = """<plugin name="gz::sim::systems::TrajectoryFollower" filename="gz-sim-trajectory-follower-system">
   <link_name>base_link</link_name><loop>true</loop><force>20</force><torque>5</torque>
   <waypoints><waypoint>0.5 0.3</waypoint><waypoint>0 0.6</waypoint></waypoints></plugin>"""
@@ -359,6 +370,7 @@ CASES: dict[tuple[str, str], Case] = {
     # key of its own is asked twice; its one message is among the keys whose bytes both runs compare
     (WORLD_GROUP, "MapPublisher"): Case(),
     (GROUP, "FollowActor"): Case(world_plugins=FOLLOWER, key="model/follower/pose"),
+    (GROUP, "SocialForce"): Case(world_plugins=CROWD, key="model/runner/pose"),
     (GROUP, "TrajectoryFollower"): Case(plugins=TRAJECTORY_FOLLOWER, key="model/flexley_tug/pose"),
     (WORLD_GROUP, "Actors"): Case(world_plugins=ACTORS, sensors=_lidar("gpu_lidar"), key="model/runner/pose"),
     (ROBOT_GROUP, "RobotStatePublisher"): Case(key="tf"),
