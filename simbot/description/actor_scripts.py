@@ -36,7 +36,8 @@ from simbot.description.poses import Pose
 from simbot.description.resources import resolve
 from simbot.description.sdf_frames import read_pose
 from simbot.description.skeleton_poses import ClipFile, load_rig
-from simbot.description.skeletons import SkeletonError
+from simbot.description.skeletons import SkeletonError, read_skeleton
+from simbot.description.stand_in_meshes import skinned_only
 from simbot.description.xml import Element, Reader
 
 logger = logging.getLogger(__name__)
@@ -101,7 +102,7 @@ class SkinnedMesh(Mesh):
     (simbot.description.actor_legs), from these animations' clips."""
 
     animations: tuple[ClipFile, ...] = ()
-    """Each `<animation>`'s file, `<interpolate_x>` and `<scale>`, in order."""
+    """Each `<animation>`'s file, `<interpolate_x>` and `<scale>`, in order; none: the bind pose."""
 
 
 @dataclass(frozen=True)
@@ -208,14 +209,22 @@ def _body(reader: Reader, skin: Skin | None) -> Link:
     """The root link: the skin (or, when it cannot be found, the proxy drawn) and the proxy."""
     if skin is None:
         return Link(BODY)
-    scale = (skin.scale,) * 3
     proxy = Collision("proxy", Capsule(PROXY_RADIUS, PROXY_HEIGHT - 2 * PROXY_RADIUS), proxy_pose(skin))
-    skin_visual = Visual("skin", Mesh(skin.filename, scale, skin.path))
+    skin_visual = Visual("skin", _unposed(skin))
     if skin.path is not None:
         return Link(BODY, collisions=(proxy,), visuals=(skin_visual,))
     drawn = visuals_with_fallbacks(reader.file, BODY, [skin_visual], [proxy])  # one warning naming the file
     colour = Material(diffuse=PROXY_COLOUR, ambient=PROXY_COLOUR)
     return Link(BODY, collisions=(proxy,), visuals=tuple(replace(v, material=colour) for v in drawn))
+
+
+def _unposed(skin: Skin) -> Mesh:
+    """The skin drawn as it stands: a skinned-only COLLADA file (which mesh loaders read as nothing)
+    as its skeleton's bind pose, a `SkinnedMesh` without animations."""
+    scale = (skin.scale,) * 3
+    if skin.path is not None and skinned_only(skin.path):
+        return SkinnedMesh(skin.filename, scale, skin.path)
+    return Mesh(skin.filename, scale, skin.path)
 
 
 def proxy_pose(skin: Skin) -> Pose:
@@ -225,9 +234,15 @@ def proxy_pose(skin: Skin) -> Pose:
 
 
 def _lowest_point(skin: Skin) -> float | None:
-    """The skin's lowest z in the actor frame (scaled), None when it is not found or trimesh cannot read it."""
+    """The skin's lowest z in the actor frame (scaled), None when it is not found or cannot be read
+    (a skinned-only COLLADA by its skeleton's bind pose, any other by trimesh)."""
     if skin.path is None:
         return None
+    if skinned_only(skin.path):
+        try:
+            return min(float(p.positions[:, 2].min()) for p in read_skeleton(skin.path).parts) * skin.scale
+        except SkeletonError:
+            return None
     try:
         import trimesh
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, lru_cache
 from pathlib import Path
 from typing import NamedTuple
 
@@ -64,8 +64,10 @@ class Rig:
         """Each joint's J×4×4 transform in skin space at `time` seconds into clip `animation`."""
         return global_pose(self.skeleton, local_pose(self.clips[animation], time))
 
+    @lru_cache(maxsize=4)  # noqa: B019 - rigs live as long as load_rig's cache: a skin's parts share a pose
     def skinning(self, animation: int, time: float) -> F64:
-        """J×4×4 skinning matrices: the pose times the inverse bind matrices."""
+        """J×4×4 skinning matrices: the pose times the inverse bind matrices (worked out once for
+        all of a skin's parts)."""
         return products(self.pose(animation, time), self.skeleton.inverse_bind)
 
 
@@ -158,6 +160,8 @@ def skin(points: F64, joints: npt.NDArray[np.int64], weights: F64, matrices: F64
     """Linear blend skinning of N×3 points (or, `translate` false, directions) by their joints' matrices."""
     out = np.zeros_like(points)
     for k in range(joints.shape[1]):
+        if not weights[:, k].any():
+            continue  # an influence no vertex uses (a rigid part's second to fourth)
         m = matrices[joints[:, k]]
         moved = m[:, :, 0] * points[:, 0:1] + m[:, :, 1] * points[:, 1:2] + m[:, :, 2] * points[:, 2:3]
         if translate:

@@ -74,7 +74,7 @@ class _Gait:
     @staticmethod
     def of(model: ActorModel) -> _Gait | None:
         skin = next((v.geometry for v in model.link(BODY).visuals if isinstance(v.geometry, SkinnedMesh)), None)
-        if skin is None or skin.path is None:
+        if skin is None or skin.path is None or not skin.animations:  # none, or drawn in its bind pose
             return None
         rig = ActorRig.of(load_rig(skin.path, skin.animations), skin.scale[0])
         tables = []
