@@ -114,6 +114,8 @@ class Boxes:
     def nearest(self, point: Floats) -> tuple[Floats, Floats]:
         """(distance, normal) of `point` from each rectangle: the distance to its nearest point (negative
         inside, by the depth to its nearest side) and the unit vector from there out towards `point`."""
+        if not len(self):
+            return np.zeros(0), np.zeros((0, 2))
         offset = point - self.centres
         cos, sin = self.axes[:, 0], self.axes[:, 1]
         local = np.stack([offset[:, 0] * cos + offset[:, 1] * sin, offset[:, 1] * cos - offset[:, 0] * sin], axis=1)
@@ -310,13 +312,14 @@ def kept_clear(crowd: Crowd, point: Floats, around: Surroundings) -> Floats:
         if gap > 0:
             point = point + gap * n
     for boxes in (around.obstacles, around.robots):
-        for index in range(len(boxes)):
+        distance, _ = boxes.nearest(point)
+        for index in np.flatnonzero(distance < crowd.radius):  # rare: only these are looked at again
             one = Boxes(
                 boxes.centres[index : index + 1], boxes.axes[index : index + 1], boxes.halves[index : index + 1]
             )
-            distance, normal = one.nearest(point)
-            if distance[0] < crowd.radius:
-                point = point + (crowd.radius - distance[0]) * normal[0]
+            gap, normal = one.nearest(point)
+            if gap[0] < crowd.radius:
+                point = point + (crowd.radius - gap[0]) * normal[0]
     return point
 
 

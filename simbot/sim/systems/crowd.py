@@ -167,6 +167,7 @@ class _World:
         self.robots: dict[str, Boxes] = {}
         self.obstacles = Boxes.of([])
         self._seen: dict[str, Floats] = {}
+        self._outlines: dict[str, Boxes] = {}
 
     def refresh(self) -> None:
         """Sorts the bodies again when the world's set of them has changed (a model created or removed)."""
@@ -175,7 +176,7 @@ class _World:
             return
         self._names = names
         moving = set(self._physics.moving_bodies())
-        self.people, self.robots, static = [], {}, []
+        self.people, self.robots, self._outlines, static = [], {}, {}, []
         for name in names:
             model = self._physics.model_of(name)
             if isinstance(model, ActorModel):
@@ -185,7 +186,7 @@ class _World:
             pose = self._physics.model_pose(name)
             boxes = shadows(model, self._low - pose.position[2], self._high - pose.position[2])
             if name in moving:
-                self.robots[name] = boxes
+                self.robots[name], self._outlines[name] = boxes, boxes.outline()
             else:
                 static.append(boxes.placed(*_planar(pose)))
         self.obstacles = Boxes.joined(static)
@@ -199,7 +200,7 @@ class _World:
         self._seen = now
         poses = [_planar(self._physics.model_pose(name)) for name in self.robots]
         robots = Boxes.joined([boxes.placed(*pose) for boxes, pose in zip(self.robots.values(), poses)])
-        outlines = Boxes.joined([boxes.outline().placed(*pose) for boxes, pose in zip(self.robots.values(), poses)])
+        outlines = Boxes.joined([box.placed(*pose) for box, pose in zip(self._outlines.values(), poses)])
         near = self.obstacles.within(point, reach)
         return Surroundings(
             people, motions.reshape(-1, 2), near, robots.within(point, reach), outlines.within(point, reach)
