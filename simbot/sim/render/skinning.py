@@ -2,8 +2,10 @@
 the actors system sets: simbot.description.actor_legs), for the OpenGL renderer (each frame's
 vertex buffers) and the bounding boxes (the posed vertices), so every camera output sees one pose.
 
-Linear blend skinning on the CPU (`skeleton_poses.skin`): measured about 1.5 ms a frame for the
-worker's 4.5k vertices on one core (benchmarks/bench_actors.py), against a frame's tens of ms.
+Linear blend skinning on the CPU (`skeleton_poses.skin`), once per scene pose, the skin's parts
+sharing its matrices: about 2 ms for the worker's 4.5k vertices on one core, the robot's six
+cameras' frame set 1.085× as long with the warehouse's three people animated as rigid
+(benchmarks/bench_actors.py, docs/speed.md).
 A frame without the joints (a body not yet posed) shows the bind pose.
 """
 
