@@ -281,8 +281,13 @@ class Collector:
         self._warned = False
 
     def restart(self, seed: int) -> None:
-        """The world was drawn anew from `seed`: sim time starts again, what waited belongs to the last one."""
+        """The world was drawn anew from `seed`: sim time starts again, and what came before belongs
+        to the last one. Every frame of the last world came before the reset's reply (the server
+        routes its render workers' frames, and a lockstep step ends only once they are routed), so
+        what is queued now is dropped whole."""
         self.sync = StampSync(self.sync.streams, 0, MAX_WAIT_NS)
+        while self.sets.get(0.0) is not None:
+            pass
         self.pending.clear()
         self.poses.forget()
         self.world_seed = seed

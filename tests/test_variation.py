@@ -39,9 +39,10 @@ RUN_TIMEOUT_S = 600.0
 RIG = """<?xml version="1.0"?>
 <sdf version="1.9">
   <model name="rig">
-    <static>true</static>
     <link name="base">
-      <visual name="visual"><geometry><box><size>0.2 0.2 0.2</size></box></geometry></visual>
+      <inertial><pose>0 0 -4.5 0 0 0</pose><mass>1000</mass>
+        <inertia><ixx>6870</ixx><iyy>6870</iyy><izz>240</izz></inertia></inertial>
+      <collision name="tower"><pose>0 0 -4.5 0 0 0</pose><geometry><box><size>1.2 1.2 9</size></box></geometry></collision>
       <sensor name="rgb" type="camera">
         <pose>0 0 0 0 1.5707963 0</pose><update_rate>10</update_rate><topic>rig_rgb</topic>
         <camera><horizontal_fov>1.7</horizontal_fov><image><width>160</width><height>120</height></image>
@@ -56,7 +57,10 @@ RIG = """<?xml version="1.0"?>
   </model>
 </sdf>
 """
-"""A static rig 7 m above the hall looking straight down: every seed's clutter in view."""
+"""A camera rig on a heavy tower standing in the tug's lane, 9 m above the floor, looking straight down
+with the image's width along x: the hall from x −6.5 to 13.5 and y −7.2 to 7.2 in view (the clutter
+goes east of the people's routes). A tower, not a static model, so that its pose is published
+and the dataset's boxes name the colour image beside them."""
 
 
 @pytest.fixture(scope="module")
@@ -202,7 +206,9 @@ def test_a_bad_randomise_option_is_one_line_and_exit_2(option: str, says: str) -
 def sim(tmp_path_factory: pytest.TempPathFactory) -> SimServer:
     rig = tmp_path_factory.mktemp("rig") / "rig.sdf"
     rig.write_text(RIG)
-    with running_server("warehouse", extra=("--robot", str(rig), "--spawn", "0", "1", "7", "0")) as server:
+    with running_server(
+        "warehouse", extra=("--robot", str(rig), "--spawn", "3.5", "0", "9.001", "1.5707963")
+    ) as server:
         yield server
         server.stop(timeout=60.0)
 
