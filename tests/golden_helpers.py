@@ -115,6 +115,7 @@ TOLERANCES: dict[str, dict[str, Tolerance]] = {
         "markers[].colors[].*": SINGLE,
         "markers[].points[].*": STATE,
     },
+    "nav_msgs/msg/OccupancyGrid": {"info.resolution": SINGLE, "info.origin.*": CONSTANT},
 }
 """Per message type, per field path (shell patterns): the tolerance of each float field and why."""
 
