@@ -7,12 +7,16 @@ A person is a disc of `radius` at a position with a velocity. Its acceleration i
 - a repulsion A·exp((r_ij − d_ij)/B)·n_ij from each other person j (d_ij the distance between
   centres, r_ij the two radii, n_ij the unit vector from j to i), weighted by the anisotropy
   w = λ + (1 − λ)(1 + cos φ)/2 (φ between e and −n_ij: who is ahead counts more than who is behind);
-- a repulsion A_w·exp((r − d)/B_w)·n from each obstacle (d the distance to the nearest point of
-  its shadow on the floor, n the unit vector from that point), and the same with the robots' own
-  strength and range (and the anisotropy) from each body that moves by itself (a robot, a cart).
+- a repulsion A_w·(exp((r − d)/B_w) − exp(−c/B_w))·w·n from each obstacle whose gap d − r is
+  under the cutoff c (d the distance to the nearest point of its shadow on the floor, n the unit
+  vector from that point; the taper makes it vanish at c without a jump), so that a person walking
+  past a rack face more than c clear keeps its line; and the same with the robots' own strength and
+  range, without a cutoff, from each body that moves by itself (a robot, a cart), from the one
+  rectangle holding its footprint (its outline: one force a body, however many shapes it has).
 
 Integrated by semi-implicit Euler (the velocity first, its speed clamped to `max_speed_factor`·v0,
-then the position with it), after which a hard constraint holds: the person is put back outside
+then the position with it: `steered`, then `turned` and the position at each of the caller's
+steps), after which a hard constraint holds: the person is put back outside
 every other person (2·radius between centres), obstacle and robot grown by its radius, robots
 last, so that a person the tug drives at steps aside rather than being walked through. Numpy, no
 physics: the same inputs give the same outputs, bit for bit, on one machine.
@@ -49,16 +53,24 @@ class Crowd:
     look_ahead: float = 2.0
     obstacle_strength: float = 10.0
     obstacle_range: float = 0.2
+    obstacle_cutoff: float = 0.5
     robot_strength: float = 2.1
     robot_range: float = 0.4
     noise: float = 0.05
     turn_rate: float = math.pi
     waypoint_tolerance: float = 0.3
+    update_rate: float = 100.0
 
     @property
     def reach(self) -> float:
-        """Metres beyond which a repulsion is under 10⁻⁴ of its strength: what is farther is left out."""
-        return 2 * self.radius + 9.3 * max(self.people_range, self.obstacle_range, self.robot_range)
+        """Metres beyond which a person's or a robot's repulsion is under 10⁻⁴ of its strength: what is
+        farther is left out."""
+        return 2 * self.radius + 9.3 * max(self.people_range, self.robot_range)
+
+    @property
+    def obstacle_reach(self) -> float:
+        """Metres from a person's centre beyond which an obstacle exerts nothing (or under 10⁻⁴ of its strength)."""
+        return self.radius + min(self.obstacle_cutoff, 9.3 * self.obstacle_range)
 
 
 @dataclass(frozen=True)
@@ -170,11 +182,13 @@ def driving(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool) -> tuple
     return (speed * direction - walker.velocity) / crowd.relaxation_time, direction
 
 
-def _repulsion(strength: float, reach: float, gaps: Floats, normals: Floats, weights: Floats) -> Floats:
-    """Σ strength·exp(−gap/reach)·w·n."""
+def _repulsion(
+    strength: float, reach: float, gaps: Floats, normals: Floats, weights: Floats, cutoff: float = math.inf
+) -> Floats:
+    """Σ strength·(exp(−gap/reach) − exp(−cutoff/reach))·w·n over the gaps under `cutoff`."""
     if len(gaps) == 0:
         return np.zeros(2)
-    magnitude = strength * np.exp(-gaps / reach) * weights
+    magnitude = strength * np.maximum(np.exp(-gaps / reach) - math.exp(-cutoff / reach), 0.0) * weights
     total: Floats = (normals * magnitude[:, None]).sum(axis=0)
     return total
 
@@ -228,9 +242,14 @@ def acceleration(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool, aro
     )
     distance, normal = around.obstacles.nearest(walker.position)
     walls = _repulsion(
-        crowd.obstacle_strength, crowd.obstacle_range, distance - crowd.radius, normal, np.ones(len(distance))
+        crowd.obstacle_strength,
+        crowd.obstacle_range,
+        distance - crowd.radius,
+        normal,
+        _anisotropy(crowd, direction, normal),
+        crowd.obstacle_cutoff,
     )
-    distance, normal = around.robots.nearest(walker.position)
+    distance, normal = around.outlines.nearest(walker.position)
     robots = _repulsion(
         crowd.robot_strength, crowd.robot_range, distance - crowd.radius, normal, _anisotropy(crowd, direction, normal)
     )
@@ -238,14 +257,20 @@ def acceleration(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool, aro
     return total
 
 
-def advance(crowd: Crowd, walker: Walker, accel: Floats, dt: float, kick: Floats) -> Walker:
-    """One semi-implicit Euler step of `dt` s (the velocity, plus the random `kick`, then the position),
-    the speed no more than `max_speed_factor`·v0, the heading turned towards the velocity."""
-    velocity = walker.velocity + accel * dt + kick
+def steered(crowd: Crowd, velocity: Floats, accel: Floats, dt: float, kick: Floats) -> Floats:
+    """The velocity after `dt` s of `accel`, plus the random `kick`: the speed no more than `max_speed_factor`·v0."""
+    velocity = velocity + accel * dt + kick
     speed = float(np.hypot(*velocity))
     top = crowd.max_speed_factor * crowd.desired_speed
     if speed > top:
         velocity = velocity * (top / speed)
+    return velocity
+
+
+def advance(crowd: Crowd, walker: Walker, accel: Floats, dt: float, kick: Floats) -> Walker:
+    """One semi-implicit Euler step of `dt` s (`steered`, then the position with the new velocity),
+    the heading turned towards the velocity."""
+    velocity = steered(crowd, walker.velocity, accel, dt, kick)
     return Walker(walker.position + velocity * dt, velocity, turned(crowd, walker.yaw, velocity, dt))
 
 
@@ -276,9 +301,10 @@ def _crosses(start: Floats, end: Floats, half: Floats) -> bool:
 
 def detour(crowd: Crowd, point: Floats, goal: Floats, robots: Boxes) -> Floats:
     """Where to head for on the way to `goal`: round the nearest robot whose footprint, grown by the
-    radius and as far again as its repulsion is half the drive, lies across the straight way, by its corner that makes the way
-    round shortest (one not yet reached); the goal itself when the way is clear. The forces alone would hold a person
-    still before a long machine across its way (the social-force model's local minimum)."""
+    radius and as far again as its repulsion is half the drive, lies across the straight way, by its
+    corner that makes the way round shortest (one not yet reached; from a corner reached, those seen
+    along the sides from it); the goal itself when the way is clear. The forces alone would hold a
+    person still before a long machine across its way (the social-force model's local minimum)."""
     margin = crowd.radius + crowd.robot_range * math.log(
         max(1.0, 2 * crowd.robot_strength * crowd.relaxation_time / crowd.desired_speed)
     )
@@ -290,11 +316,9 @@ def detour(crowd: Crowd, point: Floats, goal: Floats, robots: Boxes) -> Floats:
         if np.all(np.abs(start) < half) or not _crosses(start, end, half):
             continue
         corners = [np.array((sx * half[0], sy * half[1])) for sx in (-1, 1) for sy in (-1, 1)]
-        seen = [
-            c
-            for c in corners
-            if not _crosses(start, c, half * (1 - 1e-6)) and np.hypot(*(c - start)) > crowd.waypoint_tolerance
-        ]
+        reached = next((c for c in corners if np.hypot(*(c - start)) <= crowd.waypoint_tolerance), None)
+        origin = start if reached is None else reached  # on at a corner: what lies along the side from it
+        seen = [c for c in corners if c is not reached and not _crosses(origin, c, half * (1 - 1e-6))]
         if not seen:
             continue
         corner = min(seen, key=lambda c: float(np.hypot(*(c - start)) + np.hypot(*(end - c))))
@@ -311,7 +335,12 @@ def kept_clear(crowd: Crowd, point: Floats, around: Surroundings) -> Floats:
     for gap, n in zip(2 * crowd.radius - distance, normal):
         if gap > 0:
             point = point + gap * n
-    for boxes in (around.obstacles, around.robots):
+    return outside(crowd, outside(crowd, point, around.obstacles), around.robots)
+
+
+def outside(crowd: Crowd, point: Floats, boxes: Boxes) -> Floats:
+    """`point` moved out of each of `boxes` grown by the radius, in turn."""
+    if len(boxes):
         distance, _ = boxes.nearest(point)
         for index in np.flatnonzero(distance < crowd.radius):  # rare: only these are looked at again
             one = Boxes(

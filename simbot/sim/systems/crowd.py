@@ -65,9 +65,11 @@ from simbot.sim.kit.social_force import (
     Surroundings,
     Walker,
     acceleration,
-    advance,
     detour,
     kept_clear,
+    outside,
+    steered,
+    turned,
 )
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
@@ -79,6 +81,13 @@ MOVED_TOLERANCE = 1e-4
 """Metres by which the actor must stand off where it was put to count as moved by world control."""
 STEP_HEIGHT = 0.05
 """Metres above the soles below which a shape is stepped over, not walked round (the floor, a mat)."""
+CACHE_SLACK = 1.0
+"""Metres a person walks before the static shadows near it are sorted again (those within this
+more than the obstacles' reach are kept)."""
+CLOSING_SPEED = 5.0
+"""m/s at which a robot and a person may close in on each other at most (the tug's top speed and a
+run, with room): a robot farther than the radius and this for one update period is looked at only
+at the next update, a nearer one at every step."""
 FALLBACK_SPEED = 1.34
 """m/s: v0 where neither the plugin nor a moving script gives one (Helbing & Molnár 1995)."""
 RANGES: dict[str, tuple[float, bool, float]] = {
@@ -92,11 +101,13 @@ RANGES: dict[str, tuple[float, bool, float]] = {
     "look_ahead": (0.0, True, math.inf),
     "obstacle_strength": (0.0, True, math.inf),
     "obstacle_range": (0.0, False, math.inf),
+    "obstacle_cutoff": (0.0, False, math.inf),
     "robot_strength": (0.0, True, math.inf),
     "robot_range": (0.0, False, math.inf),
     "noise": (0.0, True, math.inf),
     "turn_rate": (0.0, False, math.inf),
     "waypoint_tolerance": (0.0, False, math.inf),
+    "update_rate": (0.0, False, math.inf),
 }
 """Each parameter's lower bound, whether the bound itself is allowed, and its upper bound (allowed)."""
 
@@ -165,18 +176,22 @@ class _World:
         self._names: tuple[str, ...] = ()
         self.people: list[str] = []
         self.robots: dict[str, Boxes] = {}
+        self.movables: dict[str, Boxes] = {}
         self.obstacles = Boxes.of([])
         self._seen: dict[str, Floats] = {}
         self._outlines: dict[str, Boxes] = {}
+        self._near = self.obstacles
+        self._near_at: Floats | None = None
 
-    def refresh(self) -> None:
-        """Sorts the bodies again when the world's set of them has changed (a model created or removed)."""
+    def refresh(self) -> bool:
+        """Sorts the bodies again when the world's set of them has changed (a model created or
+        removed): whether it had."""
         names = tuple(self._physics.body_names())
         if names == self._names:
-            return
-        self._names = names
+            return False
+        self._names, self._near_at = names, None
         moving = set(self._physics.moving_bodies())
-        self.people, self.robots, self._outlines, static = [], {}, {}, []
+        self.people, self.robots, self.movables, self._outlines, static = [], {}, {}, {}, []
         for name in names:
             model = self._physics.model_of(name)
             if isinstance(model, ActorModel):
@@ -185,32 +200,56 @@ class _World:
                 continue
             pose = self._physics.model_pose(name)
             boxes = shadows(model, self._low - pose.position[2], self._high - pose.position[2])
-            if name in moving:
+            if name in moving and model.plugins and len(boxes):  # moves by itself, at the person's height
                 self.robots[name], self._outlines[name] = boxes, boxes.outline()
+            elif name in moving:
+                self.movables[name] = boxes
             else:
                 static.append(boxes.placed(*_planar(pose)))
         self.obstacles = Boxes.joined(static)
+        return True
 
-    def around(self, point: Floats, reach: float, dt: float) -> Surroundings:
-        """The people (their velocities from where they were a step ago) and shadows within `reach` of `point`."""
+    def obstacles_near(self, point: Floats, reach: float) -> Boxes:
+        """The static shadows within `reach` of `point` (those within `reach` + CACHE_SLACK of where
+        they were last sorted, sorted again once the person is CACHE_SLACK from there), and the
+        movable bodies' where they stand now."""
+        if self._near_at is None or float(np.hypot(*(point - self._near_at))) > CACHE_SLACK:
+            self._near, self._near_at = self.obstacles.within(point, reach + CACHE_SLACK), point.copy()
+        if not self.movables:
+            return self._near
+        placed = [boxes.placed(*_planar(self._physics.model_pose(name))) for name, boxes in self.movables.items()]
+        return Boxes.joined([self._near, *(boxes.within(point, reach) for boxes in placed)])
+
+    def robots_at(self, names: list[str]) -> tuple[Boxes, Boxes]:
+        """The footprints of the robots `names` where they stand now, and their outlines."""
+        poses = [_planar(self._physics.model_pose(name)) for name in names]
+        robots = Boxes.joined([self.robots[name].placed(*pose) for name, pose in zip(names, poses)])
+        outlines = Boxes.joined([self._outlines[name].placed(*pose) for name, pose in zip(names, poses)])
+        return robots, outlines
+
+    def around(self, point: Floats, crowd: Crowd, dt: float, margin: float) -> tuple[Surroundings, list[str]]:
+        """The people (their velocities from where they were `dt` s ago) and shadows near `point`, and
+        the robots whose outlines lie within `margin` of it."""
+        reach = crowd.reach
         now = {name: np.array(self._physics.model_pose(name).position[:2]) for name in self.people}
-        near = [name for name, at in now.items() if float(np.hypot(*(at - point))) <= reach]
-        people = np.array([now[name] for name in near]).reshape(-1, 2)
-        motions = np.array([(now[n] - self._seen[n]) / dt if n in self._seen else np.zeros(2) for n in near])
+        close = [name for name, at in now.items() if float(np.hypot(*(at - point))) <= reach]
+        people = np.array([now[name] for name in close]).reshape(-1, 2)
+        motions = np.array([(now[n] - self._seen[n]) / dt if n in self._seen else np.zeros(2) for n in close])
         self._seen = now
-        poses = [_planar(self._physics.model_pose(name)) for name in self.robots]
-        robots = Boxes.joined([boxes.placed(*pose) for boxes, pose in zip(self.robots.values(), poses)])
-        outlines = Boxes.joined([box.placed(*pose) for box, pose in zip(self._outlines.values(), poses)])
-        near = self.obstacles.within(point, reach)
+        robots, outlines = self.robots_at(list(self.robots))
+        touching = [name for name, gap in zip(self.robots, outlines.nearest(point)[0]) if gap < margin]
+        near = self.obstacles_near(point, crowd.obstacle_reach)
         return Surroundings(
             people, motions.reshape(-1, 2), near, robots.within(point, reach), outlines.within(point, reach)
-        )
+        ), touching
 
 
 def _height(model: Model, frame: Transform) -> tuple[float, float]:
-    """The world heights a person takes up: from its proxy's soles (else its frame) up PROXY_HEIGHT."""
-    proxy = next((c for link in model.links[:1] for c in link.collisions), None)
-    feet = frame.position[2] + (proxy.pose.xyz[2] - PROXY_HEIGHT / 2 if proxy is not None else 0.0)
+    """The world heights a person takes up: from its soles (the lowest point of its collisions, the
+    proxy's or the legs' of an animated skin, as they stand in the SDF; else its frame) up PROXY_HEIGHT."""
+    corners = [collision_corners(c, link.pose.matrix()) for link in model.links for c in link.collisions]
+    lowest = [float(k[:, 2].min()) for k in corners if k is not None]
+    feet = frame.position[2] + (min(lowest) if lowest else 0.0)
     return feet + STEP_HEIGHT, feet + PROXY_HEIGHT
 
 
@@ -244,33 +283,52 @@ class SocialForce:
         self._physics, self._rng = ctx.physics, ctx.rng
         self._world = _World(ctx.physics, self._actor, *_height(model, frame))
         self._route, self._walker, self._goal, self._last_ns = self._initial_route, self._initial, self._initial_goal, 0
+        self._period_ns = max(1, round(1e9 / self._crowd.update_rate))
+        self._anchor, self._touching = self._initial.position, list[str]()
+        self._thought_ns: int | None = None
         self._put = self._place()
 
     def pre_update(self, info: UpdateInfo) -> None:
-        """One step of the model: forces, integration, the hard constraint, the actor put there."""
+        """One physics step: the forces again where an update is due (or the world changed), then
+        the position moved on with the velocity, kept clear of the robots, and the actor put there."""
         dt = (info.sim_time_ns - self._last_ns) / 1e9
         if info.paused or dt <= 0:
             return
         self._last_ns = info.sim_time_ns
         self._follow_teleport()
-        self._world.refresh()
-        crowd, walker = self._crowd, self._walker
-        around = self._world.around(walker.position, crowd.reach, dt)
+        changed = self._world.refresh()
+        if changed or self._thought_ns is None or info.sim_time_ns - self._thought_ns >= self._period_ns:
+            self._think(info.sim_time_ns)
+        walker, crowd = self._walker, self._crowd
+        position = walker.position + walker.velocity * dt
+        if self._touching:
+            position = outside(crowd, position, self._world.robots_at(self._touching)[0])
+        self._walker = Walker(position, walker.velocity, turned(crowd, walker.yaw, walker.velocity, dt))
+        self._put = self._place()
+
+    def _think(self, now_ns: int) -> None:
+        """The social force from where everyone stands now, the velocity steered by it over the update
+        period (semi-implicit Euler), the person put back outside people and obstacles."""
+        crowd, period = self._crowd, self._period_ns / 1e9
+        span = period if self._thought_ns is None else (now_ns - self._thought_ns) / 1e9
+        self._thought_ns = now_ns
+        walker = replace(self._walker, velocity=(self._walker.position - self._anchor) / span)
+        around, self._touching = self._world.around(walker.position, crowd, span, crowd.radius + CLOSING_SPEED * period)
         self._goal = self._route.after(self._goal, walker.position, crowd.waypoint_tolerance)
         goal = self._route.points[self._goal]
         heading = detour(crowd, walker.position, goal, around.outlines)
         arriving = self._route.arriving(self._goal) and heading is goal
         accel = acceleration(crowd, walker, heading, arriving, around)
-        kick = self._rng.standard_normal(2) * (crowd.noise * math.sqrt(dt))
-        moved = advance(crowd, walker, accel, dt, kick)
-        position = kept_clear(crowd, moved.position, around)
-        self._walker = replace(moved, position=position, velocity=(position - walker.position) / dt)
-        self._put = self._place()
+        kick = self._rng.standard_normal(2) * (crowd.noise * math.sqrt(span))
+        velocity = steered(crowd, walker.velocity, accel, span, kick)
+        position = kept_clear(crowd, walker.position, around)
+        self._walker, self._anchor = replace(walker, position=position, velocity=velocity), position
 
     def reset(self, info: UpdateInfo) -> None:
         """Back at its start, at rest, its route as the SDF gives it."""
         self._route, self._walker, self._goal = self._initial_route, self._initial, self._initial_goal
         self._height, self._last_ns = self._initial_height, info.sim_time_ns
+        self._anchor, self._thought_ns, self._touching = self._initial.position, None, []
         self._put = self._place()
 
     def _place(self) -> Transform:
@@ -287,4 +345,4 @@ class SocialForce:
         shift = np.array(now.position[:2]) - self._walker.position
         self._route = Route(self._route.points + shift, self._route.loop)
         self._walker = Walker(np.array(now.position[:2]), np.zeros(2), now.yaw)
-        self._height = now.position[2]
+        self._anchor, self._thought_ns, self._height = self._walker.position, None, now.position[2]
