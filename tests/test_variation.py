@@ -11,6 +11,7 @@ import json
 import math
 import subprocess
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from simbot.description import load_world
 from simbot.description.actor_scripts import ActorModel
 from simbot.description.additions import with_additions
 from simbot.description.footprints import overlap
+from simbot.sim.kit.actor_paths import ScriptPath
 from simbot.sim.loop.world import load_robot
 from simbot.variation import Profile, ProfileError, read_profile, vary
 from simbot.variation.clutter import PREFIX
@@ -115,6 +117,14 @@ def test_every_draw_stays_within_the_profile(warehouse, profile: Profile) -> Non
             assert isinstance(base, ActorModel)
             pace = base.script.trajectories[0].waypoints[-1].time / period
             assert profile.people.speed[0] - 1e-9 <= pace <= profile.people.speed[1] + 1e-9
+            assert (
+                profile.people.phase[0] * period - 1e-9
+                <= actor.script.played
+                <= profile.people.phase[1] * period + 1e-9
+            )
+            unplayed = ScriptPath.of(replace(actor.script, played=0.0))
+            start = ScriptPath.of(actor.script).pose_at(0.0)
+            assert np.allclose(start.position, unplayed.pose_at(actor.script.played).position, atol=1e-12)
         for link in variant.robot.links if variant.robot else ():
             for sensor in (s for s in link.sensors if s.type in NOISY_CAMERAS):
                 camera = next(p for p in sensor.params if p.tag == "camera")

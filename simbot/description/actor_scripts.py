@@ -78,6 +78,9 @@ class Script:
     delay_start: float = 0.0
     auto_start: bool = True
     trajectories: tuple[Trajectory, ...] = ()
+    played: float = 0.0
+    """Seconds of the script already played at sim time zero: where in its loop the actor starts
+    (a randomised world's starting phase, simbot.variation; SDF has no element for it, so 0 from a file)."""
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ describes each key; the shape, with the warehouse's values:
     speed = [0.7, 1.3]         # times its script's pace
     reverse = 0.5              # chance of walking its loop the other way round
     shift = [-0.2, 0.2]        # metres, its whole route along x and along y
+    phase = [0.0, 1.0]         # where in its loop it starts, a fraction of the loop's time
     [cameras]                  # every camera sensor of the world and the robot
     noise_stddev = [0.0, 0.02]
 
@@ -97,6 +98,7 @@ class People:
     speed: Range = (1.0, 1.0)
     reverse: float = 0.0
     shift: Range = (0.0, 0.0)
+    phase: Range = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -119,7 +121,7 @@ TABLES = {
     "textures": {"tint", "kinds"},
     "clutter": {"count", "area", "keep_clear", "clearance", "models"},
     "models": None,
-    "people": {"speed", "reverse", "shift"},
+    "people": {"speed", "reverse", "shift", "phase"},
     "cameras": {"noise_stddev"},
 }
 
@@ -297,4 +299,9 @@ class _Reader:
         speed = self.range("people.speed", table | {"speed": table.get("speed", 1.0)}, "speed", low=0.0)
         if speed[0] <= 0.0:
             raise self.error("people.speed", f"must be above 0, got {speed[0]:g}")
-        return People(speed, reverse, self.range("people.shift", table | {"shift": table.get("shift", 0.0)}, "shift"))
+        phase = self.range("people.phase", table | {"phase": table.get("phase", 0.0)}, "phase", low=0.0)
+        if phase[1] > 1.0:
+            raise self.error("people.phase", f"fractions of the loop from 0 to 1, got max {phase[1]:g}")
+        return People(
+            speed, reverse, self.range("people.shift", table | {"shift": table.get("shift", 0.0)}, "shift"), phase
+        )

@@ -11,7 +11,8 @@ cameras), so adding clutter to a profile leaves the sun of every seed as it was.
   and its colour the kind's tint (one per kind and world, per channel).
 - Models moved: a named model's pose offset in x, y and yaw.
 - People: each actor's script paced (times divided by the speed factor), its loop walked the other
-  way round at the profile's chance, its whole route shifted.
+  way round at the profile's chance, started a drawn fraction of the way round its loop (the
+  script's `played`, exact whatever the spline), its whole route shifted.
 - Clutter: models placed on free floor (`clutter.py`).
 - Cameras: each camera sensor's gaussian pixel noise.
 """
@@ -159,9 +160,11 @@ def _paced(model: Model, profile: Profile, rng: np.random.Generator) -> Model:
     speed = _uniform(rng, people.speed)
     backwards = bool(rng.random() < people.reverse)
     dx, dy = _uniform(rng, people.shift), _uniform(rng, people.shift)
+    phase = _uniform(rng, people.phase)
     trajectories = tuple(_walked(t, speed, backwards) for t in model.script.trajectories)
     (x, y, z), rpy = model.pose.xyz, model.pose.rpy
-    script = replace(model.script, trajectories=trajectories)
+    played = phase * sum(t.waypoints[-1].time for t in trajectories if t.waypoints) if model.script.loop else 0.0
+    script = replace(model.script, trajectories=trajectories, played=played)
     return replace(model, pose=Pose((x + dx, y + dy, z), rpy), script=script)
 
 

@@ -249,7 +249,7 @@ class ScriptPath:
         """The trajectory playing at `sim_time` and the time into it."""
         total = sum(path.duration for path in self.paths)
         time = sim_time - self.script.delay_start if self.script.auto_start else 0.0
-        time = max(time, 0.0)
+        time = max(time, 0.0) + self.script.played
         if not self.script.loop:
             time = min(time, total)
         elif time > total > 0:  # gz-sim subtracts the whole sequence while time exceeds it
