@@ -1,17 +1,17 @@
 """Benchmark of the crowd: what ten people walking by the social-force model (SocialForce) cost the
 server per step against ten walking their scripts, in one run.
 
-Two servers built in this process exactly as `simbot-server` builds them (`Server`, lockstep, a
+Four servers built in this process exactly as `simbot-server` builds them (`Server`, lockstep, a
 real Zenoh session): the warehouse with the Flexley Tug standing (its lidars, IMU, odometry, tf,
 poses and clock running; cameras idle) and `--actors` workers created through world control, each
 on bench_actors' 4 m beat, a row of them 1 m apart: in one server they walk their scripts (the
-Actors system), in the second each has a SocialForce `<plugin>` at its defaults (the forces from
-the others, the tug and the warehouse's racks every 10 ms, the position at every step), in the
-third the same with `<update_rate>1000</update_rate>` (the forces at every step). Each server steps
-`--steps` steps at a time, the three interleaved `--repeats` times; the figure is the median
-milliseconds per step of each, their ratio to the scripted, and the crowd's own cost per person
-per step (the difference over the number of people). Camera frames are not measured here: a
-crowd-driven person is drawn as a scripted one is.
+Actors system), in the others each has a SocialForce `<plugin>` with its forces from the others,
+the tug and the warehouse's racks updated at one of RATES (its default every 20 ms, every 10 ms,
+every 1 ms step), the position at every step. Each server steps `--steps` steps at a time, the
+four interleaved `--repeats` times; the figure is the median milliseconds per step of each, their
+ratio to the scripted, and the crowd's own cost per person per step (the difference over the
+number of people). Camera frames are not measured here: a crowd-driven person is drawn as a
+scripted one is.
 
     python benchmarks/bench_crowd.py [--actors N] [--steps S] [--repeats R]
 """
@@ -22,7 +22,7 @@ import argparse
 import statistics
 import uuid
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 
 from bench_actors import ACTOR, MESHES, ms_per_step
 from bench_server import free_port
@@ -30,12 +30,14 @@ from tables import publish
 
 from simbot.bus import BusOptions, Node
 from simbot.description.resources import asset
+from simbot.sim.kit.social_force import Crowd
 from simbot.sim.loop.simulation import Mode
 from simbot.sim.loop.world_control import create_request
 from simbot.sim.server import Server, ServerConfig, world_path
 
 PLUGIN = '<plugin name="simbot::systems::SocialForce" filename="simbot-social-force-system">{}</plugin>'
-EVERY_STEP = "<update_rate>1000</update_rate>"
+RATES = (Crowd().update_rate, 100.0, 1000.0)
+"""Hz: the plugin's forces updated at its default, every 10 ms and at every 1 ms step."""
 
 
 @contextmanager
@@ -61,17 +63,18 @@ def server(actors: int, crowd: str | None) -> Iterator[Server]:
             built.close()
 
 
-def step_costs(actors: int, steps: int, repeats: int) -> tuple[float, float, float]:
-    """Median ms per step: `actors` scripted workers, the same crowd-driven, and with the forces at every step."""
-    runs: tuple[list[float], list[float], list[float]] = ([], [], [])
-    with server(actors, None) as scripted, server(actors, "") as crowd, server(actors, EVERY_STEP) as every:
-        built = (scripted, crowd, every)
+def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
+    """Median ms per step: `actors` scripted workers, then the same crowd-driven at each of RATES."""
+    configs = [None, *(f"<update_rate>{rate:g}</update_rate>" for rate in RATES)]
+    runs: list[list[float]] = [[] for _ in configs]
+    with ExitStack() as stack:
+        built = [stack.enter_context(server(actors, crowd)) for crowd in configs]
         for one in built:  # past the first steps' one-off costs
             ms_per_step(one, 200)
         for _ in range(repeats):
             for one, figures in zip(built, runs, strict=True):
                 figures.append(ms_per_step(one, steps))
-    return statistics.median(runs[0]), statistics.median(runs[1]), statistics.median(runs[2])
+    return [statistics.median(figures) for figures in runs]
 
 
 def main() -> None:
@@ -80,14 +83,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
-    scripted, crowd, every = step_costs(args.actors, args.steps, args.repeats)
+    scripted, *crowd = step_costs(args.actors, args.steps, args.repeats)
     table = [
         f"| warehouse, tug standing, {args.actors} workers | ms per server step | ratio | ms per person per step over scripted |",
         "| --- | --- | --- | --- |",
         f"| walking their scripts (Actors) | {scripted:.3f} | 1.00 | — |",
         *(
-            f"| crowd-driven (SocialForce), {what} | {ms:.3f} | {ms / scripted:.2f} | {(ms - scripted) / args.actors:.3f} |"
-            for what, ms in (("forces every 10 ms (default)", crowd), ("forces every step", every))
+            f"| crowd-driven (SocialForce), forces every {1000 / rate:g} ms{' (default)' * (i == 0)} | {ms:.3f} | "
+            f"{ms / scripted:.2f} | {(ms - scripted) / args.actors:.3f} |"
+            for i, (rate, ms) in enumerate(zip(RATES, crowd, strict=True))
         ),
     ]
     publish("crowd", table)

@@ -1,7 +1,8 @@
 """A crowd that gives way (simbot.sim.systems.crowd, simbot.sim.kit.social_force).
 
 The kit's arithmetic alone: two people walking head-on pass each other at least two radii apart;
-a person alone takes up its desired speed within a few relaxation times and reaches its goal.
+a person alone takes up its desired speed within a few relaxation times and reaches its goal; a
+wall farther than the obstacles' cutoff leaves a person on its line, a nearer one pushes it away.
 
 Then a real server in lockstep (tests/fixtures/crowd.sdf, the tug at its spawn (−2.5, 0), its
 chassis 2.1 × 0.5 m): `crosser`'s route runs across the standing tug, 0.2 m off its middle; it
@@ -25,12 +26,13 @@ from server_helpers import REPO, SimServer, running_server
 from simbot.sim.kit.social_force import Boxes, Crowd, Surroundings, Walker, acceleration, advance, kept_clear
 
 WORLD = REPO / "tests" / "fixtures" / "crowd.sdf"
-DT = 0.001
+DT = 1 / Crowd().update_rate
+"""Seconds: the kit stepped as the plugin updates its forces."""
 RADIUS = Crowd().radius
 TUG_HALF = (1.05, 0.25)
 """The chassis collision box 2.1 × 0.5 m, centred on the model frame (SPEC.md)."""
-STEP_TRAVEL = 0.5 * DT
-"""Metres the tug driven at 0.5 m/s moves in one step, after the person was placed."""
+STEP_TRAVEL = 0.5 * 0.001
+"""Metres the tug driven at 0.5 m/s moves in one physics step (1 ms), after the person was placed."""
 NONE = Boxes.of([])
 
 
@@ -59,19 +61,31 @@ def _walk(crowd: Crowd, walkers: list[Walker], goals: list[np.ndarray], steps: i
 def test_two_people_walking_head_on_pass_each_other_two_radii_apart() -> None:
     crowd = Crowd()
     a, b = Walker(np.array([-5.0, 0.0]), np.zeros(2), 0.0), Walker(np.array([5.0, 0.0]), np.zeros(2), math.pi)
-    track = _walk(crowd, [a, b], [np.array([6.0, 0.0]), np.array([-6.0, 0.0])], 14000)
+    track = _walk(crowd, [a, b], [np.array([6.0, 0.0]), np.array([-6.0, 0.0])], round(14 / DT))
     nearest = min(float(np.hypot(*(x.position - y.position))) for x, y in track)
     assert nearest >= 2 * crowd.radius, f"they came {nearest:.3f} m apart"
+    print(f"\nmeasured: they passed {nearest:.2f} m apart")
     a, b = track[-1]
     assert a.position == pytest.approx((6.0, 0.0), abs=0.05) and b.position == pytest.approx((-6.0, 0.0), abs=0.05)
 
 
 def test_a_person_alone_takes_up_its_desired_speed_and_reaches_its_goal() -> None:
     crowd = Crowd()
-    track = _walk(crowd, [Walker(np.zeros(2), np.zeros(2), 0.0)], [np.array([20.0, 0.0])], 16000)
+    track = _walk(crowd, [Walker(np.zeros(2), np.zeros(2), 0.0)], [np.array([20.0, 0.0])], round(16 / DT))
     after = track[int(3 * crowd.relaxation_time / DT)][0]
     assert float(np.hypot(*after.velocity)) == pytest.approx(crowd.desired_speed, rel=0.06)
     assert min(float(np.hypot(*(w.position - (20.0, 0.0)))) for (w,) in track) < crowd.waypoint_tolerance
+
+
+def test_a_wall_beyond_the_cutoff_leaves_a_person_on_its_line_and_a_nearer_one_pushes_it_off() -> None:
+    crowd = Crowd()
+    walker, goal = Walker(np.zeros(2), np.array([crowd.desired_speed, 0.0]), 0.0), np.array([10.0, 0.0])
+    alone = acceleration(crowd, walker, goal, False, Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), NONE, NONE, NONE))
+    for gap, pushed in ((crowd.obstacle_cutoff + 1e-3, False), (crowd.obstacle_cutoff / 2, True)):
+        wall = Boxes.of([(0.0, crowd.radius + gap + 0.1, 0.0, 5.0, 0.1)])  # its face `gap` beyond the radius
+        around = Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), wall, NONE, NONE)
+        push = acceleration(crowd, walker, goal, False, around) - alone
+        assert (push[1] < 0) == pushed and push[0] == pytest.approx(0.0, abs=1e-12), (gap, push)
 
 
 def test_the_hard_constraint_puts_a_person_outside_a_footprint_grown_by_its_radius() -> None:
@@ -114,6 +128,7 @@ def test_a_worker_crossing_the_standing_tug_goes_round_it_and_rejoins_its_route(
     states = _run(sim, 12.0)
     nearest = min(_footprint_distance(state, "crosser") for state in states)
     assert nearest >= 0.5, f"the crosser came {nearest:.3f} m from the tug's chassis"
+    print(f"\nmeasured: the crosser passed {nearest:.2f} m from the tug's chassis")
     far = min(math.dist(state["models"]["crosser"]["position"][:2], (-2.3, 3.0)) for state in states)
     assert far <= Crowd().waypoint_tolerance + 0.05, f"the crosser came no nearer its far waypoint than {far:.2f} m"
 

@@ -59,7 +59,7 @@ class Crowd:
     noise: float = 0.05
     turn_rate: float = math.pi
     waypoint_tolerance: float = 0.3
-    update_rate: float = 100.0
+    update_rate: float = 50.0
 
     @property
     def reach(self) -> float:
@@ -125,27 +125,32 @@ class Boxes:
 
     def nearest(self, point: Floats) -> tuple[Floats, Floats]:
         """(distance, normal) of `point` from each rectangle: the distance to its nearest point (negative
-        inside, by the depth to its nearest side) and the unit vector from there out towards `point`."""
-        if not len(self):
-            return np.zeros(0), np.zeros((0, 2))
-        offset = point - self.centres
-        cos, sin = self.axes[:, 0], self.axes[:, 1]
-        local = np.stack([offset[:, 0] * cos + offset[:, 1] * sin, offset[:, 1] * cos - offset[:, 0] * sin], axis=1)
-        outside = local - np.clip(local, -self.halves, self.halves)
-        distance = np.hypot(*outside.T)
-        depth = self.halves - np.abs(local)
-        side = np.argmin(depth, axis=1)
-        inside = distance == 0.0
-        rows = np.arange(len(local))
-        escape = np.zeros_like(local)
-        escape[rows, side] = np.where(local[rows, side] < 0, -1.0, 1.0)
-        normal_local = np.where(inside[:, None], escape, outside / np.where(inside, 1.0, distance)[:, None])
-        distance = np.where(inside, -depth[rows, side], distance)
-        normal = np.stack(
-            [normal_local[:, 0] * cos - normal_local[:, 1] * sin, normal_local[:, 0] * sin + normal_local[:, 1] * cos],
-            axis=1,
-        )
-        return distance, normal
+        inside, by the depth to its nearest side) and the unit vector from there out towards `point`.
+        In plain floats, rectangle by rectangle: a person has a handful near it, where numpy's
+        per-call cost is most of the work."""
+        px, py = float(point[0]), float(point[1])
+        rows = [
+            _from_rectangle(px - cx, py - cy, cos, sin, hx, hy)
+            for (cx, cy), (cos, sin), (hx, hy) in zip(self.centres.tolist(), self.axes.tolist(), self.halves.tolist())
+        ]
+        table = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+        return table[:, 0].copy(), table[:, 1:].copy()
+
+
+def _from_rectangle(dx: float, dy: float, cos: float, sin: float, hx: float, hy: float) -> tuple[float, float, float]:
+    """(distance, normal x, normal y) of the offset (dx, dy) from a rectangle's centre (see `Boxes.nearest`)."""
+    lx, ly = dx * cos + dy * sin, dy * cos - dx * sin
+    ox, oy = lx - max(-hx, min(hx, lx)), ly - max(-hy, min(hy, ly))
+    distance = math.hypot(ox, oy)
+    if distance > 0.0:
+        nx, ny = ox / distance, oy / distance
+    else:  # inside: out through the nearest side
+        depth_x, depth_y = hx - abs(lx), hy - abs(ly)
+        if depth_y < depth_x:
+            distance, nx, ny = -depth_y, 0.0, (-1.0 if ly < 0 else 1.0)
+        else:
+            distance, nx, ny = -depth_x, (-1.0 if lx < 0 else 1.0), 0.0
+    return distance, nx * cos - ny * sin, nx * sin + ny * cos
 
 
 @dataclass(frozen=True)
@@ -276,9 +281,10 @@ def advance(crowd: Crowd, walker: Walker, accel: Floats, dt: float, kick: Floats
 
 def turned(crowd: Crowd, yaw: float, velocity: Floats, dt: float) -> float:
     """The heading turned towards the velocity at no more than `turn_rate`; kept when barely moving."""
-    if float(np.hypot(*velocity)) < RESTING_SPEED:
+    vx, vy = float(velocity[0]), float(velocity[1])
+    if math.hypot(vx, vy) < RESTING_SPEED:
         return yaw
-    wanted = math.atan2(float(velocity[1]), float(velocity[0]))
+    wanted = math.atan2(vy, vx)
     error = math.atan2(math.sin(wanted - yaw), math.cos(wanted - yaw))
     limit = crowd.turn_rate * dt
     turned = yaw + max(-limit, min(limit, error))

@@ -4,10 +4,15 @@ A `<plugin>` of an `<actor>` (`<plugin name="simbot::systems::SocialForce"
 filename="simbot-social-force-system">`). It moves the actor in place of its script
 (`ActorDriver`): the person walks towards each waypoint of its route in turn and keeps its
 distance from other people, from the static world (walls, racks, pillars) and from every body
-that moves by itself (the tug, a cart), by the forces of simbot.sim.kit.social_force, integrated at
-every physics step in sim time. A hard constraint after each step keeps it `radius` clear of the
-robots' footprints: a person the tug blocks or drives at slows, steps aside or stops, never walks
-through it; a robot put onto a person (set_pose) pushes it aside at the next step.
+that moves by itself (the tug, a cart), by the forces of simbot.sim.kit.social_force, in sim time.
+The forces and the velocity are updated `update_rate` times a second (every 20 ms: what the
+people, walls and tug around do changes little in that time, which is 25 times shorter than τ),
+the position at every physics step with that velocity; what each rate costs is measured on the
+warehouse with ten people (benchmarks/bench_crowd.py, docs/speed.md). At each update the person
+is put back outside the others and the obstacles; at every step it is kept `radius` clear of the
+footprints of the robots that were near it at the last update (those that may close in by
+CLOSING_SPEED before the next): a person the tug blocks or drives at slows, steps aside or stops,
+never walks through it; a robot put onto a person (set_pose) pushes it aside at the next step.
 
 The route: the positions of the actor's own `<script>` waypoints (in the actor's frame, the turns
 on the spot dropped), walked from where the script has it at time 0 and looped as the script
@@ -26,21 +31,26 @@ waypoint, where the person stands (still giving way).
 | `anisotropy` | 0.5 | Helbing & Molnár 1995 (c 0.5 behind) | λ: weight of who is behind (1: all alike) |
 | `obstacle_strength` | 10 | Helbing & Molnár 1995 (U⁰ 10 m²/s²) | m/s²: from walls and static shapes |
 | `obstacle_range` | 0.2 | Helbing & Molnár 1995 (R 0.2 m) | m: from walls and static shapes |
-| `robot_strength` | 10 | as obstacles | m/s²: from bodies that move by themselves |
+| `obstacle_cutoff` | 0.5 | simbot: people walk 0.5 m and more off a rack face without being pushed off their line | m: a gap (beyond the radius) at which an obstacle's force has tapered to nothing |
+| `robot_strength` | 2.1 | as people | m/s²: from bodies that move by themselves (their outlines) |
 | `robot_range` | 0.4 | simbot: twice a wall's, room for a 2 m machine that may move | m |
 | `noise` | 0.05 | simbot (Helbing, Farkas & Vicsek 2000's fluctuation term) | m/s per √s: velocity jitter, breaks ties |
 | `turn_rate` | π | simbot | rad/s: the heading turns towards the velocity at most this fast |
 | `waypoint_tolerance` | 0.3 | simbot | m: a waypoint this near is reached |
+| `update_rate` | 50 | simbot: measured (above) | Hz: how often the forces are updated; the position moves at every step |
 | `loop` | the script's | — | the plugin's waypoints: walk them for ever |
 | `waypoints`/`waypoint` | the script's | — | x y, world frame |
 
 The forces' strengths are Helbing & Molnár's potentials' V⁰ and U⁰ taken as accelerations at
 contact, A·exp((r − d)/B). A value out of range (a negative speed, τ ≤ 0, λ outside 0..1) leaves
 the plugin out with one line naming the actor and the element: the actor walks its script.
-Obstacles: the collisions of static models reaching into the person's height (its proxy's),
-each as the rectangle holding its shadow (meshes are not obstacles); read when the set of bodies
-changes. Robots and other moving bodies (not actors): the same shadows, moved with the body at
-every step. Other people are discs of this person's radius, read from the physics. The jitter is
+Obstacles: the collisions of static models reaching into the person's height (from its soles, the
+lowest point of its proxy or legs, up PROXY_HEIGHT), each as the rectangle holding its shadow
+(meshes are not obstacles); read when the set of bodies changes, and those within CACHE_SLACK of
+the obstacles' reach kept until the person has walked CACHE_SLACK. Bodies that move but have no
+plugin of their own (a trolley) are obstacles too, read where they stand at each update. Robots,
+the moving bodies with plugins (not actors): the same shadows, moved with the body; the force
+from the one rectangle holding them. Other people are discs of this person's radius, read from the physics. The jitter is
 drawn from this system's own random stream: lockstep runs repeat bit for bit. `set_pose` on the
 actor moves its route with it (its start where it was put); `reset` takes it back to its start.
 """
@@ -220,28 +230,28 @@ class _World:
         placed = [boxes.placed(*_planar(self._physics.model_pose(name))) for name, boxes in self.movables.items()]
         return Boxes.joined([self._near, *(boxes.within(point, reach) for boxes in placed)])
 
-    def robots_at(self, names: list[str]) -> tuple[Boxes, Boxes]:
-        """The footprints of the robots `names` where they stand now, and their outlines."""
-        poses = [_planar(self._physics.model_pose(name)) for name in names]
-        robots = Boxes.joined([self.robots[name].placed(*pose) for name, pose in zip(names, poses)])
-        outlines = Boxes.joined([self._outlines[name].placed(*pose) for name, pose in zip(names, poses)])
-        return robots, outlines
+    def robots_at(self, names: list[str]) -> Boxes:
+        """The footprints of the robots `names` where they stand now."""
+        return Boxes.joined([self.robots[n].placed(*_planar(self._physics.model_pose(n))) for n in names])
+
+    def outlines_at(self, names: list[str]) -> Boxes:
+        """The outlines of the robots `names` where they stand now."""
+        return Boxes.joined([self._outlines[n].placed(*_planar(self._physics.model_pose(n))) for n in names])
 
     def around(self, point: Floats, crowd: Crowd, dt: float, margin: float) -> tuple[Surroundings, list[str]]:
-        """The people (their velocities from where they were `dt` s ago) and shadows near `point`, and
-        the robots whose outlines lie within `margin` of it."""
+        """The people (their velocities from where they were `dt` s ago), the obstacles and the robots'
+        outlines near `point` (no footprints: the robots within `margin` of it, the names returned,
+        are kept clear at every step), and the robots whose outlines lie within `margin` of it."""
         reach = crowd.reach
         now = {name: np.array(self._physics.model_pose(name).position[:2]) for name in self.people}
         close = [name for name, at in now.items() if float(np.hypot(*(at - point))) <= reach]
         people = np.array([now[name] for name in close]).reshape(-1, 2)
         motions = np.array([(now[n] - self._seen[n]) / dt if n in self._seen else np.zeros(2) for n in close])
         self._seen = now
-        robots, outlines = self.robots_at(list(self.robots))
+        outlines = self.outlines_at(list(self.robots))
         touching = [name for name, gap in zip(self.robots, outlines.nearest(point)[0]) if gap < margin]
         near = self.obstacles_near(point, crowd.obstacle_reach)
-        return Surroundings(
-            people, motions.reshape(-1, 2), near, robots.within(point, reach), outlines.within(point, reach)
-        ), touching
+        return Surroundings(people, motions.reshape(-1, 2), near, Boxes.of([]), outlines.within(point, reach)), touching
 
 
 def _height(model: Model, frame: Transform) -> tuple[float, float]:
@@ -302,7 +312,7 @@ class SocialForce:
         walker, crowd = self._walker, self._crowd
         position = walker.position + walker.velocity * dt
         if self._touching:
-            position = outside(crowd, position, self._world.robots_at(self._touching)[0])
+            position = outside(crowd, position, self._world.robots_at(self._touching))
         self._walker = Walker(position, walker.velocity, turned(crowd, walker.yaw, walker.velocity, dt))
         self._put = self._place()
 
