@@ -18,7 +18,7 @@ from simbot.description.sdf_reader import load_world
 from simbot.description.skeleton_poses import ClipFile, load_rig
 from simbot.sim.loop.system import ModelEvent, UpdateInfo
 from simbot.sim.physics import Physics
-from simbot.sim.systems.actors import Actors
+from simbot.sim.systems.actors import LEGS_PERIOD_NS, Actors
 
 REPO = Path(__file__).resolve().parents[1]
 MESHES = REPO / "worlds" / "models" / "worker" / "meshes"
@@ -134,18 +134,49 @@ def test_at_double_support_the_lidar_sees_two_legs_at_the_widths_and_spacing_of_
         assert_seen_as(returns(physics, 0.0), expected)
 
 
-def test_a_walking_workers_legs_cross_and_part_over_a_gait_cycle(tmp_path: Path, rig: ActorRig) -> None:
-    """Walked by the actors system for a cycle and a half at 1 m/s: at every sample the lidar sees
-    the legs where the skeleton has them at the clip's time; some samples show one run (the legs
-    crossing) and some two (parted)."""
-    counts = []
+@contextmanager
+def walked(tmp_path: Path) -> Iterator[tuple[Physics, Iterator[int]]]:
+    """The worker walked by the actors system at 1 ms steps: the physics, and the steps one by one
+    (each yielded after the physics has stepped)."""
     with worker(tmp_path) as physics:
         actors = Actors(SimpleNamespace(physics=physics))  # type: ignore[arg-type]
         actors.model_added(ModelEvent("bob", ("bob",), ()))
-        for k in range(1, 2200):  # from 0.5 s the worker walks at 1 m/s
-            actors.pre_update(UpdateInfo(k * 1_000_000, 1_000_000, 1))
-            physics.step()
-            if k % 20 == 0 and k > 500:
+
+        def steps() -> Iterator[int]:
+            for k in range(1, 2200):  # from 0.5 s the worker walks at 1 m/s
+                actors.pre_update(UpdateInfo(k * 1_000_000, 1_000_000, 1))
+                physics.step()
+                yield k
+
+        yield physics, steps()
+
+
+def test_the_legs_are_posed_every_10_ms_of_sim_time_and_hold_their_pose_between(tmp_path: Path) -> None:
+    """The clip's time (and with it every leg joint) changes at the first step and at each multiple
+    of LEGS_PERIOD_NS, never between: a 10 Hz lidar's every tick reads legs posed for its instant."""
+    assert LEGS_PERIOD_NS == 10_000_000
+    changed = []
+    with walked(tmp_path) as (physics, steps):
+        last = physics.body_state("bob")[1]  # as it entered, at time zero
+        for k in steps:
+            joints = physics.body_state("bob")[1]
+            if joints != last:
+                changed.append(k)
+            last = joints
+            if k == 300:
+                break
+    assert changed == [1, *range(10, 301, 10)], changed
+
+
+def test_a_walking_workers_legs_cross_and_part_over_a_gait_cycle(tmp_path: Path, rig: ActorRig) -> None:
+    """Walked by the actors system for a cycle and a half at 1 m/s: at every sample (every 20 ms, a
+    step at which the legs are posed, so the lidar, the frame and the legs agree on the instant)
+    the lidar sees the legs where the skeleton has them at the clip's time they were posed for; some
+    samples show one run (the legs crossing) and some two (parted)."""
+    counts = []
+    with walked(tmp_path) as (physics, steps):
+        for k in steps:
+            if k % 20 == 0 and k > 500:  # a posing step (LEGS_PERIOD_NS 10 ms)
                 base, joints = physics.body_state("bob")
                 expected = skeleton_legs(rig, joints[CLIP_TIME])
                 gaps = [] if expected is None else [b[0] - a[1] for a, b in zip(expected, expected[1:], strict=False)]

@@ -29,10 +29,16 @@ origin, as Gazebo's set_pose sets an actor's Pose component), so it walks its sc
 (`ActorDriver`: FollowActor) is left to that system, as a TrajectoryPose overrides the script in gz-sim.
 
 An actor whose skin has a skeleton and animations (simbot.description.actor_legs) has its legs
-posed here too, each step, whoever moves it: the clip's time from the distance its frame has
-moved in the floor plane (summed each step; a jump over MAX_STRIDE_M, a teleport, is not walked)
-or from the sim time, the clip its trajectory's `type` names; the legs' joints and the
-`body_skin_*` joints that the cameras pose the skin from are set to it.
+posed here too, whoever moves it, every LEGS_PERIOD_NS of sim time (100 Hz: the first step at or
+after each multiple of it, as a sensor's own rate; at once when it enters and on reset): the clip's
+time from the distance its frame has moved in the floor plane (summed at each posing; a jump over
+MAX_STRIDE_M, a teleport, is not walked) or from the sim time, the clip its trajectory's `type`
+names; the legs' joints and the `body_skin_*` joints that the cameras pose the skin from are set
+to it. Between posings the legs hold their pose on the moving frame. Posing every step cost
+most of an animated worker's time in the step (benchmarks/bench_actors.py, docs/actors.md); a
+lidar at a rate whose period is a multiple of 10 ms (the tug's 10 Hz) reads legs posed for its
+own instant, and a camera at 30 Hz draws the skin and legs as they were up to 10 ms earlier
+(a foot moves 2–4 cm in that time at walking speed).
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ from simbot.description.actor_legs import GAIT_SAMPLES, ActorRig
 from simbot.description.actor_scripts import BODY, ActorModel, SkinnedMesh
 from simbot.description.skeleton_poses import load_rig
 from simbot.sim.kit.actor_paths import ActorDriver, ScriptPath
+from simbot.sim.kit.rates import Every
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
 from simbot.transform import Transform
@@ -56,7 +63,11 @@ control's set_pose): PyBullet's transforms round to single precision, a few µm 
 TURNED_TOLERANCE = 1e-6
 """1 − |q·q'| beyond which it counts as turned (about 3 mrad)."""
 MAX_STRIDE_M = 1.0
-"""Metres an actor's frame may move in one step and count as walked (more: it was put there)."""
+"""Metres an actor's frame may move between two posings of its legs and count as walked (more: it
+was put there)."""
+LEGS_PERIOD_NS = 10_000_000
+"""Sim time between posings of animated legs (see the module docstring): a multiple of it is the
+instant of every lidar tick at 10, 20, 25, 50 or 100 Hz."""
 
 
 @dataclass
@@ -129,6 +140,7 @@ class Actors:
         self._physics = ctx.physics
         self._actors: dict[str, _Actor] = {}
         self._now_ns = 0
+        self._legs = Every(LEGS_PERIOD_NS)
 
     def model_added(self, event: ModelEvent) -> None:
         """An actor enters: from now on it follows its script, placed at once where the script has it now."""
@@ -142,7 +154,7 @@ class Actors:
                 frame = self._physics.model_pose(body)
                 actor = _Actor(body, ScriptPath.of(model.script), frame, frame, scripted=not driven, gait=gait)
                 self._actors[body] = actor
-                self._update(actor, self._now_ns)
+                self._update(actor, self._now_ns, legs=True)
 
     def model_removed(self, event: ModelEvent) -> None:
         for body in event.bodies:
@@ -151,28 +163,32 @@ class Actors:
     def pre_update(self, info: UpdateInfo) -> None:
         """Every actor where its script puts it at the time this step reaches."""
         self._now_ns = info.sim_time_ns
+        legs = self._legs.due(info.sim_time_ns)
         for actor in self._actors.values():
             if actor.scripted:
                 self._follow_teleport(actor)
-            self._update(actor, info.sim_time_ns)
+            self._update(actor, info.sim_time_ns, legs)
 
     def reset(self, info: UpdateInfo) -> None:
         """Each actor back in its first frame, where its script has it at time zero."""
         self._now_ns = info.sim_time_ns
+        self._legs.restart()
         for actor in self._actors.values():
             actor.origin, actor.put = actor.initial, None
             if actor.gait is not None:
                 actor.gait.distance, actor.gait.last = 0.0, None
-            self._update(actor, info.sim_time_ns)
+            self._update(actor, info.sim_time_ns, legs=True)
 
-    def _update(self, actor: _Actor, now_ns: int) -> None:
-        """A scripted actor where its script has it; an animated one's legs as its gait has them."""
+    def _update(self, actor: _Actor, now_ns: int, legs: bool) -> None:
+        """A scripted actor where its script has it; an animated one's legs, where `legs`, as its gait has them."""
         if actor.scripted:
             actor.put = compose(actor.origin, actor.path.pose_at(now_ns / 1e9))
             self._physics.set_model_pose(actor.name, actor.put)
-        gait = actor.gait
-        if gait is None:
-            return
+        if legs and actor.gait is not None:
+            self._pose_legs(actor, actor.gait, now_ns)
+
+    def _pose_legs(self, actor: _Actor, gait: _Gait, now_ns: int) -> None:
+        """The legs' joints at the clip's time: from the distance walked since the last posing, or the sim time."""
         x, y, _ = (
             actor.put if actor.scripted and actor.put is not None else self._physics.model_pose(actor.name)
         ).position
