@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from server_helpers import REPO, SimServer, running_server
 
-from simbot.sim.kit.social_force import Boxes, Crowd, Surroundings, Walker, acceleration, advance, kept_clear
+from simbot.sim.kit.social_force import Boxes, Crowd, Route, Surroundings, Walker, acceleration, advance, kept_clear
 
 WORLD = REPO / "tests" / "fixtures" / "crowd.sdf"
 DT = 1 / Crowd().update_rate
@@ -170,3 +170,14 @@ def test_a_parameter_out_of_range_leaves_the_plugin_out_and_the_actor_walks_its_
     # its script: from (−2.3, −3) to (−2.3, 3) in 7.5 s at tension 1 (eased in: s² (3 − 2s) of the way)
     s = 1.0 / 7.5
     assert (x, y) == pytest.approx((-2.3, -3.0 + 6.0 * s * s * (3 - 2 * s)), abs=0.01)
+
+
+def test_a_person_starting_part_of_the_way_round_walks_on() -> None:
+    """A randomised world may start a person part of the way round its loop (simbot.variation's phase):
+    its first goal is the end of the leg it stands on, not the loop's first point."""
+    square = Route.of([(0.0, 0.0), (4.0, 0.0), (4.0, 4.0), (0.0, 4.0), (0.0, 0.0)], loop=True)
+    assert square.ahead(np.array([0.0, 0.0]), 0.3) == 1
+    assert square.ahead(np.array([3.0, 0.0]), 0.3) == 1
+    assert square.ahead(np.array([4.0, 2.5]), 0.3) == 2
+    assert square.ahead(np.array([0.0, 1.0]), 0.3) == 0
+    assert square.ahead(np.array([3.9, 0.0]), 0.3) == 2, "within the tolerance of a corner: on to the next"

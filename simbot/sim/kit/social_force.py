@@ -386,3 +386,23 @@ class Route:
         if float(np.hypot(*(self.points[index] - position))) > tolerance or self.arriving(index):
             return index
         return (index + 1) % len(self.points)
+
+    def ahead(self, position: Floats, tolerance: float) -> int:
+        """The waypoint a person standing at `position` on the route walks to first: the end of the
+        leg nearest to it (the first such leg on a tie), so that one who starts part of the way round
+        (a randomised world's starting phase) walks on, not back to the route's first point."""
+        count = len(self.points)
+        if count < 2:
+            return 0
+        legs = range(count if self.loop else count - 1)
+        nearest = min(legs, key=lambda i: _to_segment(position, self.points[i], self.points[(i + 1) % count]))
+        return self.after((nearest + 1) % count, position, tolerance)
+
+
+def _to_segment(point: Floats, start: Floats, end: Floats) -> float:
+    """The distance from `point` to the segment from `start` to `end`."""
+    ax, ay = float(end[0] - start[0]), float(end[1] - start[1])
+    px, py = float(point[0] - start[0]), float(point[1] - start[1])
+    length2 = ax * ax + ay * ay
+    t = 0.0 if length2 == 0.0 else min(1.0, max(0.0, (px * ax + py * ay) / length2))
+    return math.hypot(t * ax - px, t * ay - py)

@@ -289,7 +289,7 @@ class SocialForce:
         self._initial_route = Route.of(listed or points or [start.position[:2]], loop)
         self._height = self._initial_height = start.position[2]
         self._initial = Walker(np.array(start.position[:2]), np.zeros(2), start.yaw)
-        self._initial_goal = self._initial_route.after(0, self._initial.position, self._crowd.waypoint_tolerance)
+        self._initial_goal = self._initial_route.ahead(self._initial.position, self._crowd.waypoint_tolerance)
         self._physics, self._rng = ctx.physics, ctx.rng
         self._world = _World(ctx.physics, self._actor, *_height(model, frame))
         self._route, self._walker, self._goal, self._last_ns = self._initial_route, self._initial, self._initial_goal, 0
