@@ -5,10 +5,12 @@
    (`Server`, lockstep, a real Zenoh session): the warehouse with the Flexley Tug standing (its
    lidars, IMU, odometry, tf, poses and clock running; cameras idle); the same with `--actors`
    workers (simbot's own skin) created through world control, each walking a 4 m loop at 1 m/s
-   as a rigid figure (no `<animation>`: the bind pose and one capsule); and the same workers
-   animated (the walk cycle with `<interpolate_x>`: the legs posed from the skeleton each step).
-   Each server steps `--steps` steps at a time, the three interleaved `--repeats` times; the
-   figure is the median milliseconds per step of each.
+   as a rigid figure (no `<animation>`: the bind pose and one capsule); the same workers
+   animated (the walk cycle with `<interpolate_x>`: the legs posed from the skeleton every
+   LEGS_PERIOD_NS of sim time, 10 ms, as `Actors` poses them); and animated with the legs posed
+   every 1 ms step (LEGS_PERIOD_NS patched while that server is built: what posing them at the
+   physics rate would cost). Each server steps `--steps` steps at a time, the four interleaved
+   `--repeats` times; the figure is the median milliseconds per step of each.
 2. Camera frames. The warehouse with its people (`--add warehouse_people`), animated and, from a
    copy without their `<animation>`s, rigid: the robot's six cameras drawn at 640×480 by the
    OpenGL renderer (one llvmpipe thread) on a copy of each server's scene. Each frame set, the
@@ -30,7 +32,7 @@ import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +50,7 @@ from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.specs import BodyState
 from simbot.sim.server import Server, ServerConfig, world_path
+from simbot.sim.systems import actors as actors_system
 from simbot.sim.systems.camera_rendering import world_light
 
 REPO = Path(__file__).resolve().parents[1]
@@ -71,6 +74,18 @@ ACTOR = """<?xml version="1.0"?>
 </sdf>
 """
 FRAME_SIZE = (640, 480)
+EVERY_STEP_NS = 1_000_000
+
+
+@contextmanager
+def legs_posed_every(period_ns: int) -> Iterator[None]:
+    """Servers built inside pose animated legs every `period_ns` (`Actors` reads it as it is built)."""
+    default = actors_system.LEGS_PERIOD_NS
+    actors_system.LEGS_PERIOD_NS = period_ns
+    try:
+        yield
+    finally:
+        actors_system.LEGS_PERIOD_NS = default
 
 
 @contextmanager
@@ -109,18 +124,21 @@ def ms_per_step(built: Server, steps: int) -> float:
     return (time.perf_counter() - start) / steps * 1e3
 
 
-def step_costs(actors: int, steps: int, repeats: int) -> tuple[float, float, float]:
-    """Median ms per step: the bare warehouse, with `actors` rigid workers, with them animated."""
-    runs: tuple[list[float], list[float], list[float]] = ([], [], [])
-    with server() as bare, server(actors) as rigid, server(actors, animated=True) as animated:
-        built = (bare, rigid, animated)
+def step_costs(actors: int, steps: int, repeats: int) -> tuple[float, ...]:
+    """Median ms per step: the bare warehouse, with `actors` rigid workers, with them animated,
+    and animated with their legs posed every step."""
+    with ExitStack() as stack:
+        built = [stack.enter_context(server()), stack.enter_context(server(actors))]
+        built.append(stack.enter_context(server(actors, animated=True)))
+        with legs_posed_every(EVERY_STEP_NS):
+            built.append(stack.enter_context(server(actors, animated=True)))
+        runs: tuple[list[float], ...] = tuple([] for _ in built)
         for one in built:  # past the first steps' one-off costs
             ms_per_step(one, 200)
         for _ in range(repeats):
             for one, figures in zip(built, runs, strict=True):
                 figures.append(ms_per_step(one, steps))
-    base, still, moving = (statistics.median(figures) for figures in runs)
-    return base, still, moving
+    return tuple(statistics.median(figures) for figures in runs)
 
 
 def rigid_people(folder: Path) -> Path:
@@ -182,7 +200,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="timed frame sets of each kind")
     parser.add_argument("--frame-steps", type=int, default=33, help="server steps between frame sets")
     args = parser.parse_args()
-    base, rigid, animated = step_costs(args.actors, args.steps, args.repeats)
+    base, rigid, animated, stepwise = step_costs(args.actors, args.steps, args.repeats)
     still, moving = frame_costs(args.seconds, args.frame_steps)
     n = args.actors
     table = [
@@ -190,11 +208,14 @@ def main() -> None:
         "| --- | --- |",
         f"| server step, warehouse and tug (lidars, IMU, odometry, tf, poses, clock) | {base:.3f} ms |",
         f"| the same with {n} walking workers, rigid (bind pose, one capsule) | {rigid:.3f} ms |",
-        f"| the same with {n} walking workers, animated (skeleton, a capsule per leg) | {animated:.3f} ms |",
+        f"| the same with {n} walking workers, animated (skeleton, a capsule per leg; legs posed every 10 ms) "
+        f"| {animated:.3f} ms |",
+        f"| the same, legs posed every 1 ms step | {stepwise:.3f} ms |",
         f"| rigid ÷ none | {rigid / base:.2f} |",
         f"| animated ÷ rigid | {animated / rigid:.2f} |",
         f"| cost of one rigid worker per step | {(rigid - base) / n * 1e3:.0f} µs |",
         f"| cost of animating one worker per step | {(animated - rigid) / n * 1e3:.0f} µs |",
+        f"| the same, legs posed every step | {(stepwise - rigid) / n * 1e3:.0f} µs |",
         f"| six cameras {FRAME_SIZE[0]}×{FRAME_SIZE[1]}, warehouse people rigid (GL, one llvmpipe thread) "
         f"| {still:.1f} ms a set ({1e3 / still:.2f} sets/s) |",
         f"| the same, its people animated (skins posed per set) | {moving:.1f} ms a set ({1e3 / moving:.2f} sets/s) |",
