@@ -51,6 +51,8 @@ class BareWorld:
     sim: Simulation
     sensors: dict[str, object] = field(default_factory=dict)
     left_out: list[LeftOut] = field(default_factory=list)
+    variant: None = None
+    """No variation profile: the world as its file says."""
 
     def create(self, request: CreateRequest) -> str:
         raise ValueError("sdf: this test world makes no models")
@@ -58,7 +60,9 @@ class BareWorld:
     def remove(self, name: str) -> None:
         raise ValueError(f"name: no model named {name!r}")
 
-    def reset(self) -> None:
+    def reset(self, seed: int | None = None) -> None:
+        if seed is not None:
+            raise ValueError("reset.seed: this test world has no variation profile")
         self.sim.reset()
 
 
