@@ -27,6 +27,11 @@ from simbot.bus.type_hashes import ros_typename
 
 logger = logging.getLogger(__name__)
 
+LIVELINESS_REPLIES = 1 << 16
+"""Room for a liveliness query's replies: more than any graph holds (a fleet of nine tugs has about
+700 tokens). Zenoh's default channel holds 256; a receive thread finding it full waits, holding
+the session's lock, and a query begun meanwhile waits for that lock: CI's test_fleet_spawn hung
+there (the receive thread parked in the channel, the next `get` in the session's lock)."""
 FINALISE_GRACE_S = 2.0
 """Seconds past a liveliness query's timeout after which its replies so far are taken as all."""
 FIRST_POLL_S, LAST_POLL_S = 0.0002, 0.005
@@ -95,7 +100,8 @@ def discover(
     scope = namespace.strip("/")
     found: set[Endpoint] = set()
     for pattern in (f"{ADMIN_SPACE}/{graph.domain_id}/**", f"{JSON_PREFIX}/**"):
-        for reply in _replies(session.liveliness().get(pattern, timeout=timeout), timeout):
+        replies = session.liveliness().get(pattern, zenoh.handlers.FifoChannel(LIVELINESS_REPLIES), timeout=timeout)
+        for reply in _replies(replies, timeout):
             if reply.ok is None:
                 continue
             endpoint = parse_token(str(reply.ok.key_expr))
@@ -106,9 +112,9 @@ def discover(
 
 def _replies(handler: zenoh.handlers.Handler[zenoh.Reply], timeout: float) -> Iterator[zenoh.Reply]:
     """A liveliness query's replies until Zenoh closes its channel (the query is finalised, at the
-    latest at its timeout), read without blocking: a query once never finalised under load (CI's
-    test_fleet_spawn waited 15 minutes in `discover`), so past its timeout and FINALISE_GRACE_S the
-    replies so far are taken as all, with a warning."""
+    latest at its timeout), read without blocking, so that a query Zenoh does not finalise cannot
+    hold its caller: past its timeout and FINALISE_GRACE_S the replies so far are taken as all, with
+    a warning."""
     deadline = time.monotonic() + timeout + FINALISE_GRACE_S
     pause = FIRST_POLL_S
     while time.monotonic() < deadline:
