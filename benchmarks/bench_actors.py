@@ -89,8 +89,11 @@ def legs_posed_every(period_ns: int) -> Iterator[None]:
 
 
 @contextmanager
-def server(actors: int = 0, animated: bool = False, additions: tuple[Path, ...] = ()) -> Iterator[Server]:
-    """The warehouse and the tug in lockstep, with `actors` workers created in a row 1 m apart."""
+def server(
+    actors: int = 0, animated: bool = False, additions: tuple[Path, ...] = (), plugin: str = ""
+) -> Iterator[Server]:
+    """The warehouse and the tug in lockstep, with `actors` workers created in a row 1 m apart, each
+    with `plugin` (SDF: a `<plugin>` that drives it) when one is given."""
     options = BusOptions(listen=(f"tcp/127.0.0.1:{free_port()}",), namespace=f"bench_{uuid.uuid4().hex[:8]}")
     config = ServerConfig(
         world_path("warehouse"),
@@ -111,7 +114,7 @@ def server(actors: int = 0, animated: bool = False, additions: tuple[Path, ...] 
                     skin=MESHES / "worker.dae",
                     animation=ANIMATION if animated else "",
                 )
-                built.world.create(create_request({"sdf": text}))
+                built.world.create(create_request({"sdf": text.replace("</actor>", plugin + "</actor>")}))
             yield built
         finally:
             built.close()

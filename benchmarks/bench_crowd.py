@@ -1,17 +1,19 @@
 """Benchmark of the crowd: what ten people walking by the social-force model (SocialForce) cost the
 server per step against ten walking their scripts, in one run.
 
-Four servers built in this process exactly as `simbot-server` builds them (`Server`, lockstep, a
+Servers built in this process exactly as `simbot-server` builds them (`Server`, lockstep, a
 real Zenoh session): the warehouse with the Flexley Tug standing (its lidars, IMU, odometry, tf,
 poses and clock running; cameras idle) and `--actors` workers created through world control, each
-on bench_actors' 4 m beat, a row of them 1 m apart: in one server they walk their scripts (the
-Actors system), in the others each has a SocialForce `<plugin>` with its forces from the others,
+on bench_actors' 4 m beat, a row of them 1 m apart: in one server they walk their scripts rigid (the
+Actors system, as people walked before issue 41), in the others each is animated (the worker's walk
+cycle, legs for the lidar) and has a SocialForce `<plugin>` with its forces from the others,
 the tug and the warehouse's racks updated at one of RATES (its default every 20 ms, every 10 ms,
 every 1 ms step), the position at every step. Each server steps `--steps` steps at a time, the
 four interleaved `--repeats` times; the figure is the median milliseconds per step of each, their
 ratio to the scripted, and the crowd's own cost per person per step (the difference over the
-number of people). Camera frames are not measured here: a crowd-driven person is drawn as a
-scripted one is.
+number of people). Then the six cameras' frame sets (bench_actors' `frame_sets`: the robot's
+cameras drawn in-process by the OpenGL renderer, `--frame-steps` steps between sets) with the
+scripted rigid workers and with the animated crowd-driven ones, interleaved, medians and their ratio.
 
     python benchmarks/bench_crowd.py [--actors N] [--steps S] [--repeats R]
 """
@@ -20,55 +22,26 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import uuid
-from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack
 
-from bench_actors import ACTOR, MESHES, ms_per_step
-from bench_server import free_port
+from bench_actors import FRAME_SIZE, frame_sets, ms_per_step, server
 from tables import publish
 
-from simbot.bus import BusOptions, Node
-from simbot.description.resources import asset
 from simbot.sim.kit.social_force import Crowd
-from simbot.sim.loop.simulation import Mode
-from simbot.sim.loop.world_control import create_request
-from simbot.sim.server import Server, ServerConfig, world_path
 
 PLUGIN = '<plugin name="simbot::systems::SocialForce" filename="simbot-social-force-system">{}</plugin>'
 RATES = (Crowd().update_rate, 100.0, 1000.0)
 """Hz: the plugin's forces updated at its default, every 10 ms and at every 1 ms step."""
 
 
-@contextmanager
-def server(actors: int, crowd: str | None) -> Iterator[Server]:
-    """The warehouse and the tug in lockstep, with `actors` workers, scripted or crowd-driven (the
-    plugin's parameters `crowd`)."""
-    options = BusOptions(listen=(f"tcp/127.0.0.1:{free_port()}",), namespace=f"bench_{uuid.uuid4().hex[:8]}")
-    config = ServerConfig(world_path("warehouse"), asset("urdf/flexley_tug.sdf"), (-2.5, 0.0, 0.1, 0.0), Mode.LOCKSTEP)
-    with Node(options, "server") as node:
-        built = Server(config, node)
-        try:
-            for index in range(actors):
-                text = ACTOR.format(
-                    index=index, x=-6.0 + index, y=2.5 + (index % 2), skin=MESHES / "worker.dae", animation=""
-                )
-                built.world.create(
-                    create_request(
-                        {"sdf": text if crowd is None else text.replace("</actor>", PLUGIN.format(crowd) + "</actor>")}
-                    )
-                )
-            yield built
-        finally:
-            built.close()
-
-
 def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
-    """Median ms per step: `actors` scripted workers, then the same crowd-driven at each of RATES."""
-    configs = [None, *(f"<update_rate>{rate:g}</update_rate>" for rate in RATES)]
-    runs: list[list[float]] = [[] for _ in configs]
+    """Median ms per step: `actors` scripted rigid workers (as before animation), then the same
+    animated and crowd-driven with the forces at each of RATES."""
+    plugins = [PLUGIN.format(f"<update_rate>{rate:g}</update_rate>") for rate in RATES]
+    runs: list[list[float]] = [[] for _ in range(len(plugins) + 1)]
     with ExitStack() as stack:
-        built = [stack.enter_context(server(actors, crowd)) for crowd in configs]
+        built = [stack.enter_context(server(actors))]
+        built += [stack.enter_context(server(actors, animated=True, plugin=plugin)) for plugin in plugins]
         for one in built:  # past the first steps' one-off costs
             ms_per_step(one, 200)
         for _ in range(repeats):
@@ -77,22 +50,45 @@ def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
     return [statistics.median(figures) for figures in runs]
 
 
+def frame_costs(actors: int, seconds: float, frame_steps: int) -> tuple[float, float]:
+    """Median ms per six-camera frame set: `actors` scripted rigid workers, then animated and crowd-driven."""
+    with (
+        server(actors) as scripted,
+        server(actors, animated=True, plugin=PLUGIN.format("")) as crowd,
+        frame_sets(scripted, frame_steps) as scripted_set,
+        frame_sets(crowd, frame_steps) as crowd_set,
+    ):
+        runs: tuple[list[float], list[float]] = ([], [])
+        while sum(runs[1]) < seconds:
+            runs[0].append(scripted_set())
+            runs[1].append(crowd_set())
+    rigid, walking = (statistics.median(figures) * 1e3 for figures in runs)
+    return rigid, walking
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--actors", type=int, default=10)
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--seconds", type=float, default=10.0, help="timed frame sets of each kind")
+    parser.add_argument("--frame-steps", type=int, default=33, help="server steps between frame sets")
     args = parser.parse_args()
     scripted, *crowd = step_costs(args.actors, args.steps, args.repeats)
+    rigid, walking = frame_costs(args.actors, args.seconds, args.frame_steps)
     table = [
         f"| warehouse, tug standing, {args.actors} workers | ms per server step | ratio | ms per person per step over scripted |",
         "| --- | --- | --- | --- |",
-        f"| walking their scripts (Actors) | {scripted:.3f} | 1.00 | — |",
+        f"| walking their scripts, rigid (Actors; as before animation) | {scripted:.3f} | 1.00 | — |",
         *(
-            f"| crowd-driven (SocialForce), forces every {1000 / rate:g} ms{' (default)' * (i == 0)} | {ms:.3f} | "
+            f"| animated and crowd-driven (SocialForce), forces every {1000 / rate:g} ms{' (default)' * (i == 0)} "
+            f"| {ms:.3f} | "
             f"{ms / scripted:.2f} | {(ms - scripted) / args.actors:.3f} |"
             for i, (rate, ms) in enumerate(zip(RATES, crowd, strict=True))
         ),
+        f"| six cameras {FRAME_SIZE[0]}×{FRAME_SIZE[1]} (GL, one llvmpipe thread), scripted rigid workers "
+        f"| {rigid:.1f} ms a set | 1.00 | — |",
+        f"| the same, animated crowd-driven workers | {walking:.1f} ms a set | {walking / rigid:.2f} | — |",
     ]
     publish("crowd", table)
 
