@@ -217,7 +217,7 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> SimServer:
     rig = tmp_path_factory.mktemp("rig") / "rig.sdf"
     rig.write_text(RIG)
     with running_server(
-        "warehouse", extra=("--robot", str(rig), "--spawn", "3.5", "0", "9.001", "1.5707963")
+        "warehouse", extra=("--robot", str(rig), "--spawn", "3.5", "0", "9.001", "1.5707963", "--render-workers", "1")
     ) as server:
         yield server
         server.stop(timeout=60.0)
