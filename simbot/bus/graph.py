@@ -14,6 +14,8 @@ token whose key spells out what it is, and lives exactly as long as its entity (
 from __future__ import annotations
 
 import logging
+import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal
 
@@ -30,6 +32,10 @@ LIVELINESS_REPLIES = 1 << 16
 700 tokens). Zenoh's default channel holds 256; a receive thread finding it full waits, holding
 the session's lock, and a query begun meanwhile waits for that lock: CI's test_fleet_spawn hung
 there (the receive thread parked in the channel, the next `get` in the session's lock)."""
+FINALISE_GRACE_S = 2.0
+"""Seconds past a liveliness query's timeout after which its replies so far are taken as all."""
+FIRST_POLL_S, LAST_POLL_S = 0.0002, 0.005
+"""The pauses between looks at a query's replies: short while they come, growing while none does."""
 JSON_PREFIX = "simbot_graph/srv/json"
 Kind = Literal["pub", "sub", "srv"]
 KINDS: tuple[Kind, ...] = ("pub", "sub", "srv")
@@ -94,10 +100,34 @@ def discover(
     scope = namespace.strip("/")
     found: set[Endpoint] = set()
     for pattern in (f"{ADMIN_SPACE}/{graph.domain_id}/**", f"{JSON_PREFIX}/**"):
-        for reply in session.liveliness().get(pattern, zenoh.handlers.FifoChannel(LIVELINESS_REPLIES), timeout=timeout):
+        replies = session.liveliness().get(pattern, zenoh.handlers.FifoChannel(LIVELINESS_REPLIES), timeout=timeout)
+        for reply in _replies(replies, timeout):
             if reply.ok is None:
                 continue
             endpoint = parse_token(str(reply.ok.key_expr))
             if endpoint is not None and (not scope or endpoint.key.startswith(scope + "/")):
                 found.add(endpoint)
     return sorted(found)
+
+
+def _replies(handler: zenoh.handlers.Handler[zenoh.Reply], timeout: float) -> Iterator[zenoh.Reply]:
+    """A liveliness query's replies until Zenoh closes its channel (the query is finalised, at the
+    latest at its timeout), read without blocking, so that a query Zenoh does not finalise cannot
+    hold its caller: past its timeout and FINALISE_GRACE_S the replies so far are taken as all, with
+    a warning."""
+    deadline = time.monotonic() + timeout + FINALISE_GRACE_S
+    pause = FIRST_POLL_S
+    while time.monotonic() < deadline:
+        try:
+            reply = handler.try_recv()
+        except zenoh.ZError:  # empty and closed: every reply is in
+            return
+        if reply is None:
+            time.sleep(pause)
+            pause = min(2 * pause, LAST_POLL_S)
+            continue
+        pause = FIRST_POLL_S
+        yield reply
+    logger.warning(
+        "a liveliness query was not finalised %g s after its timeout; taking the replies so far", FINALISE_GRACE_S
+    )
