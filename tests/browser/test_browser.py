@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 import pytest
 from bus_helpers import free_port
-from client_helpers import client_process
+from client_helpers import ClientProcess, client_process
 from conftest import REPO
 from server_helpers import running_server, wait_until
 
@@ -66,6 +66,8 @@ DEADLINE_S = 600.0
 """Two cores shared with other test runs: the page loads, connects and draws in minutes, not seconds."""
 SHOT_EVERY_S = 5.0
 """Seconds between screenshots while the page loads and draws (each costs a second of a loaded core)."""
+BRIDGE_LOG_CHARS = 3000
+"""How much of the bridge's log a failure shows: its channels and viewers, what it forwarded."""
 VIEWPORT = {"width": 1600, "height": 900}
 CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 """WebGL on the CPU (SwiftShader): the 3D panel needs it and the test machine has no GPU."""
@@ -143,10 +145,11 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 
 @dataclass
 class Studio:
-    """The page, and the URLs of the files it has fetched so far."""
+    """The page, the URLs of the files it has fetched so far, and the bridge it shows."""
 
     page: Any
     fetched: list[str]
+    bridge: ClientProcess
 
     def saw(self, response: Any) -> None:
         """Playwright's response handler: a file fetched, or not."""
@@ -163,13 +166,13 @@ def _studio(site: str, world: str, *server_args: str) -> Iterator[Studio]:
         running_server(world, "realtime", extra=server_args) as sim,
         client_process(sim, "merger"),
         client_process(sim, "stitcher"),
-        client_process(sim, "foxglove", "--port", str(port)),
+        client_process(sim, "foxglove", "--port", str(port)) as bridge,
         playwright.sync_playwright() as driver,
     ):
         browser = driver.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport=VIEWPORT)
-            studio = Studio(page, [])
+            studio = Studio(page, [], bridge)
             page.on("response", studio.saw)
             url = f"{site}?ds=foxglove-websocket&ds.url=ws://127.0.0.1:{port}&layoutId=simbot"
             page.goto(url, timeout=DEADLINE_S * 1000)
@@ -353,7 +356,8 @@ def _wait_for(studio: Studio, path: Path, missing_from: Callable[[np.ndarray, di
         wait_until(on_screen, DEADLINE_S, "simbot's layout on the screen", poll=SHOT_EVERY_S)
     except AssertionError as late:
         errors = studio.page.evaluate("window.studioErrors")
-        raise AssertionError(f"{late}: {missing}; page errors {errors}") from None
+        log = studio.bridge.stderr()[-BRIDGE_LOG_CHARS:]
+        raise AssertionError(f"{late}: {missing}; page errors {errors}; the bridge's log ends:\n{log}") from None
 
 
 def test_foxglove_studio_shows_the_scene_and_the_camera(site: str) -> None:
