@@ -43,7 +43,7 @@ import pytest
 from bus_helpers import free_port
 from client_helpers import ClientProcess, client_process
 from conftest import REPO
-from server_helpers import running_server, wait_until
+from server_helpers import SimServer, running_server, wait_until
 
 pytestmark = pytest.mark.browser
 
@@ -145,11 +145,12 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 
 @dataclass
 class Studio:
-    """The page, the URLs of the files it has fetched so far, and the bridge it shows."""
+    """The page, the URLs of the files it has fetched so far, the bridge it shows and the server behind."""
 
     page: Any
     fetched: list[str]
     bridge: ClientProcess
+    server: SimServer
 
     def saw(self, response: Any) -> None:
         """Playwright's response handler: a file fetched, or not."""
@@ -172,7 +173,7 @@ def _studio(site: str, world: str, *server_args: str) -> Iterator[Studio]:
         browser = driver.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         try:
             page = browser.new_page(viewport=VIEWPORT)
-            studio = Studio(page, [], bridge)
+            studio = Studio(page, [], bridge, sim)
             page.on("response", studio.saw)
             url = f"{site}?ds=foxglove-websocket&ds.url=ws://127.0.0.1:{port}&layoutId=simbot"
             page.goto(url, timeout=DEADLINE_S * 1000)
@@ -357,7 +358,10 @@ def _wait_for(studio: Studio, path: Path, missing_from: Callable[[np.ndarray, di
     except AssertionError as late:
         errors = studio.page.evaluate("window.studioErrors")
         log = studio.bridge.stderr()[-BRIDGE_LOG_CHARS:]
-        raise AssertionError(f"{late}: {missing}; page errors {errors}; the bridge's log ends:\n{log}") from None
+        raise AssertionError(
+            f"{late}: {missing}; page errors {errors}; the server's errors {studio.server.errors()}; "
+            f"the bridge's log ends:\n{log}"
+        ) from None
 
 
 def test_foxglove_studio_shows_the_scene_and_the_camera(site: str) -> None:
