@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import functools
 import logging
-import math
 import signal
 import sys
 import threading
@@ -44,7 +43,6 @@ CLOCK = "rosgraph_msgs/msg/Clock"
 POLL_S = 0.02
 """How long a client waiting for sim time to pass waits at a time (wall clock)."""
 T = TypeVar("T")
-Number = TypeVar("Number", int, float)
 
 ClientBody = Callable[[argparse.Namespace, Node, threading.Event], int]
 """The client's work: (its options, its bus node, the stop event) → exit code."""
@@ -73,22 +71,6 @@ def followed_model(robot_namespace: str, default: str = "flexley_tug") -> str:
     """The model name of the robot a client follows: the last segment of its `--robot-namespace`
     (`tug_2`, as `--robots N` names each tug after its namespace), else `default`, the one robot's."""
     return robot_namespace.strip("/").rpartition("/")[2] or default
-
-
-def number(kind: Callable[[str], Number], *, at_least_zero: bool = False) -> Callable[[str], Number]:
-    """An argparse type: a finite number > 0 (≥ 0 with `at_least_zero`); argparse's one-line error otherwise."""
-    bound = "≥ 0" if at_least_zero else "> 0"
-
-    def parse(text: str) -> Number:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-        if not math.isfinite(value) or value < 0 or (value == 0 and not at_least_zero):
-            raise argparse.ArgumentTypeError(f"expected a finite number {bound}, got {text!r}")
-        return value
-
-    return parse
 
 
 def run_client(

@@ -44,6 +44,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.frames import OPTICAL_SUFFIX
 from simbot.bus.intrinsics import BadInput, Intrinsics
@@ -59,7 +60,6 @@ from .common import (
     StatusLine,
     client_parser,
     followed_model,
-    number,
     run_client,
 )
 from .topics import Topic, live_topics, world_names

@@ -34,6 +34,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from simbot.arguments import number
 from simbot.bus import Node, Publisher, messages
 from simbot.bus.tf_tree import planar_pose
 
@@ -45,7 +46,6 @@ from .common import (
     SimTicker,
     client_parser,
     followed_model,
-    number,
     run_client,
 )
 from .terminal import Terminal, terminal_input

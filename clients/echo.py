@@ -35,9 +35,10 @@ import numpy as np
 import numpy.typing as npt
 import zenoh
 
+from simbot.arguments import number
 from simbot.bus import DecodeError, Node, UnknownMessageType, decode
 
-from .common import ClientError, Mailbox, client_parser, number, run_client
+from .common import ClientError, Mailbox, client_parser, run_client
 from .topics import Topic, live_topics, schema_type
 
 logger = logging.getLogger(__name__)

@@ -57,6 +57,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple, cast
 from urllib.parse import unquote, urlparse
 
+from simbot.arguments import whole
 from simbot.bus import Node, UnknownMessageType, decode, message_type
 from simbot.bus.codec import TYPESTORE, DecodeError
 
@@ -396,17 +397,6 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     return 0
 
 
-def port_number(text: str) -> int:
-    """An argparse type: a TCP port, 0 (any free port) to 65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"expected a port number from 0 to 65535, got {text!r}")
-    return value
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """`simbot foxglove [--host H] [--port P]`."""
     parser = client_parser(
@@ -419,7 +409,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument(
         "--port",
-        type=port_number,
+        type=whole(0, 65535),
         default=DEFAULT_PORT,
         help=f"TCP port to serve on (default {DEFAULT_PORT}; 0 picks a free one)",
     )

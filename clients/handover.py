@@ -28,10 +28,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from simbot.arguments import number
 from simbot.bus import Node, ServiceError
 from simbot.description.resources import asset
 
-from .common import ClientError, client_parser, number, run_client
+from .common import ClientError, client_parser, run_client
 from .state import EXIT_NO_WORLD
 
 DEFAULT_TIMEOUT_S = 60.0

@@ -44,12 +44,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.tf_tree import Matrix
 from simbot.transform import matmul
 
-from .common import ClockSubscriber, StampedSets, StaticTransforms, client_parser, number, run_client
+from .common import ClockSubscriber, StampedSets, StaticTransforms, client_parser, run_client
 
 logger = logging.getLogger("simbot.merger")
 

@@ -40,10 +40,11 @@ from typing import Any
 
 import numpy as np
 
+from simbot.arguments import number
 from simbot.bus import Node, ServiceError, messages
 from simbot.bus.tf_tree import planar_pose
 
-from .common import ClockSubscriber, Mailbox, client_parser, followed_model, number, run_client
+from .common import ClockSubscriber, Mailbox, client_parser, followed_model, run_client
 from .terminal import FullScreen
 from .topics import Topic, Traffic, format_rate, latched, live_topics, world_names
 

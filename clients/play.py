@@ -29,10 +29,11 @@ from rosbags.interfaces import Connection, ConnectionExtRosbag2, QosDurability
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 
+from simbot.arguments import number
 from simbot.bus import Node
 from simbot.bus.node import Publisher
 
-from .common import ClientError, client_parser, number, run_client
+from .common import ClientError, client_parser, run_client
 
 logger = logging.getLogger(__name__)
 

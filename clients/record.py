@@ -42,10 +42,11 @@ from rosbags.rosbag2 import Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.rosbag2.errors import WriterError
 
+from simbot.arguments import number
 from simbot.bus import Node
 from simbot.bus.codec import TYPESTORE
 
-from .common import ClientError, ClockSubscriber, TimeJump, client_parser, number, run_client
+from .common import ClientError, ClockSubscriber, TimeJump, client_parser, run_client
 from .tap import RawSample, Tap, published
 from .topics import Topic, latched
 

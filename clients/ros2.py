@@ -52,10 +52,11 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 import zenoh.ext
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.codec import DecodeError, decode
 
-from .common import CLOCK, ClientError, SimTimeWatch, StatusLine, client_parser, number, run_client
+from .common import CLOCK, ClientError, SimTimeWatch, StatusLine, client_parser, run_client
 from .record import Selection
 from .state import NoWorld, ask
 from .topics import Topic, latched, live_topics, topic_name, world_names

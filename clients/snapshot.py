@@ -37,12 +37,13 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.messages import stamp_ns
 from simbot.bus.tf_tree import planar_pose
 from simbot.transform import matmul
 
-from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, number, run_client
+from .common import EXIT_USAGE, ClientError, Mailbox, client_parser, run_client
 
 PROG = "simbot snapshot"
 PANORAMA = "camera_360/image_raw"

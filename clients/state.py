@@ -23,10 +23,11 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
+from simbot.arguments import number
 from simbot.bus import Node, ServiceError
 from simbot.transform import yaw_of
 
-from .common import ClientError, client_parser, number, run_client
+from .common import ClientError, client_parser, run_client
 from .topics import live_topics, world_names
 
 EXIT_NO_WORLD = 1

@@ -75,6 +75,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.frames import optical_frame
 from simbot.bus.intrinsics import BadInput, Intrinsics
@@ -82,7 +83,7 @@ from simbot.bus.node import RateLimitedWarnings
 from simbot.bus.tf_tree import Matrix
 
 from .camera_model import pixels, undoable
-from .common import ClockSubscriber, Mailbox, StampedSets, StaticTransforms, client_parser, number, run_client
+from .common import ClockSubscriber, Mailbox, StampedSets, StaticTransforms, client_parser, run_client
 
 logger = logging.getLogger("simbot.stitcher")
 

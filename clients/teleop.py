@@ -40,11 +40,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from simbot.arguments import number
 from simbot.bus import Node, messages
 from simbot.bus.tf_tree import Matrix
 from simbot.transform import matmul
 
-from .common import POLL_S, ClockSubscriber, Recent, SimTicker, StaticTransforms, client_parser, number, run_client
+from .common import POLL_S, ClockSubscriber, Recent, SimTicker, StaticTransforms, client_parser, run_client
 from .terminal import Terminal, terminal_input
 
 logger = logging.getLogger(__name__)

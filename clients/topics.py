@@ -32,11 +32,12 @@ from dataclasses import dataclass
 
 import zenoh
 
+from simbot.arguments import number
 from simbot.bus import Node
 from simbot.bus.graph import KINDS, SERVICE_TYPE, Kind, discover
 from simbot.bus.rmw import RosGraph
 
-from .common import ClientError, client_parser, number, run_client
+from .common import ClientError, client_parser, run_client
 
 DEFAULT_WINDOW_S = 2.0
 LATCH_QUERY_TIMEOUT_S = 0.5

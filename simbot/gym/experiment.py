@@ -26,6 +26,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from simbot.arguments import whole
+
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 PROG = "simbot experiment"
@@ -36,16 +38,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
-
-
-def _at_least_one(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected at least 1, got {value}")
-    return value
 
 
 def _key_value(text: str) -> tuple[str, Any]:
@@ -65,11 +57,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--policy", required=True, help="random, scripted, or module:function (a callable obs -> action)"
     )
-    parser.add_argument("--episodes", type=_at_least_one, default=10, metavar="K", help="(default: %(default)s)")
-    parser.add_argument("--actors", type=_at_least_one, default=1, metavar="A", help="environments at once")
+    parser.add_argument("--episodes", type=whole(), default=10, metavar="K", help="(default: %(default)s)")
+    parser.add_argument("--actors", type=whole(), default=1, metavar="A", help="environments at once")
     parser.add_argument("--seed", type=int, default=0, help="episode i has seed SEED + i (default: %(default)s)")
     parser.add_argument("--world", help="the environment's world (its world= argument)")
-    parser.add_argument("--max-episode-steps", type=_at_least_one, metavar="N", help="the environment's time limit")
+    parser.add_argument("--max-episode-steps", type=whole(), metavar="N", help="the environment's time limit")
     parser.add_argument(
         "--env-arg",
         type=_key_value,
@@ -80,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
         "camera_size=[160,120]), else as text; repeatable",
     )
     where = parser.add_mutually_exclusive_group()
-    where.add_argument("--num-cpus", type=_at_least_one, metavar="N", help="CPUs of the local Ray (default: all)")
+    where.add_argument("--num-cpus", type=whole(), metavar="N", help="CPUs of the local Ray (default: all)")
     where.add_argument("--address", help="a Ray cluster to join: auto, HOST:PORT or ray://HOST:PORT")
     parser.add_argument("-o", "--output", required=True, type=Path, help="the CSV table to write")
     return parser

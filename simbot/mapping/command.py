@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import argparse
 import logging
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from simbot.arguments import number
 from simbot.description import DescriptionError, load_world
 from simbot.description.additions import addition_path, with_additions, world_path
 from simbot.mapping.nav2_map import write_map
@@ -39,16 +39,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of metres, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected more than 0 m, got {text!r}")
-    return value
 
 
 def _height(text: str) -> Band:
@@ -77,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--add", action="append", default=[], metavar="NAME|PATH", help="another SDF file's models, as simbot-server's"
     )
     parser.add_argument(
-        "--resolution", type=_positive, default=RESOLUTION, help=f"metres per cell (default {RESOLUTION})"
+        "--resolution", type=number(float, unit="m"), default=RESOLUTION, help=f"metres per cell (default {RESOLUTION})"
     )
     cut = parser.add_mutually_exclusive_group()
     cut.add_argument(

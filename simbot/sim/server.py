@@ -26,11 +26,12 @@ import math
 import signal
 import sys
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from simbot.arguments import number, whole
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, World, load_world
 from simbot.description.additions import addition_path, with_additions, world_path
@@ -175,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--robots",
-        type=_whole(MAX_ROBOTS),
+        type=whole(1, MAX_ROBOTS),
         metavar="N",
         help="N robots tug_1..tug_N in a row from --spawn along y, each in the namespace of its name (tug_2/cmd_vel, tug_2/base_link)",
     )
@@ -207,16 +208,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240"
     )
-    parser.add_argument("--camera-rate", type=_rate, metavar="HZ", help="every camera's rate instead of the SDF's")
+    parser.add_argument(
+        "--camera-rate", type=number(float, unit="Hz"), metavar="HZ", help="every camera's rate instead of the SDF's"
+    )
     parser.add_argument(
         "--render-workers",
-        type=_whole(64),
+        type=whole(1, 64),
         metavar="N",
         help="camera render processes (default: one per core, as docs/speed.md measured)",
     )
     parser.add_argument(
         "--render-threads",
-        type=_whole(64),
+        type=whole(1, 64),
         metavar="N",
         help="llvmpipe rasteriser threads of each render process (default: as docs/speed.md's measurement chose)",
     )
@@ -240,29 +243,7 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
-def _rate(text: str) -> float:
-    """A positive finite rate in Hz."""
-    try:
-        rate = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a rate in Hz, got {text!r}") from None
-    if not (math.isfinite(rate) and rate > 0):
-        raise argparse.ArgumentTypeError(f"the rate must be a positive number of Hz, got {text!r}")
-    return rate
-
-
 MAX_ROBOTS = 100
-
-
-def _whole(most: int) -> Callable[[str], int]:
-    """An argparse type: a whole number from 1 to `most`."""
-
-    def parse(text: str) -> int:
-        if not text.strip().isdigit() or not 1 <= int(text) <= most:
-            raise argparse.ArgumentTypeError(f"expected a whole number from 1 to {most}, got {text!r}")
-        return int(text)
-
-    return parse
 
 
 def _config(args: argparse.Namespace) -> ServerConfig:
