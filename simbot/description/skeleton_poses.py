@@ -29,6 +29,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.bvh_clips import read_bvh_clip
 from simbot.description.skeletons import Clip, Skeleton, SkeletonError, read_clip, read_skeleton
 
 F64 = npt.NDArray[np.float64]
@@ -82,10 +83,18 @@ def load_rig(skin: Path, animations: tuple[ClipFile, ...]) -> Rig:
     clips = []
     for animation in animations:
         try:
-            clips.append(read_clip(animation.path, skeleton).scaled(animation.scale))
+            clips.append(read_animation(animation, skeleton))
         except SkeletonError as exc:
             raise SkeletonError(f"animation {animation.path}: {exc}") from None
     return Rig(skeleton, tuple(clips), tuple(a.interpolate_x for a in animations))
+
+
+def read_animation(animation: ClipFile, skeleton: Skeleton) -> Clip:
+    """The animation's clip of `skeleton`, scaled: a `.bvh` file as gz-common's BVHLoader reads it
+    (the BVH's own translations scaled), any other as COLLADA (the clip's translations scaled)."""
+    if animation.path.suffix.lower() == ".bvh":
+        return read_bvh_clip(animation.path, skeleton, animation.scale)
+    return read_clip(animation.path, skeleton).scaled(animation.scale)
 
 
 def local_pose(clip: Clip, time: float) -> F64:
