@@ -1,6 +1,7 @@
 """BVH animations on a COLLADA skin's skeleton, as gz-common's BVHLoader reads them
 (simbot/description/bvh_clips.py): the worker's skin (worlds/models/worker/meshes/worker.dae)
-driven by small BVH files written here."""
+driven by small BVH files written here; and the units of animations and skins, BVH's `<scale>`
+and COLLADA's `<unit meter>`."""
 
 from __future__ import annotations
 
@@ -14,11 +15,12 @@ import pytest
 from simbot.description.actor_scripts import ActorModel, SkinnedMesh
 from simbot.description.bvh_clips import read_bvh_clip
 from simbot.description.sdf_reader import load_world
-from simbot.description.skeleton_poses import ClipFile, load_rig
-from simbot.description.skeletons import Skeleton, SkeletonError, read_skeleton
+from simbot.description.skeleton_poses import ClipFile, global_pose, load_rig
+from simbot.description.skeletons import Skeleton, SkeletonError, read_clip, read_skeleton
 
 REPO = Path(__file__).resolve().parents[1]
-SKIN = REPO / "worlds" / "models" / "worker" / "meshes" / "worker.dae"
+MESHES = REPO / "worlds" / "models" / "worker" / "meshes"
+SKIN = MESHES / "worker.dae"
 FRAME_TIME = 0.25
 
 HIERARCHY = """HIERARCHY
@@ -183,3 +185,28 @@ def test_a_bvh_naming_a_bone_the_skin_lacks_is_one_warning_and_the_actor_unanima
     assert len(warnings) == 1 and "'mocap'" in warnings[0] and "<animation>" in warnings[0], warnings
     assert not _skin(actor).animations  # the bind pose
     assert [c.name for c in actor.link("body").collisions] == ["proxy"]
+
+
+def test_a_collada_files_unit_scales_its_lengths(tmp_path: Path, skeleton: Skeleton) -> None:
+    """`<unit meter="0.01">` (the worker and its walk in centimetres), as gz-common's ColladaLoader
+    reads it: the skin's vertices, its joints' and bind translations and the clip's translations a
+    hundredth, its rotations as they were; the bind pose still undoes its inverse bind matrices."""
+    for name in ("worker.dae", "walk.dae"):
+        (tmp_path / name).write_text((MESHES / name).read_text().replace('meter="1"', 'meter="0.01"'))
+    small = read_skeleton(tmp_path / "worker.dae")
+    np.testing.assert_allclose(small.rest[:, :3, 3], 0.01 * skeleton.rest[:, :3, 3], rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(small.rest[:, :3, :3], skeleton.rest[:, :3, :3])
+    for pose, inverse in zip(global_pose(small, small.rest), small.inverse_bind, strict=True):
+        np.testing.assert_allclose(pose @ inverse, np.eye(4), atol=1e-12)
+    for part, full in zip(small.parts, skeleton.parts, strict=True):
+        np.testing.assert_allclose(part.positions, 0.01 * full.positions, rtol=1e-12, atol=1e-15)
+    clip, walk = read_clip(tmp_path / "walk.dae", small), read_clip(MESHES / "walk.dae", skeleton)
+    np.testing.assert_allclose(clip.locals[..., :3, 3], 0.01 * walk.locals[..., :3, 3], rtol=1e-12, atol=1e-15)
+    assert clip.x_displacement == pytest.approx(0.01 * walk.x_displacement, rel=1e-12)
+
+
+def test_a_collada_unit_that_is_not_a_length_raises(tmp_path: Path) -> None:
+    skin = tmp_path / "worker.dae"
+    skin.write_text(SKIN.read_text().replace('meter="1"', 'meter="inch"'))
+    with pytest.raises(SkeletonError, match="<unit meter='inch'>: not a positive number"):
+        read_skeleton(skin)

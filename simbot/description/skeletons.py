@@ -10,6 +10,9 @@
 - An animation file's clip: `<library_animations>` channels that target a joint node's transform
   (`<matrix>` as float4x4 keys, or its `<translate>`/`<rotate>` by their sid), sampled at every
   key time of the file; a joint without a channel keeps its rest transform.
+- `<asset><unit meter>`: each file's lengths (vertices, joint and bind translations, a clip's
+  translations) in metres, as gz-common's ColladaLoader scales a mesh, its skeleton and its
+  animations by it. Its `<up_axis>` is not applied: ColladaLoader does not either.
 
 Matrices are COLLADA's: row-major text, column vectors. A file that cannot be read raises
 `SkeletonError` saying why; the caller warns and draws the skin as it stands.
@@ -19,7 +22,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from urllib.parse import unquote
 
@@ -115,6 +118,10 @@ def read_skeleton(path: Path) -> Skeleton:
         parts += _skin_parts(path, root, skin, instance, lookup, inverse_bind)
     if not parts:
         raise SkeletonError("no skinned triangles")
+    meter = _meter(root)
+    rest[:, :3, 3] *= meter
+    inverse_bind[:, :3, 3] *= meter
+    parts = [replace(part, positions=part.positions * meter) for part in parts]
     return Skeleton(tuple(names), tuple(parents), rest, inverse_bind, tuple(parts))
 
 
@@ -139,8 +146,10 @@ def read_clip(path: Path, skeleton: Skeleton) -> Clip:
     times = np.unique(np.concatenate([t for chans in channels.values() for _, t, _ in chans]))
     times = times - times[0]
     locals_ = np.tile(skeleton.rest, (len(times), 1, 1, 1))
+    meter = _meter(root)
     for joint, chans in channels.items():
         locals_[:, joint] = _animated(ids, skeleton.names[joint], chans, times)
+        locals_[:, joint, :3, 3] *= meter
     return Clip(times, locals_)
 
 
@@ -155,6 +164,19 @@ def _parse(path: Path) -> ET.Element:
     for element in root.iter():
         element.tag = element.tag.rpartition("}")[2]
     return root
+
+
+def _meter(root: ET.Element) -> float:
+    """Metres per unit of the file's lengths (`<asset><unit meter>`, 1 without one)."""
+    unit = root.find("asset/unit")
+    text = unit.get("meter", "1") if unit is not None else "1"
+    try:
+        meter = float(text)
+    except ValueError:
+        meter = math.nan
+    if not meter > 0.0:
+        raise SkeletonError(f"<unit meter={text!r}>: not a positive number")
+    return meter
 
 
 def _by_id(root: ET.Element, url: str) -> ET.Element | None:
