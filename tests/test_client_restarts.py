@@ -50,6 +50,7 @@ from test_client_foxglove import Viewer, viewer
 from simbot.bus import decode
 from simbot.clients.common import SimTimeWatch, TimeJump
 from simbot.clients.record import JUMPS_KEY
+from simbot.clients.stitcher import CAMERAS as STITCHED
 from simbot.transform import yaw_of
 
 SERVER_EXTRA = ("--spawn", "1.0", "0.0", "0.1", "0", "--camera-size", "160x120", "--camera-rate", "5")
@@ -146,16 +147,17 @@ class Watch:
 class Stamped(Watch):
     """A stamped output of a client on the new server: the first message whose stamp is in the new run.
 
-    With `source` (an input the client already subscribes to), the time counts from the new server's
-    first message of it, if that comes after the server answered: the server renders cameras only
-    for subscribers, and starting its render workers takes seconds of its own (9 s at a load average
-    of 20 here), before which the stitcher has nothing to stitch.
+    With `sources` (inputs the client already subscribes to), the time counts from when the last of
+    them first came from the new server, if that is after the server answered: the server renders
+    cameras only for subscribers, and its render workers start in seconds of their own (9 s at a load
+    average of 20 here), each drawing its share of the six cameras; the stitcher has nothing to stitch
+    before every camera of a set has come.
     """
 
-    def __init__(self, sim: SimServer, topic: str, typename: str, source: str | None = None) -> None:
+    def __init__(self, sim: SimServer, topic: str, typename: str, sources: tuple[str, ...] = ()) -> None:
         self.collector: Collector[Any] = sim.subscribe(topic, typename)
         self.topic = topic
-        self.source = sim.subscribe(source, typename) if source is not None else None
+        self.sources = [sim.subscribe(source, typename) for source in sources]
 
     def check(self, sim_time: float) -> str | None:
         for msg in self.collector.messages():
@@ -164,12 +166,12 @@ class Stamped(Watch):
         return None
 
     def since(self, ready: float) -> float:
-        first = self.source.timed()[:1] if self.source is not None else []
-        return max([ready, *(arrived for arrived, _ in first)])
+        firsts = [arrived for source in self.sources for arrived, _ in source.timed()[:1]]
+        return max([ready, *firsts])
 
     def deadline(self, ready: float) -> float:
-        """A source that has not come yet is waited for up to SOURCE_WAIT_S."""
-        if self.source is not None and not len(self.source):
+        """Sources that have not all come yet are waited for up to SOURCE_WAIT_S."""
+        if not all(len(source) for source in self.sources):
             return ready + SOURCE_WAIT_S
         return super().deadline(ready)
 
@@ -328,7 +330,7 @@ def restart(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Restart]:
             docking.restart_done(new)
             watches: dict[str, Watch] = {
                 "merger": Stamped(new, "scan", LASER_SCAN),
-                "stitcher": Stamped(new, "camera_360/image_raw", IMAGE, source="camera_front"),
+                "stitcher": Stamped(new, "camera_360/image_raw", IMAGE, sources=STITCHED),
                 "monitor": MonitorHeading(processes["monitor"]),
                 "foxglove": app,
                 "teleop": TeleopTurn(new, terminals["teleop"]),

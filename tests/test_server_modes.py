@@ -21,6 +21,7 @@ import zenoh
 from server_helpers import CLOCK, ODOMETRY, SimServer, running_server, stamp_ns, wait_until
 
 from simbot.bus import messages
+from simbot.sim.loop.simulation import MAX_LAG_S
 
 SCHEDULE: list[tuple[tuple[float, float] | None, int]] = [
     (None, 100),
@@ -81,18 +82,38 @@ def _rate(samples: list[tuple[float, Any]]) -> float:
     return (stamp_ns(m1) - stamp_ns(m0)) / 1e9 / (w1 - w0)
 
 
+WINDOW_S = 10.0
+"""Wall seconds the clock is watched. The pacer catches up after a stall (its sim time may run up to
+MAX_LAG_S behind the wall, then ahead of it while catching up), so over this window sim time follows
+the wall within MAX_LAG_S, 5 % of it, plus DELIVERY_S."""
+DELIVERY_S = 0.05
+"""How much later than its neighbours a clock message may reach the test on a loaded machine (loopback)."""
+CLOCK_PERIOD_S = 0.01
+"""The clock's period in sim time: 100 Hz."""
+
+
 def test_realtime_clock_follows_the_wall(realtime: SimServer) -> None:
-    """Over 5 s of wall time the sim clock advances 5 s ± 5 %, at ≥ 100 Hz, strictly increasing."""
+    """Over 10 s of wall time the sim clock advances as much (within the pacer's catch-up bound),
+    strictly increasing, every 10 ms of sim time published."""
     clock = realtime.subscribe("clock", CLOCK)
-    clock.wait_count(501, timeout=15.0, what="5 s of clock at 100 Hz")
+
+    def spanned() -> bool:
+        samples = clock.timed()
+        return len(samples) > 1 and samples[-1][0] - samples[0][0] >= WINDOW_S
+
+    wait_until(spanned, 3 * WINDOW_S, f"{WINDOW_S} s of clock")
     samples = clock.timed()
     wall = samples[-1][0] - samples[0][0]
     sim = (stamp_ns(samples[-1][1]) - stamp_ns(samples[0][1])) / 1e9
     stamps = [stamp_ns(m) for _, m in samples]
     assert all(b > a for a, b in zip(stamps, stamps[1:])), "clock stamps do not strictly increase"
-    assert wall > 4.75
-    assert sim == pytest.approx(wall, rel=0.05), f"{sim:.3f} s of sim time in {wall:.3f} s of wall time"
-    assert len(samples) >= 0.95 * 100 * wall, f"{len(samples)} clock messages in {wall:.1f} s: below 100 Hz"
+    assert sim == pytest.approx(wall, abs=MAX_LAG_S + DELIVERY_S), (
+        f"{sim:.3f} s of sim time in {wall:.3f} s of wall time"
+    )
+    published = round(sim / CLOCK_PERIOD_S) + 1
+    assert len(samples) >= 0.95 * published, (
+        f"{len(samples)} clock messages of {published} over {sim:.2f} s of sim time"
+    )
     state = realtime.state()
     assert state["mode"] == "realtime" and state["paused"] is False
     assert state["real_time_factor"] == pytest.approx(1.0, rel=0.05)
