@@ -6,9 +6,10 @@ workers (the skinned mesh), so both see one pose.
   time, looping.
 - The root's own walk along x is taken out (the actor's trajectory moves it), so the skin stays
   on its frame.
-- An `<animation>`'s `<scale>` multiplies the clip's translations (every joint's offset from its
-  parent, the root's walk with them), as Gazebo scales an animation's skeleton (gz-common's
-  `Skeleton::Scale`): a clip made for a taller or shorter figure.
+- An `<animation>`'s `<scale>` multiplies a COLLADA clip's translations (every joint's offset from
+  its parent, the root's walk with them), as Gazebo scales an animation's skeleton (gz-common's
+  `Skeleton::Scale`): a clip made for a taller or shorter figure. A BVH clip's `<scale>` multiplies
+  the BVH's own offsets and positions only, as gz-common's BVHLoader does (`bvh_clips.py`).
 - Keys are interpolated per joint: translations linearly, rotations by normalised linear
   interpolation of their quaternions (the keys of a walk are dense; it stays within a degree of
   slerp).
