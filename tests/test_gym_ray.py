@@ -160,7 +160,7 @@ def test_a_policy_that_names_nothing_is_a_policy_error(name: str) -> None:
         (["--env", "simbot/Nowhere-v0", "--policy", "random"], "unknown environment"),
         (["--policy", "teleport"], "unknown policy"),
         (["--policy", "no_such_module_xyz:act"], "cannot import"),
-        (["--policy", "random", "--episodes", "0"], "at least 1"),
+        (["--policy", "random", "--episodes", "0"], "expected a whole number ≥ 1"),
         (["--policy", "random", "--world", "atlantis"], "atlantis"),
         (["--policy", "random", "--address", "auto", "--num-cpus", "2"], "not allowed with"),
     ],
