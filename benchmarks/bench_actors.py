@@ -177,6 +177,18 @@ def frame_sets(built: Server, frame_steps: int) -> Iterator[Callable[[], float]]
         yield one_set
 
 
+def paired_frame_costs(baseline: Server, other: Server, frame_steps: int, seconds: float) -> tuple[float, float]:
+    """Median ms per six-camera frame set of each server, their sets alternating (so that both see
+    the same load) until `other`'s sets add up to `seconds`."""
+    with frame_sets(baseline, frame_steps) as baseline_set, frame_sets(other, frame_steps) as other_set:
+        runs: tuple[list[float], list[float]] = ([], [])
+        while sum(runs[1]) < seconds:
+            runs[0].append(baseline_set())
+            runs[1].append(other_set())
+    first, second = (statistics.median(figures) * 1e3 for figures in runs)
+    return first, second
+
+
 def frame_costs(seconds: float, frame_steps: int) -> tuple[float, float]:
     """Median ms per six-camera frame set: the warehouse's people rigid, then animated."""
     with tempfile.TemporaryDirectory(prefix="bench-actors-") as folder:
@@ -184,15 +196,8 @@ def frame_costs(seconds: float, frame_steps: int) -> tuple[float, float]:
         with (
             server(additions=(rigid_file,)) as rigid,
             server(additions=(addition_path("warehouse_people"),)) as animated,
-            frame_sets(rigid, frame_steps) as rigid_set,
-            frame_sets(animated, frame_steps) as animated_set,
         ):
-            runs: tuple[list[float], list[float]] = ([], [])
-            while sum(runs[1]) < seconds:
-                runs[0].append(rigid_set())
-                runs[1].append(animated_set())
-    still, moving = (statistics.median(figures) * 1e3 for figures in runs)
-    return still, moving
+            return paired_frame_costs(rigid, animated, frame_steps, seconds)
 
 
 def main() -> None:

@@ -24,7 +24,7 @@ import argparse
 import statistics
 from contextlib import ExitStack
 
-from bench_actors import FRAME_SIZE, frame_sets, ms_per_step, server
+from bench_actors import FRAME_SIZE, ms_per_step, paired_frame_costs, server
 from tables import publish
 
 from simbot.sim.kit.social_force import Crowd
@@ -52,18 +52,8 @@ def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
 
 def frame_costs(actors: int, seconds: float, frame_steps: int) -> tuple[float, float]:
     """Median ms per six-camera frame set: `actors` scripted rigid workers, then animated and crowd-driven."""
-    with (
-        server(actors) as scripted,
-        server(actors, animated=True, plugin=PLUGIN.format("")) as crowd,
-        frame_sets(scripted, frame_steps) as scripted_set,
-        frame_sets(crowd, frame_steps) as crowd_set,
-    ):
-        runs: tuple[list[float], list[float]] = ([], [])
-        while sum(runs[1]) < seconds:
-            runs[0].append(scripted_set())
-            runs[1].append(crowd_set())
-    rigid, walking = (statistics.median(figures) * 1e3 for figures in runs)
-    return rigid, walking
+    with server(actors) as scripted, server(actors, animated=True, plugin=PLUGIN.format("")) as crowd:
+        return paired_frame_costs(scripted, crowd, frame_steps, seconds)
 
 
 def main() -> None:
