@@ -124,6 +124,9 @@ def test_a_bvh_file_is_read_by_its_suffix(tmp_path: Path, skeleton: Skeleton) ->
         (HIERARCHY.replace("thigh_l", "shin_l") + ONE_FRAME, "its parent is 'pelvis', in the skin 'thigh_l'"),
         (HIERARCHY + "MOTION\nFrames: 0\nFrame Time: 0.1\n", "no frames"),
         (HIERARCHY + "MOTION\nFrames: 2\nFrame Time: 0.1\n" + FRAMES[0] + "\n", "Frames: 2, but 1 frame lines"),
+        (HIERARCHY + "MOTION\nFrames: 1\nFrame Time: 0.1\n0 0 1 0 0 0 nan 0 0\n", "'nan' is not a number"),
+        (HIERARCHY.replace("OFFSET 0 10 0", "OFFSET 0 10") + ONE_FRAME, "OFFSET: 'CHANNELS' is not a number"),
+        ("HIERARCHY\nROOT pelvis\n{\nOFFSET 0 10\n" + ONE_FRAME, "OFFSET 0 10: not 3 numbers"),
     ],
     ids=[
         "no-hierarchy",
@@ -135,6 +138,9 @@ def test_a_bvh_file_is_read_by_its_suffix(tmp_path: Path, skeleton: Skeleton) ->
         "parent",
         "zero",
         "count",
+        "not-finite",
+        "short-offset",
+        "cut-offset",
     ],
 )
 def test_bad_files_raise_saying_why(tmp_path: Path, skeleton: Skeleton, text: str, reason: str) -> None:
@@ -205,8 +211,9 @@ def test_a_collada_files_unit_scales_its_lengths(tmp_path: Path, skeleton: Skele
     assert clip.x_displacement == pytest.approx(0.01 * walk.x_displacement, rel=1e-12)
 
 
-def test_a_collada_unit_that_is_not_a_length_raises(tmp_path: Path) -> None:
+@pytest.mark.parametrize("meter", ["inch", "inf", "0"])
+def test_a_collada_unit_that_is_not_a_length_raises(tmp_path: Path, meter: str) -> None:
     skin = tmp_path / "worker.dae"
-    skin.write_text(SKIN.read_text().replace('meter="1"', 'meter="inch"'))
-    with pytest.raises(SkeletonError, match="<unit meter='inch'>: not a positive number"):
+    skin.write_text(SKIN.read_text().replace('meter="1"', f'meter="{meter}"'))
+    with pytest.raises(SkeletonError, match=f"<unit meter='{meter}'>: not a positive number"):
         read_skeleton(skin)

@@ -25,6 +25,7 @@ skin unanimated.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -100,8 +101,11 @@ def _joints(words: list[str]) -> list[_Joint]:
             at += 1
         elif word == "OFFSET" and blocks:
             owner = blocks[-1]
+            offset = [_number(w, "OFFSET") for w in words[at + 1 : at + 4]]
+            if len(offset) != 3:
+                raise SkeletonError(f"HIERARCHY: OFFSET {' '.join(words[at + 1 : at + 4])}: not 3 numbers")
             if owner is not None:
-                owner.offset = np.array([_number(w, "OFFSET") for w in words[at + 1 : at + 4]])
+                owner.offset = np.array(offset)
             at += 4
         elif word == "CHANNELS" and blocks and blocks[-1] is not None:
             at = _channels(blocks[-1], words, at)
@@ -125,9 +129,12 @@ def _channels(joint: _Joint, words: list[str], at: int) -> int:
 
 def _number(word: str, where: str) -> float:
     try:
-        return float(word)
+        value = float(word)
     except ValueError:
-        raise SkeletonError(f"{where}: {word!r} is not a number") from None
+        value = math.nan
+    if not math.isfinite(value):
+        raise SkeletonError(f"{where}: {word!r} is not a number")
+    return value
 
 
 def _skin_joint(joint: _Joint, skeleton: Skeleton) -> int:

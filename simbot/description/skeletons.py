@@ -174,7 +174,7 @@ def _meter(root: ET.Element) -> float:
         meter = float(text)
     except ValueError:
         meter = math.nan
-    if not meter > 0.0:
+    if not (math.isfinite(meter) and meter > 0.0):
         raise SkeletonError(f"<unit meter={text!r}>: not a positive number")
     return meter
 
