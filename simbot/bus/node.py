@@ -183,6 +183,19 @@ class Publisher:
         status: object = self._publisher.matching_status
         return bool(getattr(status, "matching", status))
 
+    def await_subscribers(self, timeout: float) -> bool:
+        """Whether `has_subscribers` came true within `timeout` s: a session learns of a subscriber
+        some time after another session declared it, and Zenoh's publisher may drop a put for a
+        subscriber its session has not heard of yet."""
+        deadline = time.monotonic() + timeout
+        pause = 1e-4
+        while not self.has_subscribers:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(pause)
+            pause = min(2 * pause, 0.01)
+        return True
+
     def close(self) -> None:
         """Undeclare the publisher (and the latched queryable)."""
         if self._announcement is not None:

@@ -52,6 +52,11 @@ class RenderedSensor(Protocol):
         """Someone subscribes to an output that needs rendering."""
         ...
 
+    def audience(self) -> frozenset[str]:
+        """The keys of its `publication` someone subscribes to now: what its worker puts of the
+        frame asked for now (the server's view, never the worker's session's)."""
+        ...
+
     def publish_info(self, stamp_ns: int) -> None:
         """camera_info alone, for a tick with no frame to render."""
         ...

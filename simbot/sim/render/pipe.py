@@ -24,6 +24,9 @@ class RenderRequest:
     """The camera's world pose, looking along its +x with z up."""
     states: Mapping[str, BodyState]
     """The moving bodies, where they are at the stamp."""
+    publish: frozenset[str] = frozenset()
+    """The keys of the camera's publication that go out with the frame: those the server found
+    subscribed when it asked for it (`publishing.FramePublisher.publish`)."""
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,8 @@
   through the pipe.
 - A camera given a `Publication` is published by its worker (`publishing.py`), which joins the
   bus as `bus` says: its pixels go from the worker's memory to the bus, and the frame handed over
-  here is for what the server still does with it (counting it, `<save>`, bounding boxes).
+  here is for what the server still does with it (counting it, `<save>`, bounding boxes). Which
+  of its keys go out is said with each request (`publish`), by the server, which knows who listens.
 - One request per camera may be outstanding: its shared memory holds one frame. Whether to skip a
   frame while the camera is busy (real time: the physics never waits) or to wait for it
   (lockstep: `collect(wait_for=i)`) is the caller's choice.
@@ -41,7 +42,7 @@ import logging
 import multiprocessing
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
@@ -208,9 +209,17 @@ class RenderPool:
         self._send(worker, AddCamera(index, spec, shm.name, publication))
         return index
 
-    def request(self, camera: int, stamp_ns: int, camera_pose: Transform, states: Mapping[str, BodyState]) -> None:
+    def request(
+        self,
+        camera: int,
+        stamp_ns: int,
+        camera_pose: Transform,
+        states: Mapping[str, BodyState],
+        publish: Collection[str] = (),
+    ) -> None:
         """Start rendering camera `camera` at the camera's world pose (looking along its +x, z up)
-        with the moving bodies where `states` puts them. Returns at once; raises if busy."""
+        with the moving bodies where `states` puts them, its worker then putting the keys of its
+        publication in `publish` on the bus. Returns at once; raises if busy."""
         self._check_open()
         spec = self._spec(camera)
         worker = self._workers[self._worker_of[camera]]
@@ -224,7 +233,7 @@ class RenderPool:
         if unknown:
             raise ValueError(f"camera {spec.name!r}: no such bodies in the scene: {sorted(unknown)}")
         pose, states = Transform.of(*camera_pose), dict(states)
-        self._send(worker, RenderRequest(camera, int(stamp_ns), pose, states))
+        self._send(worker, RenderRequest(camera, int(stamp_ns), pose, states, frozenset(publish)))
         self._outstanding[camera] = int(stamp_ns)
         self._requested[camera] = (pose, states, self._bodies)
 

@@ -8,8 +8,17 @@ robot's namespace already in it), and camera_info's key and message. A worker jo
 client of the server (`Bus`, `simbot.bus.options.helper_options`) and declares a plain publisher
 per key, unannounced: the server's own publishers announce the keys on the graph and say whether
 anyone watches, which decides whether a frame is drawn at all. After a frame is drawn and
-finished, each product somebody subscribes to goes out, then camera_info, under the frame's stamp
-(image_transport's CameraSubscriber and exact-time synchronisers pair them by it).
+finished, the products the server found subscribed when it asked for the frame (the request's
+`publish`) go out, then camera_info, under the frame's stamp (image_transport's CameraSubscriber
+and exact-time synchronisers pair them by it).
+
+Whether a frame goes out is the server's decision alone, never the worker's session's view: that
+session learns of a subscriber some time after the server does (its publishers' matching status
+is false for a while after they are declared, longer on a loaded machine), and a worker that
+asked its own session once dropped the first frames of a seeded lockstep run now and then (issue
+46). In lockstep a worker whose session has not yet heard of a subscriber the server counts waits
+for it (`Publisher.await_subscribers`, up to `MATCH_TIMEOUT_S`), so that Zenoh's own filtering on
+the publisher's side cannot drop the put either; in real time it puts at once.
 
 A product's CDR is written in place (`InPlace`): the first frame's message is built and encoded,
 and where its stamp and its array's bytes lie in the encoding is found by encoding it again with
@@ -28,7 +37,7 @@ from __future__ import annotations
 
 import logging
 import struct
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -44,6 +53,9 @@ log = logging.getLogger(__name__)
 Build = Callable[[int, str, Any], Any]
 """(stamp ns, frame id, the output's array) → the message."""
 BARRIER_TIMEOUT_S = 10.0
+MATCH_TIMEOUT_S = 5.0
+"""How long a lockstep worker waits for its session to hear of a subscriber the server counted (it
+takes under a millisecond; a subscriber that left meanwhile costs this once)."""
 STAMP = slice(4, 12)
 """builtin_interfaces/Time (int32 s, uint32 ns) right after the 4-byte CDR encapsulation: where
 every message that starts with a std_msgs/Header keeps its stamp."""
@@ -140,6 +152,7 @@ class _Outlet:
 @dataclass
 class _Camera:
     outlets: list[_Outlet]
+    info_key: str
     info: Publisher
     template: Any
 
@@ -159,7 +172,7 @@ class FramePublisher:
             for route in publication.routes
         ]
         info = self._publisher(publication.info_key, publication.info.__msgtype__)
-        self._cameras[camera] = _Camera(outlets, info, publication.info)
+        self._cameras[camera] = _Camera(outlets, publication.info_key, info, publication.info)
 
     def _publisher(self, key: str, typename: str) -> Publisher:
         """In lockstep a sample is never dropped (the step waits for it, as it waits for the frame);
@@ -167,19 +180,26 @@ class FramePublisher:
         drop = self.bus.barrier is None
         return self.node.publisher(key, typename, drop=drop, announced=False)
 
-    def publish(self, camera: int, stamp_ns: int, arrays: Mapping[str, Array]) -> None:
-        """The camera's products somebody subscribes to, then its camera_info, under `stamp_ns`; in
-        lockstep, back once the server has routed them."""
+    def publish(self, camera: int, stamp_ns: int, arrays: Mapping[str, Array], keys: Collection[str]) -> None:
+        """The camera's products on `keys` (those the server found subscribed), then its camera_info
+        if its key is among them, under `stamp_ns`; in lockstep, back once the server has routed them."""
         held = self._cameras.get(camera)
         if held is None:
             return
         for outlet in held.outlets:
-            if outlet.publisher.has_subscribers:
-                outlet.publisher.put_raw(outlet.writer.encode(stamp_ns, arrays[outlet.route.output]))
-        if held.info.has_subscribers:
-            held.info.put(replace(held.template, header=messages.header(stamp_ns, held.template.header.frame_id)))
+            if outlet.route.key in keys:
+                self._ready(outlet.publisher).put_raw(outlet.writer.encode(stamp_ns, arrays[outlet.route.output]))
+        if held.info_key in keys:
+            info = replace(held.template, header=messages.header(stamp_ns, held.template.header.frame_id))
+            self._ready(held.info).put(info)
         if self.bus.barrier is not None:
             self.node.call(self.bus.barrier, {}, timeout=BARRIER_TIMEOUT_S)
+
+    def _ready(self, publisher: Publisher) -> Publisher:
+        """In lockstep, once this session knows of a subscriber (see the module docstring)."""
+        if self.bus.barrier is not None and not publisher.await_subscribers(MATCH_TIMEOUT_S):
+            log.warning("%s: no subscriber heard of within %g s; put anyway", publisher.key, MATCH_TIMEOUT_S)
+        return publisher
 
     def close(self) -> None:
         self.node.close()

@@ -186,10 +186,11 @@ class _Held:
                 raise RuntimeError(f"camera {spec.name!r}: a publication, but no bus to publish it on")
             self.publisher.add(index, publication)
 
-    def publish(self, index: int, stamp_ns: int) -> None:
-        """The frame just finished, on the bus (a camera without a publication: nothing)."""
+    def publish(self, request: RenderRequest) -> None:
+        """The frame just finished, on the keys the request names (a camera without a publication: nothing)."""
         if self.publisher is not None:
-            self.publisher.publish(index, stamp_ns, self.cameras[index].buffers.arrays)
+            arrays = self.cameras[request.camera].buffers.arrays
+            self.publisher.publish(request.camera, request.stamp_ns, arrays, request.publish)
 
     def change(self, change: SceneChange) -> None:
         """A change of the world that runs, each before any request sent after it."""
@@ -225,7 +226,7 @@ def _render_request(held: _Held, request: RenderRequest) -> FrameDone | RenderFa
     start = time.perf_counter()
     try:
         render(held.scene, held.renderer, held.cameras[request.camera], request.pose, request.states)
-        held.publish(request.camera, request.stamp_ns)
+        held.publish(request)
     except Exception as exc:
         return RenderFailed(request.camera, request.stamp_ns, f"{type(exc).__name__}: {exc}")
     return FrameDone(request.camera, request.stamp_ns, time.perf_counter() - start)

@@ -242,6 +242,11 @@ class Camera(Sampled):
     def wanted(self) -> bool:
         return self.saver is not None or any(output.publisher.has_subscribers for output in self.outputs)
 
+    def audience(self) -> frozenset[str]:
+        """The keys of its publication that someone subscribes to now, by the server's own publishers."""
+        watched = [self._info, *(output.publisher for output in self.outputs)]
+        return frozenset(publisher.key for publisher in watched if publisher.has_subscribers)
+
     def publish(self, frame: Frame) -> None:
         """A frame done: its products, then camera_info, all under the frame's stamp (the sim time it
         shows), unless its worker published them; counted; and to disk where `<save>` says."""

@@ -33,7 +33,9 @@ the scenes, and its cameras stop (their slots stay empty, so the others keep the
 When the last camera leaves, the pool closes; a camera created later starts a fresh one.
 
 The images leave from the workers (simbot/sim/render/publishing.py): each joins the bus as a
-client of the server and publishes the frames of the cameras that give it a publication; the
+client of the server and publishes the frames of the cameras that give it a publication, on the
+keys the camera found subscribed when the frame was asked for (`audience`: the server's view, so
+what a lockstep client receives never depends on when a worker's session heard of it); the
 frames come back here only to be counted (and saved, and boxed). In lockstep the workers wait at
 the server's barrier queryable (`BARRIER`) until their samples are routed, so a step's images
 arrive before its clock, as when the server published them.
@@ -288,7 +290,8 @@ class Rendering:
         waiting, self._waiting = sorted(self._waiting), set()
         try:
             for index in waiting:
-                self.pool.request(index, now_ns, self.physics.frame_pose(*self.cameras[index].where), states)
+                camera = self.cameras[index]
+                self.pool.request(index, now_ns, self.physics.frame_pose(*camera.where), states, camera.audience())
         except RuntimeError as exc:
             self.fail(str(exc))
 
