@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from simbot.bus.codec import DecodeError, EncodeError, UnknownMessageType, decode, encode, message_type
 from simbot.bus.keys import topic_key
-from simbot.bus.node import BusOpenError, Inbox, Node, Publisher, Subscription
+from simbot.bus.node import BusOpenError, ForkedSessionError, Inbox, Node, Publisher, Subscription
 from simbot.bus.options import BusConfigError, BusOptions, add_bus_arguments, zenoh_config
 from simbot.bus.services import BadRequest, Queryable, Request, RosRequest, RosService, ServiceError
 
@@ -15,6 +15,7 @@ __all__ = [
     "BadRequest",
     "BusConfigError",
     "BusOpenError",
+    "ForkedSessionError",
     "BusOptions",
     "DecodeError",
     "EncodeError",

@@ -9,6 +9,13 @@ port 0) with a unique namespace, `--ros-router none` (an environment never joins
 (SIGTERM), kills it after `STOP_TIMEOUT_S`, and then kills whatever is left of its group (render
 workers of a server that was killed), so nothing outlives the environment.
 
+Zenoh and fork: Zenoh's threads do not survive a fork, and Gymnasium's `AsyncVectorEnv` forks its
+workers by default (on Linux), after the program has often used an env itself (`check_env`). So
+the first session an environment opens in a process makes "spawn" the start method of a program
+that has not chosen one (`multiprocessing.set_start_method`: Python 3.14 stops defaulting to fork
+for the same reason), and a process forked after Zenoh started gets `ForkedSessionError`, one line
+naming the fix, before any server starts (simbot/bus/node.py), never a hang.
+
 Every failure of the server surfaces as `SimServerError` naming the server (its command line, or
 the endpoint given) and what ended it: the exit code where the process is gone, else the request
 and the timeout that ran out.
@@ -20,6 +27,7 @@ import contextlib
 import itertools
 import logging
 import math
+import multiprocessing
 import os
 import secrets
 import shutil
@@ -34,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError
+from simbot.bus.node import check_fork_safe
 from simbot.gym.errors import SimServerError
 
 log = logging.getLogger(__name__)
@@ -126,6 +135,7 @@ class Session:
     def start(spec: ServerSpec, world: str, folder: Path, timeout: float) -> Session:
         """Starts a server for `spec` (its robot already written into `folder`, which the session then
         owns) and waits until its world control answers."""
+        _fork_safe()
         port, namespace = free_port(), unique_namespace()
         endpoint = f"tcp/127.0.0.1:{port}"
         command = server_command(spec, endpoint, namespace)
@@ -163,6 +173,7 @@ class Session:
     @staticmethod
     def connect(endpoint: str, namespace: str, world: str, timeout: float) -> Session:
         """A session on a server someone else runs (and stops)."""
+        _fork_safe()
         name = f"simbot server at {endpoint} (namespace {namespace!r})"
         node = _connect(endpoint, namespace, None, name, timeout)
         session = Session(node, world, timeout, name)
@@ -286,6 +297,14 @@ class Session:
             _end(self.process)
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def _fork_safe() -> None:
+    """Before an environment's first session in this process; see the module docstring."""
+    check_fork_safe()
+    if multiprocessing.get_start_method(allow_none=True) is None:
+        multiprocessing.set_start_method("spawn")
+        log.info("multiprocessing starts its children with 'spawn' from now on: a fork would not carry Zenoh's threads")
 
 
 def _connect(endpoint: str, namespace: str, process: subprocess.Popen[bytes] | None, name: str, timeout: float) -> Node:
