@@ -31,7 +31,7 @@ from tables import publish
 from timing import per_call_ms
 
 from simbot.bus import decode, encode, messages
-from simbot.clients.merger import Binning, ScanMerger, to_message
+from simbot.scan_merge import Binning, ScanMerger, to_message
 from simbot.transform import Transform
 
 TARGET_MS = 2.0

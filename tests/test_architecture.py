@@ -112,6 +112,7 @@ CLIENT_MAY_IMPORT = (
     "simbot.transform",
     "simbot.dataset_format",
     "simbot.arguments",
+    "simbot.scan_merge",
 )
 """The layers a client program stands on: the bus, the description, and the leaves every layer shares."""
 
@@ -136,6 +137,32 @@ def test_the_clients_import_only_the_bus_the_description_and_the_shared_leaves()
         if others := sorted(m for m in imported if not _under(m, CLIENT_MAY_IMPORT)):
             found[path.name] = others
     assert found == {}
+
+
+def _client_imports(source: str) -> list[int]:
+    """Lines importing a client program (`simbot.clients…`, or the checkout's `clients…`)."""
+    lines = []
+    for node in ast.walk(ast.parse(source)):
+        names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+        if isinstance(node, ast.ImportFrom) and not node.level:
+            names = [node.module or ""]
+        if any(_under(name, ("simbot.clients", "clients")) for name in names):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_the_library_never_imports_a_client_program() -> None:
+    """simbot.clients installs from clients/, beside simbot/ in a checkout: a library module that
+    imports it fails wherever the checkout's simbot/ is found first (issue 46)."""
+    found = {
+        str(path.relative_to(REPO)): lines
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if (lines := _client_imports(path.read_text()))
+    }
+    assert found == {}
+    assert _client_imports(
+        "import simbot.clients.merger\nfrom clients.common import x\nfrom simbot.bus import y\n"
+    ) == [1, 2]
 
 
 def test_the_layer_checks_find_a_wrong_import() -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -21,6 +22,7 @@ from simbot.bus import (
     BusConfigError,
     BusOpenError,
     BusOptions,
+    ForkedSessionError,
     Node,
     Queryable,
     Request,
@@ -366,3 +368,27 @@ def test_open_failures_are_one_line_bus_open_errors() -> None:
     with pytest.raises(BusOpenError, match="client"):
         Node(BusOptions(connect=(endpoint(free_port()),), connect_timeout=0.3), "client")
     assert time.monotonic() - start < 3.0
+
+
+def test_a_process_forked_after_zenoh_started_is_told_at_once_not_left_to_hang() -> None:
+    """A child forked from a process with a live session raises ForkedSessionError naming 'spawn'
+    before it touches Zenoh (its threads are not in the child: a session there hangs)."""
+    options = BusOptions(listen=(endpoint(free_port()),), namespace=unique_namespace())
+    with Node(options, "server"):
+        read, write = os.pipe()
+        child = os.fork()
+        if child == 0:  # the child: report how asking for a session went, and leave without cleanup
+            os.close(read)
+            try:
+                Node(BusOptions(connect=options.listen, namespace=options.namespace), "client")
+                outcome = "opened"
+            except ForkedSessionError as exc:
+                outcome = str(exc)
+            os.write(write, outcome.encode())
+            os._exit(0)
+        os.close(write)
+        with os.fdopen(read) as pipe:
+            outcome = pipe.read()
+        _, status = os.waitpid(child, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert outcome.startswith("this process was forked") and "'spawn'" in outcome, outcome

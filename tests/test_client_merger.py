@@ -40,7 +40,7 @@ from conftest import REPO
 from server_helpers import Collector, SimServer, running_server, stamp_ns, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
-from simbot.clients.merger import BadScan, Binning, ScanMerger
+from simbot.scan_merge import BadScan, Binning, ScanMerger
 from simbot.transform import Transform
 
 WORLD = REPO / "tests" / "fixtures" / "merger_boxes.sdf"

@@ -1,12 +1,14 @@
 """A non-editable install works away from the repository: the wheel carries the assets and finds them.
 
 One module fixture builds the wheel (pip with build isolation, so the build backend need not be
-in the dev venv) and installs it with its dependencies into a fresh venv; the tests then run that
-venv's python and `simbot` from an empty folder, with no resource path variables set.
+in the dev venv) and installs it with its dependencies and the gym extra into a fresh venv; the
+tests then run that venv's python and `simbot` from an empty folder, with no resource path
+variables set, and from the checkout's own folder, whose `simbot/` then shadows the installed one.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -86,7 +88,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     pip(sys.executable, "wheel", "--no-deps", "-w", str(dist), str(REPO), cwd=cwd, env=env)
     (wheel,) = dist.glob("simbot-*.whl")
     subprocess.run([sys.executable, "-m", "venv", str(venv)], cwd=cwd, env=env, check=True, timeout=300)
-    pip(venv / "bin" / "python", "install", str(wheel), cwd=cwd, env=env)
+    pip(venv / "bin" / "python", "install", f"{wheel}[gym]", cwd=cwd, env=env)
     installed = Installed(wheel, venv, Path(), cwd, env)
     purelib = installed.run("python", "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])")
     assert purelib.returncode == 0, purelib.stderr
@@ -186,3 +188,50 @@ def test_installed_clients_run_from_their_console_scripts_and_simbot(installed: 
     for command in CLIENTS:
         done = installed.run("simbot", command, "--help")
         assert done.returncode == 0 and "--namespace" in done.stdout, f"simbot {command}: {done.stderr}"
+
+
+IMPORT_ALL = """
+import importlib, json, sys
+failed = {}
+for name in sys.argv[1:]:
+    try:
+        importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        failed[name] = [exc.name or "", str(exc)]
+    except Exception as exc:
+        failed[name] = ["", f"{type(exc).__name__}: {exc}"]
+print(json.dumps(failed))
+"""
+OPTIONAL = {"foxglove", "rclpy", "ray", "stable_baselines3", "torch"}
+"""What the extras the fixture leaves out bring (foxglove, ros2, ray, learning): a module that needs one may not import."""
+
+
+def _public_modules(wheel: Path) -> list[str]:
+    """Every module of the wheel whose dotted name has no part starting with an underscore (no
+    `__main__`), the assets' scripts aside."""
+    with zipfile.ZipFile(wheel) as archive:
+        paths = [n for n in archive.namelist() if n.startswith("simbot/") and n.endswith(".py")]
+    names = {path.removesuffix(".py").removesuffix("/__init__").replace("/", ".") for path in paths}
+    return sorted(
+        n for n in names if not n.startswith("simbot.assets") and not any(p.startswith("_") for p in n.split("."))
+    )
+
+
+def test_every_public_module_imports_beside_a_checkout(installed: Installed) -> None:
+    """From the checkout's folder, `python -c` finds the checkout's `simbot/` first, which holds no
+    `simbot.clients` (setuptools maps it from clients/): the library must never reach into the
+    client programs, so every library module imports there. The clients themselves import as the
+    console scripts run them, from sys.path without the working directory (`-I`)."""
+    modules = _public_modules(installed.wheel)
+    library = [m for m in modules if not m.startswith("simbot.clients")]
+    clients = [m for m in modules if m.startswith("simbot.clients")]
+    assert "simbot.gym.observe" in library and "simbot.clients.merger" in clients, modules
+    python = str(installed.venv / "bin" / "python")
+    for flags, names in (([], library), (["-I"], clients)):
+        done = subprocess.run(
+            [python, *flags, "-c", IMPORT_ALL, *names], cwd=REPO, env=installed.env, capture_output=True, text=True
+        )
+        assert done.returncode == 0, done.stderr[-3000:]
+        failed = json.loads(done.stdout)
+        needed = {name: why for name, (missing, why) in failed.items() if missing.split(".")[0] not in OPTIONAL}
+        assert needed == {}, f"python {' '.join(flags)} -c 'import …' in {REPO}: {needed}"

@@ -6,8 +6,9 @@ It knows nothing of physics or SDF (SPEC §7): the simulator and the clients bot
 from __future__ import annotations
 
 from simbot.bus.codec import DecodeError, EncodeError, UnknownMessageType, decode, encode, message_type
+from simbot.bus.forks import ForkedSessionError
 from simbot.bus.keys import topic_key
-from simbot.bus.node import BusOpenError, ForkedSessionError, Inbox, Node, Publisher, Subscription
+from simbot.bus.node import BusOpenError, Inbox, Node, Publisher, Subscription
 from simbot.bus.options import BusConfigError, BusOptions, add_bus_arguments, zenoh_config
 from simbot.bus.services import BadRequest, Queryable, Request, RosRequest, RosService, ServiceError
 

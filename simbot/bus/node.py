@@ -40,6 +40,7 @@ import zenoh
 import zenoh.ext
 
 from simbot.bus.codec import DecodeError, decode, encode, message_type
+from simbot.bus.forks import check_fork_safe, zenoh_starts
 from simbot.bus.frames import with_frame_prefix
 from simbot.bus.graph import Announcement
 from simbot.bus.keys import topic_key
@@ -71,42 +72,6 @@ WarningPolicy = Literal["rate-limited", "always", "none"]
 
 class BusOpenError(OSError):
     """The Zenoh session could not be opened (endpoint in use, no server to connect to)."""
-
-
-class ForkedSessionError(RuntimeError):
-    """A session asked for in a process forked from one whose Zenoh had started: Zenoh's threads do
-    not survive a fork, so the child's session would hang at its first use. str() is the one line
-    that says what to do instead."""
-
-
-FORK_ADVICE = (
-    "this process was forked from one whose Zenoh session had started, and Zenoh's threads do not survive "
-    "a fork: start it with the 'spawn' method (multiprocessing.get_context('spawn'); for Gymnasium, "
-    "make_vec(..., vector_kwargs={'context': 'spawn'}))"
-)
-_zenoh_started = False
-"""Whether this process has opened a Zenoh session (its runtime threads run from then on)."""
-_forked_after_zenoh = False
-"""Whether this process was forked from one where `_zenoh_started` was true."""
-
-
-def _note_forked() -> None:
-    global _forked_after_zenoh
-    _forked_after_zenoh = True
-
-
-def check_fork_safe() -> None:
-    """ForkedSessionError when this process may not open a Zenoh session (see its docstring)."""
-    if _forked_after_zenoh:
-        raise ForkedSessionError(FORK_ADVICE)
-
-
-def _zenoh_starts() -> None:
-    """The first session of the process: a child forked from now on is told, not left to hang."""
-    global _zenoh_started
-    if not _zenoh_started:
-        _zenoh_started = True
-        os.register_at_fork(after_in_child=_note_forked)
 
 
 class _Closable(Protocol):
@@ -389,7 +354,7 @@ class Node:
         self._entity_ids = 0
         config = zenoh_config(options, role)
         check_fork_safe()
-        _zenoh_starts()
+        zenoh_starts()
         try:
             self.session = zenoh.open(config)
         except zenoh.ZError as exc:

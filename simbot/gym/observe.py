@@ -27,9 +27,9 @@ import numpy.typing as npt
 
 from simbot.bus import Node, Subscription, messages
 from simbot.bus.tf_tree import Matrix, TransformTree
-from simbot.clients.merger import Binning, ScanMerger
 from simbot.description.footprints import Planar
 from simbot.gym.errors import SimServerError
+from simbot.scan_merge import Binning, ScanMerger
 from simbot.transform import yaw_of
 
 log = logging.getLogger(__name__)

@@ -14,7 +14,7 @@ workers by default (on Linux), after the program has often used an env itself (`
 the first session an environment opens in a process makes "spawn" the start method of a program
 that has not chosen one (`multiprocessing.set_start_method`: Python 3.14 stops defaulting to fork
 for the same reason), and a process forked after Zenoh started gets `ForkedSessionError`, one line
-naming the fix, before any server starts (simbot/bus/node.py), never a hang.
+naming the fix, before any server starts (simbot/bus/forks.py), never a hang.
 
 Every failure of the server surfaces as `SimServerError` naming the server (its command line, or
 the endpoint given) and what ended it: the exit code where the process is gone, else the request
@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError
-from simbot.bus.node import check_fork_safe
+from simbot.bus.forks import check_fork_safe
 from simbot.gym.errors import SimServerError
 
 log = logging.getLogger(__name__)
