@@ -1,11 +1,13 @@
-"""Seeded lockstep camera runs repeat byte for byte under load (issue 46).
+"""Seeded lockstep camera runs repeat byte for byte under load (issue 46): `pytest -m stress`.
 
-Every camera kind's conformance case (`test_conformance.CASES`) runs as seeded pairs while busy
-loops hold every core, and each pair must publish the same bytes on every key: the first frame
-included, whenever the render worker's session learns of the subscriber. The suite runs one pair
-of each kind; `-m stress` runs `SIMBOT_STRESS_PAIRS` (default 20) of each, the figure the issue asks
-for. The window this once slipped through (a worker's first put, before its session knew of the
-subscriber) is held wide open in `test_render_pool.py::test_a_workers_first_frame_reaches_a_subscriber_it_has_not_heard_of`.
+Every camera kind's conformance case (`test_conformance.CASES`) runs as `SIMBOT_STRESS_PAIRS`
+seeded pairs (default 20) while a busy loop holds every core, and each pair must publish the same
+bytes on every key: the first frame included, whenever the render worker's session learns of the
+subscriber. It takes about 15 minutes on two cores, so `make test` runs its short form instead:
+`test_conformance.py` runs one pair of every camera kind among the suite's three workers (where
+the late first frame was seen), and `test_render_publishing.py` holds the window open on every run
+(a worker's first frame put the instant its publishers are declared, before its session can know
+of the subscriber: the code before the fix lost 42 of 50 frames there).
 """
 
 from __future__ import annotations
@@ -60,12 +62,6 @@ def _differences(tmp: Path, kind: str, pairs: int) -> list[str]:
             counts = ", ".join(f"{key} {len(first.get(key, []))}/{len(second.get(key, []))}" for key in keys)
             found.append(f"pair {pair}: {counts}")
     return found
-
-
-@pytest.mark.parametrize("kind", CAMERA_KINDS)
-def test_a_seeded_camera_pair_repeats_on_busy_cores(kind: str, busy_cores: int, tmp_path: Path) -> None:
-    """One pair per camera kind with every core spinning: the same bytes on every key."""
-    assert _differences(tmp_path, kind, 1) == []
 
 
 @pytest.mark.stress
