@@ -30,12 +30,17 @@ from simbot.bus import BusOptions, Node, decode, encode, messages
 from simbot.sim.loop.naming import scoped_rng
 from simbot.sim.loop.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
 from simbot.sim.loop.simulation import Mode
+from simbot.sim.loop.world_control import CreateRequest
 from simbot.sim.server import Server, ServerConfig
 
 FLUSH = "conformance_flush"
 """A key no system uses, put after the last step: its arrival means the run's messages have all arrived."""
 STEPS = 200  # 0.2 s at 1 kHz: several messages of every rate here (camera 30 Hz, lidar 50 Hz, IMU 200 Hz)
 SEED = 7
+CREATED_AT = 50
+WATCHER = """<sdf version="1.9"><model name="watcher"><static>true</static><pose>0 1 0.3 0 0 -0.6</pose>
+  <link name="link">{camera}</link></model></sdf>"""
+"""A camera on a model created while the world runs (`CREATED_AT`)."""
 Published = dict[str, list[bytes]]
 
 WORLD = """<?xml version="1.0"?>
@@ -402,8 +407,9 @@ def _command(server: Server, node: Node, topic: str, message: Any) -> None:
     wait_until(lambda: inputs and all(i.received for i in inputs), 5.0, f"{topic} at its input")
 
 
-def run(tmp: Path, case: Case, seed: int) -> Published:
-    """Every payload published on the namespace, by key, from the server's start through STEPS steps.
+def run(tmp: Path, case: Case, seed: int, created: str | None = None) -> Published:
+    """Every payload published on the namespace, by key, from the server's start through STEPS steps
+    (with the model `created`, an SDF, created through world control's call before step CREATED_AT).
 
     The subscriber is on the server's own session, declared before the server is built, so it gets
     the latched messages of construction too and nothing is lost in transport; a marker put after
@@ -423,7 +429,9 @@ def run(tmp: Path, case: Case, seed: int) -> Published:
         try:
             if case.command is not None:
                 _command(server, node, *case.command)
-            for _ in range(STEPS):
+            for step in range(STEPS):
+                if created is not None and step == CREATED_AT:
+                    server.world.create(CreateRequest(None, created, None, "", None, False))
                 server.sim.step()
             # everything put before the marker has been handed to `keep` once the marker has
             node.session.put(f"0/{node.namespace}/{FLUSH}", b"")
@@ -484,3 +492,19 @@ def test_scoped_rng_is_a_function_of_seed_and_name() -> None:
     )]  # fmt: skip
     assert draw[0] == draw[1]
     assert len({tuple(d) for d in draw[1:]}) == 4
+
+
+@pytest.mark.parametrize("kind", ["camera", "segmentation"])
+def test_a_camera_created_at_run_time_publishes_its_first_frame_at_its_first_tick(kind: str, tmp_path: Path) -> None:
+    """A model created between steps starts a render worker's session for its camera (a fresh pool
+    here: the world has no other camera): its first frame is the one of the first step after it
+    came, in both seeded runs, however late that session hears of the subscriber (issue 46)."""
+    sensor = CASES[(SENSOR_GROUP, kind)].sensors.replace('name="eye"', 'name="watch"').replace(">eye<", ">watch<")
+    watcher, key = WATCHER.format(camera=sensor), "watch" if kind == "camera" else "watch/labels_map"
+    first, second = (run(tmp_path / side, Case(sensors=_imu()), SEED, watcher) for side in ("a", "b"))
+    frames = first.get(key, [])
+    stamps = [decode(payload, "sensor_msgs/msg/Image").header.stamp for payload in frames]
+    assert len(stamps) >= 4, f"{key}: {len(stamps)} frames"
+    assert (stamps[0].sec, stamps[0].nanosec) == (0, (CREATED_AT + 1) * 1_000_000), stamps[0]
+    assert first.keys() == second.keys()
+    assert [key for key in first if first[key] != second[key]] == []
