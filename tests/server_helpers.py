@@ -220,6 +220,37 @@ def exited(pid: int) -> bool:
         return True
 
 
+def descendants(pid: int) -> set[int]:
+    """Every process below `pid` (/proc's parent links), however deep: an async env's server is
+    a grandchild, a Ray actor's a great-grandchild."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+                parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return found
+
+
+def alive(pids: set[int]) -> set[int]:
+    """Those of `pids` still running (not gone, not a zombie)."""
+    left = set()
+    for pid in pids:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if state != "Z":
+            left.add(pid)
+    return left
+
+
 def dropped(caplog: pytest.LogCaptureFixture) -> list[str]:
     """The lines a world logged for the systems it left out for bad parameters (in this process)."""
     return [r.getMessage() for r in caplog.records if r.name == "simbot.sim.loop.world" and r.levelno == logging.ERROR]

@@ -17,9 +17,8 @@ import select
 import signal
 import subprocess
 import sys
-from pathlib import Path
 
-from server_helpers import wait_until
+from server_helpers import alive, descendants, wait_until
 
 REPORT_TIMEOUT_S = 240.0
 """Three servers start and stop in the script before it reports (17 s here, alone); a hang never reports."""
@@ -99,31 +98,6 @@ def test_a_forked_worker_fails_at_once_naming_the_fix() -> None:
         process.wait()
 
 
-def _descendants(pid: int) -> set[int]:
-    """Every process under `pid` now, by the parent each names in /proc."""
-    parents: dict[int, int] = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                parents[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
-
-
-def _alive(pid: int) -> bool:
-    """Running, not a zombie waiting for a reaper (a container's init may never reap)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return False
-    return state != "Z"
-
-
 def test_killing_the_parent_leaves_no_worker_or_server_behind() -> None:
     """SIGKILL to the parent: its workers read the end of their pipes and close their envs, and the
     keepers end the servers; every process it had started is gone."""
@@ -131,12 +105,12 @@ def test_killing_the_parent_leaves_no_worker_or_server_behind() -> None:
     try:
         report = _report(process)
         assert report.get("same") == [True, True], report
-        left = _descendants(process.pid)
+        left = descendants(process.pid)
         workers = set(report["pids"])  # type: ignore[arg-type]
         assert workers <= left and len(left) >= 3 * len(workers), f"workers {workers}, processes {left}"
         os.kill(process.pid, signal.SIGKILL)
         process.wait()
-        wait_until(lambda: not any(_alive(pid) for pid in left), 60.0, f"the processes {sorted(left)} to end")
+        wait_until(lambda: not alive(left), 60.0, f"the processes {sorted(left)} to end")
     finally:
         process.kill()
         process.wait()

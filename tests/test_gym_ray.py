@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from server_helpers import alive, descendants
 
 gymnasium = pytest.importorskip("gymnasium")
 ray = pytest.importorskip("ray")
@@ -43,24 +44,6 @@ it would hang opening its session."""
 # --------------------------------------------------------------------------- processes
 
 
-def descendants(pid: int) -> set[int]:
-    """Every process below `pid` (/proc's parent links), however deep: an async env's server is
-    a grandchild, a Ray actor's a great-grandchild."""
-    parents: dict[int, int] = {}
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                stat = Path(f"/proc/{entry}/stat").read_text()
-                parents[int(entry)] = int(stat.rsplit(")", 1)[1].split()[1])
-            except (OSError, ValueError, IndexError):
-                continue
-    found, frontier = set(), {pid}
-    while frontier:
-        frontier = {child for child, parent in parents.items() if parent in frontier} - found
-        found |= frontier
-    return found
-
-
 def servers_below(pid: int) -> set[int]:
     """The simbot servers (`python -m simbot.sim.server ...`, not the keeper that starts one) among
     `pid`'s descendants that are still running."""
@@ -73,19 +56,6 @@ def servers_below(pid: int) -> set[int]:
         if argv[1:3] == [b"-m", SERVER]:
             servers.add(child)
     return alive(servers)
-
-
-def alive(pids: set[int]) -> set[int]:
-    """Those of `pids` still running (not gone, not a zombie)."""
-    left = set()
-    for pid in pids:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except (OSError, IndexError):
-            continue
-        if state != "Z":
-            left.add(pid)
-    return left
 
 
 # --------------------------------------------------------------------------- vector envs
