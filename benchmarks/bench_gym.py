@@ -1,5 +1,6 @@
 """Benchmark of simbot's Gymnasium environments: env steps per second of `simbot/Navigate-v0` in
-Gymnasium's async vector env with 1, 2 and 4 envs, against a bare PyBullet loop in the same run.
+Gymnasium's async vector env with 1, 2 and 4 envs, dynamic and kinematic, against a bare PyBullet
+loop in the same run.
 
 One run, one machine, so the ratio holds where the machine is shared:
 
@@ -13,7 +14,9 @@ One run, one machine, so the ratio holds where the machine is shared:
    every env given (0.3, 0.1) each step; figures are env steps per wall second of all envs
    together, counted after a few warm-up steps (an episode that ends resets itself, as in
    training, and its reset counts);
-3. the same with one 160×120 camera (`camera_front`) in the observation.
+3. the same with one 160×120 camera (`camera_front`) in the observation;
+4. both again with `physics="kinematic"` (the server's kinematic stepper at 200 Hz: 20 physics
+   steps an env step instead of 100), against the same bare loop of the dynamic physics.
 
 The start-up column is the wall time from `make_vec` to the end of the first `reset`: the servers
 start in parallel, one per env.
@@ -35,6 +38,7 @@ from bench_server import STEP_S, bare_loop
 from tables import publish
 
 import simbot.gym  # noqa: F401  registers simbot/Navigate-v0
+from simbot.gym.options import PHYSICS
 
 ENV_ID = "simbot/Navigate-v0"
 WORLD = "warehouse"
@@ -102,30 +106,31 @@ def vector_env_steps(envs: int, seconds: float, kwargs: dict[str, Any]) -> tuple
         vector.close()
 
 
-def row(envs: int, camera: bool, rate: float, startup: float, bare: float) -> str:
+def row(physics: str, envs: int, camera: bool, rate: float, startup: float, bare: float) -> str:
     looks = f"{CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}" if camera else "none"
-    return f"| {envs} | {looks} | {rate:.1f} | {rate / envs:.1f} | {rate / bare:.2f} | {startup:.1f} s |"
+    return f"| {physics} | {envs} | {looks} | {rate:.1f} | {rate / envs:.1f} | {rate / bare:.2f} | {startup:.1f} s |"
 
 
 def measure(args: argparse.Namespace) -> list[str]:
     """The table: the bare loop measured before each vector env, each row against its own."""
-    base = {"world": WORLD, "control_period": args.control_period}
     table = [
-        "| envs (async) | camera in the observation | env steps/s, all envs | per env | ÷ bare loop | start-up |",
-        "| --- | --- | --- | --- | --- | --- |",
+        "| physics | envs (async) | camera in the observation | env steps/s, all envs | per env | ÷ bare loop | start-up |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
     ]
     bares = []
-    for camera in (False, True):
-        kwargs = {**base, "cameras": (CAMERA,), "camera_size": CAMERA_SIZE} if camera else dict(base)
-        for envs in args.envs:
-            bare = bare_env_steps(min(args.seconds, 3.0), args.control_period)
-            rate, startup = vector_env_steps(envs, args.seconds, kwargs)
-            bares.append(bare)
-            table.append(row(envs, camera, rate, startup, bare))
-            print(table[-1], file=sys.stderr, flush=True)
+    for physics in PHYSICS:
+        base = {"world": WORLD, "control_period": args.control_period, "physics": physics}
+        for camera in (False, True):
+            kwargs = {**base, "cameras": (CAMERA,), "camera_size": CAMERA_SIZE} if camera else dict(base)
+            for envs in args.envs:
+                bare = bare_env_steps(min(args.seconds, 3.0), args.control_period)
+                rate, startup = vector_env_steps(envs, args.seconds, kwargs)
+                bares.append(bare)
+                table.append(row(physics, envs, camera, rate, startup, bare))
+                print(table[-1], file=sys.stderr, flush=True)
     steps = round(args.control_period / STEP_S)
     table.append(
-        f"| bare PyBullet loop, {WORLD} + robot, wheels driven, {steps} physics steps an env step | — | "
+        f"| bare PyBullet loop, {WORLD} + robot, wheels driven, {steps} physics steps an env step | — | — | "
         f"{np.median(bares):.1f} (median of {len(bares)}; {min(bares):.1f}–{max(bares):.1f}) | — | 1 | — |"
     )
     return table

@@ -158,6 +158,8 @@ def test_the_action_space_is_the_drives_limit_from_the_robots_sdf() -> None:
         ({"control_period": 0.0105}, "not a whole number of 0.001 s steps"),
         ({"colour": "red"}, "unknown option(s) colour"),
         ({"render_mode": "ansi"}, "render_mode 'ansi'"),
+        ({"physics": "ragdoll"}, "physics 'ragdoll': one of dynamic, kinematic"),
+        ({"physics": "kinematic", "control_period": 0.0105}, "not a whole number of 0.005 s steps"),
     ],
 )
 def test_bad_options_are_one_clear_error_naming_them_before_a_server_starts(kwargs: dict[str, Any], named: str) -> None:

@@ -18,9 +18,12 @@ from simbot.description.model import World
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
 from simbot.gym.robot import RobotFacts
+from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.variation import profile_beside
 
 RENDER_MODES = ("rgb_array",)
+PHYSICS = ("dynamic", KINEMATIC)
+"""How the server moves the robot (`simbot-server --physics`)."""
 PEOPLE = "warehouse_people"
 """The warehouse's walking people, a file of their own (`simbot-server --add warehouse_people`)."""
 GROUND_TRUTH_PERIOD_S = 0.02
@@ -53,6 +56,10 @@ class EnvOptions:
     """Each reset loads the world its episode's seed draws (simbot.variation): True, from the world's
     own profile; a path, from that profile."""
     timeout: float = 60.0
+    physics: str = "dynamic"
+    """How the server moves the robot (docs/learning.md): "dynamic", forces and wheel friction at the
+    world's step; "kinematic", the drive's command applied to the base at 200 Hz, stopping at contact.
+    With `endpoint=`, what the given server runs (as `world` says which world it runs)."""
     robot: Path = field(default_factory=lambda: asset("urdf/flexley_tug.sdf"))
 
     def __post_init__(self) -> None:
@@ -73,6 +80,8 @@ class EnvOptions:
             raise EnvConfigError(f"timeout {self.timeout!r}: must be > 0 s")
         if self.randomise is not False and not isinstance(self.randomise, (bool, str)):
             raise EnvConfigError(f"randomise {self.randomise!r}: True, or a variation profile's path")
+        if self.physics not in PHYSICS:
+            raise EnvConfigError(f"physics {self.physics!r}: one of {', '.join(PHYSICS)}")
         if self.endpoint is not None and self.people:
             raise EnvConfigError(
                 "people=True starts the server with the people: give it to the server, not with endpoint="
@@ -108,9 +117,11 @@ def read_world(name_or_path: str) -> World:
 
 
 def steps_per_period(options: EnvOptions, world: World, robot: RobotFacts) -> int:
-    """Physics steps per environment step; EnvConfigError unless the control period is a whole
-    number of steps and of the periods the observed messages come at."""
-    step = world.physics.max_step_size
+    """Physics steps per environment step, at the step the server takes (a kinematic world's is
+    longer); EnvConfigError unless the control period is a whole number of steps and of the periods
+    the observed messages come at."""
+    stepped = kinematic(world) if KINEMATIC in (options.physics, world.physics.type) else world
+    step = stepped.physics.max_step_size
     steps = round(options.control_period / step)
     if steps < 1 or not math.isclose(steps * step, options.control_period, rel_tol=0, abs_tol=1e-9):
         raise EnvConfigError(f"control_period {options.control_period:g} s: not a whole number of {step:g} s steps")

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
-from simbot.gym.options import PEOPLE, EnvOptions, profile_file, read_world, world_file
+from simbot.gym.options import PEOPLE, PHYSICS, EnvOptions, profile_file, read_world, world_file
 from simbot.gym.robot import RobotFacts, write_gym_robot
 from simbot.gym.session import ServerSpec, server_command
 
@@ -52,6 +52,7 @@ def server_spec(options: EnvOptions, robot: RobotFacts, additions: Sequence[Path
         camera_rate=rate if cameras else None,
         render_workers=min(len(options.observed_cameras), os.cpu_count() or 1) if cameras else None,
         profile=profile_file(options),
+        physics=options.physics,
     )
 
 
@@ -60,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("task", choices=("navigate", "dock"))
     parser.add_argument("--world", default="warehouse")
     parser.add_argument("--people", action="store_true")
+    parser.add_argument("--physics", choices=PHYSICS, default="dynamic")
     parser.add_argument("--control-period", type=float, default=0.1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cameras", nargs="*", default=[])
@@ -80,6 +82,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
             cameras=tuple(args.cameras),
             camera_size=(width, height),
+            physics=args.physics,
         )
         robot = RobotFacts.read(options.robot)
         world = read_world(options.world)

@@ -70,9 +70,12 @@ class ServerSpec:
     render_workers: int | None = None
     profile: Path | None = None
     """The variation profile its seeded resets draw from, when not the world's own."""
+    physics: str = "dynamic"
+    """`--physics`: dynamic, or kinematic (robots move by their drives' commands and stop at contact)."""
 
     def args(self) -> list[str]:
         args = ["--world", str(self.world), "--robot", str(self.robot), "--mode", "lockstep", "--seed", str(self.seed)]
+        args += ["--physics", self.physics]
         for addition in self.additions:
             args += ["--add", addition]
         if self.camera_size is not None:
