@@ -340,7 +340,18 @@ class SimServer:
     # world control
 
     def call(self, name: str, payload: dict[str, Any] | bytes, timeout: float = 10.0) -> dict[str, Any]:
-        return self.node.call(f"world/{self.world}/{name}", payload, timeout=timeout)
+        """World control's `name`; a TimeoutError also says whether the server still runs and how its log ends."""
+        try:
+            return self.node.call(f"world/{self.world}/{name}", payload, timeout=timeout)
+        except TimeoutError as exc:
+            raise TimeoutError(f"{exc}; {self.health()}") from None
+
+    def health(self) -> str:
+        """Whether the process runs, and the end of its standard error: what a failure should show."""
+        code = self.process.poll()
+        state = "the server runs" if code is None else f"the server exited with code {code}"
+        tail = " | ".join(self.stderr().strip().splitlines()[-8:]) or "(nothing)"
+        return f"{state}; its stderr ends: {tail}"
 
     def control(self, body: dict[str, Any] | bytes, timeout: float = 60.0) -> dict[str, Any]:
         return self.call("control", body, timeout)
