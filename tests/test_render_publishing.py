@@ -91,14 +91,14 @@ def _first_frame(stamp_ns: int, lockstep: bool) -> bool:
             heard = worker._cameras[0].outlets[0].publisher.has_subscribers
             worker.publish(0, stamp_ns, {"color": pixels}, keys)
             worker.publish(0, stamp_ns + 1, {"color": pixels}, frozenset())  # nobody, by the server: nothing
-            expected = [stamp_ns]
-            if not lockstep:  # no barrier: wait for the frame, then for one after the unwanted one
-                wait_until(lambda: images and infos, 5.0, "the frame and its camera_info")
-                worker.publish(0, stamp_ns + 2, {"color": pixels}, keys)
-                wait_until(lambda: len(images) == 2, 5.0, "the frame after the unwanted one")
-                expected.append(stamp_ns + 2)
+            # the barrier's reply can come a little before the samples reach a subscriber on the
+            # server's own session (9 % of 300 puts on three busy loops, none lost): wait for them
+            wait_until(lambda: images and infos, 5.0, "the frame and its camera_info")
+            worker.publish(0, stamp_ns + 2, {"color": pixels}, keys)
+            wait_until(lambda: len(images) == len(infos) == 2, 5.0, "the frame after the unwanted one")
         finally:
             worker.close()
+    expected = [stamp_ns, stamp_ns + 2]
     assert [messages.stamp_ns(m.header.stamp) for m in images] == expected
     assert [messages.stamp_ns(m.header.stamp) for m in infos] == expected
     assert bytes(images[0].data) == pixels.tobytes()
