@@ -23,7 +23,7 @@ from server_helpers import alive, descendants, wait_until
 REPORT_TIMEOUT_S = 240.0
 """Three servers start and stop in the script before it reports (17 s here, alone); a hang never reports."""
 SCRIPT = """
-import json, sys, time
+import json, signal, sys, time
 import gymnasium
 import numpy as np
 import simbot.gym
@@ -44,7 +44,7 @@ except Exception as exc:
     raise SystemExit(3)
 same = [all(np.array_equal(observations[k][i], single[seed][k]) for k in single[seed]) for i, seed in enumerate((3, 4))]
 print(json.dumps({"same": same, "pids": [p.pid for p in envs.processes]}), flush=True)
-time.sleep(600)  # until the test kills it
+signal.pause()  # until the test kills it
 """
 
 
