@@ -1,7 +1,8 @@
-"""simbot.gym: Navigate-v0 and Dock-v0 against real lockstep servers, no mocks.
+"""simbot.gym: Navigate-v0 and Dock-v0 on real worlds, no mocks.
 
-Each environment starts its own server (the empty world, or a test world with one wall) and every
-assertion is physical: a step at 0.5 m/s moves the robot 0.05 m by the world's ground truth; a
+Each environment steps its own world (the empty world, or a test world with one wall: in its
+process, off the bus, unless it observes a camera or is told to `watch`, when it starts its own
+lockstep server) and every assertion is physical: a step at 0.5 m/s moves the robot 0.05 m by the world's ground truth; a
 goal 1 m ahead is reached by a scripted drive; a wall is hit, seen by the scan where it stands, and
 ends the episode; the tug docks under the trolley by the docking client's rule. The same seed
 gives the same first observation byte for byte (cameras included), on one server and on another;
@@ -416,7 +417,7 @@ def test_a_process_that_dies_without_closing_its_environment_leaves_no_server() 
     """SIGKILL runs no finaliser: the server's keeper sees its pipe from the environment close."""
     code = (
         "import os, signal, gymnasium, simbot.gym\n"
-        "env = gymnasium.make('simbot/Navigate-v0', world='empty')\n"
+        "env = gymnasium.make('simbot/Navigate-v0', world='empty', watch=True)\n"
         "env.reset(seed=0)\n"
         "s = env.unwrapped.session\n"
         "print(s.process.pid, s.server_pid, flush=True)\n"

@@ -1,7 +1,7 @@
 """Gymnasium's own async vector env after the program has used an env (issue 46, item 2).
 
 Gymnasium's documented flow: `check_env` on an env, then `make_vec(..., vectorization_mode="async")`
-in the same script. Its workers were forked after the parent's Zenoh threads started and hung
+in the same script, with envs on the bus (`watch=True`: an env off the bus opens no Zenoh session). Its workers were forked after the parent's Zenoh threads started and hung
 forever opening their own sessions. Each case runs that script as a user does, in a process of
 its own: with Gymnasium's defaults it works, and the sub-envs draw the episodes that a single env
 with their seeds draws; with `context="fork"` asked for by name, the workers fail at once with
@@ -29,7 +29,7 @@ import numpy as np
 import simbot.gym
 from gymnasium.utils.env_checker import check_env
 
-KWARGS = dict(world="empty", max_linear=1.0, max_angular=1.0)
+KWARGS = dict(world="empty", max_linear=1.0, max_angular=1.0, watch=True)
 env = gymnasium.make("simbot/Navigate-v0", **KWARGS)
 check_env(env.unwrapped)
 single = {seed: env.reset(seed=seed)[0] for seed in (3, 4)}

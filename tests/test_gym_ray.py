@@ -2,8 +2,9 @@
 episodes across Ray actors (`simbot.gym.ray.run_episodes`), the `simbot experiment` command, and
 the built-in policies.
 
-Each env starts its own lockstep server; every test checks that closing leaves none running
-(the servers this process or its Ray session started, found through /proc). Ray starts once for
+The vector envs here are told to `watch`, so that each starts its own lockstep server, and closing
+must leave none running (the servers this process started, found through /proc); the Ray actors'
+envs step their worlds in their own processes, off the bus (simbot.gym.local). Ray starts once for
 the module (seconds on two cores), with two CPUs, no dashboard and the actors' logs in its files.
 The episodes run on the easy variant: the empty world, the goal 2 m away, a short time limit.
 """
@@ -66,7 +67,8 @@ def test_a_vector_env_steps_two_servers_and_closes_them(mode: str) -> None:
     """`make_vec` with two envs: each its own server (two servers run), seeded resets, steps whose
     observations each lie in the single env's space, and after `close` no server left."""
     before = servers_below(os.getpid())
-    envs = gymnasium.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode, vector_kwargs=VECTOR_KWARGS[mode], **EASY)
+    kwargs = {**EASY, "watch": True}
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode, vector_kwargs=VECTOR_KWARGS[mode], **kwargs)
     try:
         obs, _info = envs.reset(seed=[1, 2])
         started = servers_below(os.getpid()) - before

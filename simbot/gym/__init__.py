@@ -6,8 +6,10 @@ and `simbot/Dock-v0` (drive under the trolley and attach, `simbot.gym.dock`) wit
     import gymnasium, simbot.gym
     env = gymnasium.make("simbot/Navigate-v0", world="empty", control_period=0.1)
 
-Each environment starts its own lockstep server in a subprocess (or uses one given by
-`endpoint=`) and ends it on `close()`. docs/learning.md describes the spaces, rewards, options and
+Each environment steps its world in its own process, off the bus (simbot.gym.local); with
+`watch=True` or a camera observed it starts its own lockstep server in a subprocess (or uses one
+given by `endpoint=`) and ends it on `close()`. `gymnasium.make_vec(id, num_envs=N,
+vectorization_mode="vector_entry_point")` steps N at a time (simbot.gym.vector). docs/learning.md describes the spaces, rewards, options and
 the choices behind them. Needs the `gym` extra (`pip install 'simbot[gym]'`: Gymnasium).
 """
 
@@ -23,15 +25,24 @@ ENVIRONMENTS = {
     NAVIGATE: "simbot.gym.navigate:NavigateEnv",
     DOCK: "simbot.gym.dock:DockEnv",
 }
+VECTOR_ENVIRONMENTS = {
+    NAVIGATE: "simbot.gym.vector:NavigateVectorEnv",
+    DOCK: "simbot.gym.vector:DockVectorEnv",
+}
 
-__all__ = ["DOCK", "ENVIRONMENTS", "NAVIGATE", "EnvConfigError", "SimServerError", "register"]
+__all__ = ["DOCK", "ENVIRONMENTS", "VECTOR_ENVIRONMENTS", "NAVIGATE", "EnvConfigError", "SimServerError", "register"]
 
 
 def register() -> None:
     """Registers simbot's environments with Gymnasium (again is harmless: a module may be re-imported)."""
     for env_id, entry_point in ENVIRONMENTS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(id=env_id, entry_point=entry_point, disable_env_checker=False)
+            gymnasium.register(
+                id=env_id,
+                entry_point=entry_point,
+                vector_entry_point=VECTOR_ENVIRONMENTS[env_id],
+                disable_env_checker=False,
+            )
 
 
 register()

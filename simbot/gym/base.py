@@ -36,6 +36,7 @@ from simbot.description.footprints import Planar, relative
 from simbot.description.free_poses import NoFreePose, Places
 from simbot.description.model import World
 from simbot.gym.errors import EnvConfigError
+from simbot.gym.local import LocalSession
 from simbot.gym.observe import Observer, Source, merged_scan, pixels, planar, scan_merger, twist
 from simbot.gym.options import (
     PEOPLE,
@@ -118,7 +119,7 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / options.control_period}
         self.action_space = self._action_space()  # type: ignore[assignment]
         self.observation_space = self._observation_space()  # type: ignore[assignment]
-        self._live: tuple[Session, Observer, weakref.finalize] | None = None
+        self._live: tuple[Session | LocalSession, Observer, weakref.finalize] | None = None
         self._merger = scan_merger(options.scan_bins)
         self._lidar_poses: dict[str, Matrix] = {}
         self._primed = False
@@ -208,12 +209,16 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
             raise EnvConfigError(f"randomise: {exc}") from None
         self.places = self._places(self.layout)
 
-    def _open(self) -> Session:
+    def _open(self) -> Session | LocalSession:
+        """The world in this process when no one watches it and no camera needs render workers on
+        the bus; else a started server; else the one at `endpoint`."""
         options = self.options
         if options.endpoint is None:
             folder = Path(tempfile.mkdtemp(prefix="simbot-gym-"))
             spec = server_spec(options, self.robot, self._additions(), folder)
-            return Session.start(spec, self.world.name, folder, options.timeout)
+            if options.on_bus:
+                return Session.start(spec, self.world.name, folder, options.timeout)
+            return LocalSession(spec, self.world.name, folder)
         session = Session.connect(options.endpoint, options.namespace, self.world.name, options.timeout)
         sensors = session.state().get("sensors", {})
         missing = [f"{ROBOT}/{link}/{CONTACT_SENSOR}" for link in self.robot.bumpers]
@@ -313,19 +318,19 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         super().close()
 
     @property
-    def session(self) -> Session:
+    def session(self) -> Session | LocalSession:
         """The server and bus session (for tests and tools: its process, its node)."""
         return self._started()[0]
 
     @property
-    def _session(self) -> Session:
+    def _session(self) -> Session | LocalSession:
         return self._started()[0]
 
     @property
     def _observer(self) -> Observer:
         return self._started()[1]
 
-    def _started(self) -> tuple[Session, Observer, weakref.finalize]:
+    def _started(self) -> tuple[Session | LocalSession, Observer, weakref.finalize]:
         """The server, its observer and the finaliser that ends it, started at first use rather than
         in `__init__`: a vector env makes one env in its parent to read the spaces, then forks its
         workers, and a process forked after Zenoh's threads started hangs in the child."""

@@ -60,6 +60,9 @@ class EnvOptions:
     """How the server moves the robot (docs/learning.md): "dynamic", forces and wheel friction at the
     world's step; "kinematic", the drive's command applied to the base at 200 Hz, stopping at contact.
     With `endpoint=`, what the given server runs (as `world` says which world it runs)."""
+    watch: bool = False
+    """Run the world in a server on the bus (Foxglove, the clients and `simbot view` can watch it);
+    by default it steps in the environment's own process, off the bus (simbot.gym.local)."""
     robot: Path = field(default_factory=lambda: asset("urdf/flexley_tug.sdf"))
 
     def __post_init__(self) -> None:
@@ -86,6 +89,12 @@ class EnvOptions:
             raise EnvConfigError(
                 "people=True starts the server with the people: give it to the server, not with endpoint="
             )
+
+    @property
+    def on_bus(self) -> bool:
+        """Whether the world runs on the bus: watched, given by `endpoint`, or with cameras (their
+        render workers put frames on Zenoh)."""
+        return self.watch or self.endpoint is not None or bool(self.observed_cameras)
 
     @property
     def observed_cameras(self) -> tuple[str, ...]:

@@ -256,8 +256,7 @@ class Session:
 
     def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:
         """Teleports `model` (and stops it) to a pose upright on the floor, heading `yaw`."""
-        half = yaw / 2
-        orientation = {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+        orientation = dict(zip("xyzw", upright(yaw), strict=True))
         self.call("set_pose", {"name": model, "position": {"x": x, "y": y, "z": z}, "orientation": orientation})
 
     def send(self, items: Sequence[tuple[str, Any]]) -> None:
@@ -300,6 +299,12 @@ class Session:
             _end(self.process)
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def upright(yaw: float) -> tuple[float, float, float, float]:
+    """The quaternion (x, y, z, w) of an upright model heading `yaw`."""
+    half = yaw / 2
+    return 0.0, 0.0, math.sin(half), math.cos(half)
 
 
 def _fork_safe() -> None:

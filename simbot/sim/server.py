@@ -105,26 +105,33 @@ def _variations(config: ServerConfig, world: World, robot: Model | None) -> Vari
     return Variations(world, robot, read_profile(own)) if own.is_file() else None
 
 
+def build_world(config: ServerConfig, bus: SimBus) -> SimWorld:
+    """The running world `config` describes, its systems on `bus`: the server's on its node, a
+    learning environment's on a node within its process (simbot.gym.local)."""
+    robot = load_robot(config.robot) if config.robot is not None else None
+    world = with_additions(load_world(config.world), config.additions)
+    world = kinematic(world) if config.kinematic else world
+    variations = _variations(config, world, robot)
+    variant = variations.draw(config.randomise[0]) if variations and config.randomise else None
+    sim_world = SimWorld(
+        variant.world if variant else world,
+        variant.robot if variant else robot,
+        robot_places(config.spawn, config.robots),
+        bus,
+        config.seed,
+        config.run_options(),
+        config.mode,
+        variations,
+    )
+    sim_world.variant = variant
+    return sim_world
+
+
 class Server:
     """A running world (`SimWorld`), its loop and world control, all on one bus node."""
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
-        robot = load_robot(config.robot) if config.robot is not None else None
-        world = with_additions(load_world(config.world), config.additions)
-        world = kinematic(world) if config.kinematic else world
-        variations = _variations(config, world, robot)
-        variant = variations.draw(config.randomise[0]) if variations and config.randomise else None
-        self.world = SimWorld(
-            variant.world if variant else world,
-            variant.robot if variant else robot,
-            robot_places(config.spawn, config.robots),
-            SimBus(node),
-            config.seed,
-            config.run_options(),
-            config.mode,
-            variations,
-        )
-        self.world.variant = variant
+        self.world = build_world(config, SimBus(node))
         self.physics, self.bus, self.sim = self.world.physics, self.world.bus, self.world.sim
         self.control = WorldControl(node, self.world.description.name, self.sim, self.world.bus, self.world)
 
@@ -244,6 +251,12 @@ def _size(text: str) -> tuple[int, int]:
 
 
 MAX_ROBOTS = 100
+
+
+def parse_config(argv: Sequence[str]) -> ServerConfig:
+    """The configuration of a server started with `argv` (what a learning environment runs in its
+    own process, from the command line it would give a server)."""
+    return _config(build_parser().parse_args(argv))
 
 
 def _config(args: argparse.Namespace) -> ServerConfig:

@@ -46,6 +46,12 @@ def joint_state(
     )
 
 
+def _float32(value: float) -> float:
+    """A float32 field's value as the wire carries it: a message handed over in process (simbot.bus.local)
+    then reads as the same message after a CDR round trip."""
+    return float(np.float32(value))
+
+
 def laser_scan(
     ns: int,
     frame: str,
@@ -56,9 +62,9 @@ def laser_scan(
     intensities: Floats = (),
 ) -> LaserScan:
     """sensor_msgs/LaserScan: angles (min, max, increment), times (time_increment, scan_time), limits (range_min, range_max)."""
-    angle_min, angle_max, increment = (float(a) for a in angles)
-    time_increment, scan_time = (float(t) for t in times)
-    range_min, range_max = (float(r) for r in limits)
+    angle_min, angle_max, increment = (_float32(a) for a in angles)
+    time_increment, scan_time = (_float32(t) for t in times)
+    range_min, range_max = (_float32(r) for r in limits)
     return LaserScan(
         header=header(ns, frame),
         angle_min=angle_min,

@@ -79,7 +79,7 @@ class Input:
                 self._drops.drop(self.key, payload.reason, warning=payload.warning)
                 continue
             try:
-                message = decode(payload, self._typename)
+                message = decode(payload, self._typename) if isinstance(payload, bytes) else payload
             except DecodeError as exc:
                 self._drops.drop(self.key, f"not a {self._typename}: {exc}")
                 continue

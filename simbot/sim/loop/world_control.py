@@ -150,7 +150,7 @@ class WorldControl:
         if not isinstance(name, str):
             raise TypeError('set_pose needs a model "name"')
         position = _vector(body.get("position", {}), "xyz", "position", 0.0)
-        quat = _unit_quaternion(_vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0))
+        quat = unit_quaternion(_vector(body.get("orientation", {"w": 1.0}), "xyzw", "orientation", 0.0))
         self.sim.physics.set_model_pose(name, Transform((position[0], position[1], position[2]), quat))
         request.reply(self._time(ok=True))
 
@@ -224,11 +224,12 @@ def _pose(value: Any) -> Pose:
     if not isinstance(value, dict) or set(value) - {"position", "orientation"}:
         raise TypeError(f"pose: expected an object with position and orientation, got {value!r}")
     position = _vector(value.get("position", {}), "xyz", "pose.position", 0.0)
-    quat = _unit_quaternion(_vector(value.get("orientation", {"w": 1.0}), "xyzw", "pose.orientation", 0.0))
+    quat = unit_quaternion(_vector(value.get("orientation", {"w": 1.0}), "xyzw", "pose.orientation", 0.0))
     return Pose.from_transform(Transform.of(position, quat))
 
 
-def _unit_quaternion(values: list[float]) -> tuple[float, float, float, float]:
+def unit_quaternion(values: list[float]) -> tuple[float, float, float, float]:
+    """`values` (x, y, z, w) scaled to unit length, as world control takes an orientation."""
     norm = math.sqrt(sum(v * v for v in values))
     if norm < 1e-9:
         raise ValueError("orientation must be a non-zero quaternion")

@@ -1,0 +1,211 @@
+"""The node's API within one process: no Zenoh, no CDR, nothing on any network.
+
+A learning environment that no one watches steps its world in its own process (simbot.gym.local);
+the server's systems still publish and take commands through a node, and this one hands each
+message object to the subscribers and inboxes of its key in the same call, as a Zenoh session
+delivers a put to its own subscribers, only without encoding it. What a subscriber gets is the
+message the system put (frame ids prefixed as `Publisher` prefixes them), so an observation made
+from it equals one made from the same message after a CDR round trip (tests/test_gym_local.py).
+
+A latched publisher hands its latest message to a subscriber that comes later. Services and
+queryables (world control, the ROS services of a few systems) are declared and never called: the
+process that owns the world calls it directly.
+
+Each class is the bus class it stands in for, with every method a system or an observer calls
+overridden and no Zenoh session behind it, so that code typed for the bus takes it unchanged.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from simbot.bus.codec import decode, message_type
+from simbot.bus.frames import with_frame_prefix
+from simbot.bus.keys import topic_key
+from simbot.bus.node import Inbox, Node, Publisher, Subscription
+from simbot.bus.options import BusOptions
+from simbot.bus.services import Queryable, Request, RosRequest, RosService
+
+log = logging.getLogger(__name__)
+
+
+class LocalHub:
+    """Who listens on which key; the one owner of a local node's routes."""
+
+    def __init__(self) -> None:
+        self.listeners: dict[str, list[Callable[[Any], None]]] = {}
+        self.latest: dict[str, Any] = {}
+
+    def listen(self, key: str, deliver: Callable[[Any], None]) -> None:
+        self.listeners.setdefault(key, []).append(deliver)
+        if key in self.latest:
+            deliver(self.latest[key])
+
+    def forget(self, key: str, deliver: Callable[[Any], None]) -> None:
+        listeners = self.listeners.get(key, [])
+        if deliver in listeners:
+            listeners.remove(deliver)
+
+    def put(self, key: str, msg: Any, latched: bool) -> None:
+        if latched:
+            self.latest[key] = msg
+        for deliver in list(self.listeners.get(key, ())):
+            try:
+                deliver(msg)
+            except Exception:
+                log.exception("%s: subscription callback failed", key)
+
+
+class LocalPublisher(Publisher):
+    """`Publisher`'s API: `put` hands the message to every listener of its key at once."""
+
+    def __init__(self, hub: LocalHub, key: str, typename: str, latched: bool, frame_prefix: str) -> None:
+        self.key = key
+        self.typename = typename
+        self.latched = latched
+        self.frame_prefix = frame_prefix
+        self._hub = hub
+
+    def put(self, msg: Any) -> None:
+        self._hub.put(self.key, with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg, self.latched)
+
+    def put_raw(self, data: bytes | bytearray) -> None:
+        self.put(decode(bytes(data), self.typename))
+
+    @property
+    def has_subscribers(self) -> bool:
+        return self.latched or bool(self._hub.listeners.get(self.key))
+
+    def await_subscribers(self, timeout: float) -> bool:
+        return self.has_subscribers
+
+    def close(self) -> None:
+        self._hub.latest.pop(self.key, None)
+
+
+class LocalSubscription(Subscription[Any]):
+    """`Subscription`'s API: the callback runs in the publisher's call."""
+
+    def __init__(self, hub: LocalHub, key: str, callback: Callable[[Any], None]) -> None:
+        self.key = key
+        self.received = 0
+        self.dropped = 0
+        self._hub = hub
+        self._callback = callback
+        hub.listen(key, self._deliver)
+
+    def _deliver(self, msg: Any) -> None:
+        self.received += 1
+        self._callback(msg)
+
+    def close(self) -> None:
+        self._hub.forget(self.key, self._deliver)
+
+
+class LocalInbox(Inbox):
+    """`Inbox`'s API, holding message objects (an `Input` takes them as they are, undecoded)."""
+
+    def __init__(self, hub: LocalHub, key: str, maxlen: int) -> None:
+        self.key = key
+        self.received = 0
+        self.overflowed = 0
+        self._queue: deque[Any] = deque(maxlen=maxlen)
+        self._hub = hub
+        hub.listen(key, self._append)
+
+    def _append(self, msg: Any) -> None:
+        self.received += 1
+        if len(self._queue) == self._queue.maxlen:
+            self.overflowed += 1
+        self._queue.append(msg)
+
+    def drain(self) -> list[Any]:
+        items = list(self._queue)
+        self._queue.clear()
+        return items
+
+    def close(self) -> None:
+        self._hub.forget(self.key, self._append)
+
+
+class LocalQueryable(Queryable):
+    """A declared JSON service that no one can reach: it never has a request."""
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+    def poll(self) -> list[Request]:
+        return []
+
+    def close(self) -> None:
+        pass
+
+
+class LocalRosService(RosService):
+    """A declared ROS service that no one can reach: it never has a request."""
+
+    def __init__(self, name: str, typename: str) -> None:
+        self.name = name
+        self.typename = typename
+
+    def poll(self) -> list[RosRequest]:
+        return []
+
+    def close(self) -> None:
+        pass
+
+
+class LocalNode(Node):
+    """The part of `Node`'s API that systems and an environment's observer use, in one process."""
+
+    namespace = ""
+    robot_namespace = ""
+
+    def __init__(self) -> None:
+        self.hub = LocalHub()
+        self.options = BusOptions()
+        """What a helper process would connect with: a local node has no endpoint, so no render
+        worker can reach it (an environment that observes a camera runs a server)."""
+
+    def key(self, topic: str) -> str:
+        return topic_key(topic)
+
+    def publisher(
+        self,
+        topic: str,
+        msgtype: type[Any] | str,
+        *,
+        latched: bool = False,
+        drop: bool = True,
+        frame_prefix: str = "",
+        announced: bool = True,
+    ) -> LocalPublisher:
+        typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
+        message_type(typename)
+        return LocalPublisher(self.hub, self.key(topic), typename, latched, frame_prefix)
+
+    def subscribe(
+        self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False
+    ) -> LocalSubscription:
+        message_type(typename)
+        return LocalSubscription(self.hub, self.key(topic), callback)
+
+    def inbox(self, topic: str, typename: str, maxlen: int = 64) -> LocalInbox:
+        message_type(typename)
+        return LocalInbox(self.hub, self.key(topic), maxlen)
+
+    def queryable(self, key_suffix: str, capacity: int = 64) -> LocalQueryable:
+        return LocalQueryable(self.key("/" + key_suffix.lstrip("/")))
+
+    def ros_service(self, name: str, typename: str, capacity: int = 64) -> LocalRosService:
+        return LocalRosService(self.key(name), typename)
+
+    def answering(self, key_suffix: str) -> None:
+        """A lockstep barrier's key: no helper process calls it."""
+
+    def close(self) -> None:
+        self.hub.listeners.clear()
+        self.hub.latest.clear()

@@ -1,0 +1,88 @@
+"""An environment's world in its own process, off the bus: what a training run no one watches uses.
+
+`LocalSession` has `Session`'s requests (send, step, reset, set_pose, state, check, close) and
+runs the very world a started server would run for the same `ServerSpec` (`simbot.sim.server`'s
+`parse_config` and `build_world`, lockstep), with its systems on a `LocalNode`: each message a
+system publishes reaches the environment's observer as the object it is, with no Zenoh, no CDR,
+no other process and no round trip. A step is `steps` calls of the simulation's step; a request
+world control would answer is a call on the world. The observations therefore equal the bus
+path's for the same seed (tests/test_gym_local.py compares them).
+
+Cameras render in worker processes that put their frames on Zenoh themselves, so an environment
+that observes one runs a server (`watch=True` behaviour); docs/learning.md says when to use which.
+"""
+
+from __future__ import annotations
+
+import logging
+import shutil
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from simbot.bus.local import LocalNode, LocalPublisher
+from simbot.gym.session import ServerSpec, upright
+from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.world_control import unit_quaternion
+from simbot.sim.server import build_world, parse_config
+from simbot.transform import Transform
+
+log = logging.getLogger(__name__)
+
+
+class LocalSession:
+    """A lockstep world in this process; see the module docstring."""
+
+    process = None
+    """No process of its own (Session's started server)."""
+    server_pid = None
+
+    def __init__(self, spec: ServerSpec, world: str, folder: Path) -> None:
+        self.node = LocalNode()
+        self.world = world
+        self.name = f"simbot world {world!r} in process"
+        self.folder = folder
+        self.closed = False
+        self._world = build_world(parse_config(spec.args()), SimBus(self.node))
+        self._publishers: dict[str, LocalPublisher] = {}
+
+    def check(self, what: str) -> None:
+        """Nothing outside this process can have died."""
+
+    def state(self) -> dict[str, Any]:
+        """The part of world control's `state` an environment reads: every model's pose."""
+        physics = self._world.physics
+        models = {}
+        for name in physics.body_names():
+            xyz, quat = physics.model_pose(name)
+            models[name] = {"position": list(xyz), "orientation": list(quat)}
+        return {"sim_time": self._world.sim.clock.now_ns / 1e9, "models": models}
+
+    def step(self, steps: int) -> int:
+        """`steps` physics steps; the sim time reached, in nanoseconds."""
+        sim = self._world.sim
+        for _ in range(steps):
+            sim.step()
+        return sim.clock.now_ns
+
+    def reset(self, seed: int | None = None) -> None:
+        self._world.reset(seed)
+
+    def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:
+        quat = unit_quaternion(list(upright(yaw)))
+        self._world.physics.set_model_pose(model, Transform((x, y, z), quat))
+
+    def send(self, items: Sequence[tuple[str, Any]]) -> None:
+        """Hands each (topic, message) to the system that takes it; the next step acts on it."""
+        for topic, msg in items:
+            if topic not in self._publishers:
+                self._publishers[topic] = self.node.publisher(topic, msg.__msgtype__)
+            self._publishers[topic].put(msg)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        self._world.close()
+        self.node.close()
+        shutil.rmtree(self.folder, ignore_errors=True)

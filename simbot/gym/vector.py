@@ -1,0 +1,345 @@
+"""Native vector environments: N tugs stepped together, each world in a simulation process's memory.
+
+    envs = gymnasium.make_vec("simbot/Navigate-v0", num_envs=8, vectorization_mode="vector_entry_point",
+                              world="warehouse", people=True, physics="kinematic")
+
+returns a `SimbotVectorEnv`: N sub-environments, each the single environment with the same keywords
+stepping its own world off the bus (simbot.gym.local), split over `processes` simulation processes
+(default: one per core, where there are several envs and cores; else all in this process). No
+server process, no Zenoh, no CDR: a step sends each process its envs' actions, and each steps
+its worlds one after the other and sends back their observations as arrays. docs/learning.md has
+the measurement behind the default.
+
+Sub-environment i is the single environment: reset with seed s it gives, action for action, the
+episode `gymnasium.make(id, **kwargs)` gives after `reset(seed=s)` (tests/test_gym_vector.py).
+`reset(seed=S)` seeds sub-env i with S + i (as Gymnasium's own vector envs do); `reset()` first
+seeds them with the `seed` option + i. Autoreset follows Gymnasium 1.x's default (`NEXT_STEP`):
+the step after an episode ends resets that sub-env (its next seed drawn from its own generator,
+as a single env's `reset()` draws it) and returns its first observation with reward 0.
+
+Errors: a `num_envs` below 1, or an env that cannot step off the bus (cameras, `watch=True`,
+`endpoint=`: use `vectorization_mode="async"`), is one EnvConfigError naming it before anything
+starts. A simulation process that dies raises SimServerError naming the envs it held and its exit
+code, and every other process is stopped: nothing is left running.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import logging
+import os
+import socket
+import subprocess
+import sys
+from collections.abc import Callable, Sequence
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from simbot.gym.base import Observation, SimbotEnv
+from simbot.gym.errors import EnvConfigError, SimServerError
+
+log = logging.getLogger(__name__)
+
+STOP_TIMEOUT_S = 10.0
+Step = tuple[Observation, npt.NDArray[np.float64], npt.NDArray[np.bool_], npt.NDArray[np.bool_], list[dict[str, Any]]]
+
+
+class EnvGroup:
+    """Some of a vector env's sub-environments, stepped one after the other with autoreset; the same
+    code in this process and in a simulation process."""
+
+    def __init__(self, task: str, kwargs: dict[str, Any], count: int) -> None:
+        make = _task(task)
+        self.envs: list[SimbotEnv] = []
+        try:
+            for _ in range(count):
+                self.envs.append(make(**kwargs))
+        except BaseException:
+            self.close()
+            raise
+        self._ended = [False] * count
+
+    def reset(
+        self, seeds: Sequence[int | None], options: dict[str, Any] | None
+    ) -> tuple[Observation, list[dict[str, Any]]]:
+        results = [env.reset(seed=seed, options=options) for env, seed in zip(self.envs, seeds, strict=True)]
+        self._ended = [False] * len(self.envs)
+        return _stack([obs for obs, _ in results]), [info for _, info in results]
+
+    def step(self, actions: npt.NDArray[Any]) -> Step:
+        observations, rewards, terminated, truncated, infos = [], [], [], [], []
+        for i, env in enumerate(self.envs):
+            if self._ended[i]:
+                obs, info = env.reset()
+                reward, term, trunc = 0.0, False, False
+            else:
+                obs, reward, term, trunc, info = env.step(actions[i])
+            self._ended[i] = term or trunc
+            observations.append(obs)
+            rewards.append(reward)
+            terminated.append(term)
+            truncated.append(trunc)
+            infos.append(info)
+        return (
+            _stack(observations),
+            np.array(rewards, np.float64),
+            np.array(terminated, np.bool_),
+            np.array(truncated, np.bool_),
+            infos,
+        )
+
+    def close(self) -> None:
+        for env in self.envs:
+            env.close()
+
+
+def _task(path: str) -> Callable[..., SimbotEnv]:
+    module, name = path.split(":")
+    make: Callable[..., SimbotEnv] = getattr(importlib.import_module(module), name)
+    return make
+
+
+def _stack(observations: Sequence[Observation]) -> Observation:
+    return {key: np.stack([obs[key] for obs in observations]) for key in observations[0]}
+
+
+def serve(fd: int) -> None:
+    """A simulation process (`python -c`, on the socket `fd`): builds its group from the first
+    message, then answers requests until `close`, or until its vector env's process is gone."""
+    conn = Connection(fd)
+    task, kwargs, count = conn.recv()
+    try:
+        group = EnvGroup(task, kwargs, count)
+    except Exception as exc:
+        conn.send(("error", exc))
+        return
+    conn.send(("ok", None))
+    try:
+        while True:
+            try:
+                request, args = conn.recv()
+            except EOFError:
+                return  # the vector env's process ended without closing it
+            if request == "close":
+                return
+            try:
+                conn.send(("ok", getattr(group, request)(*args)))
+            except Exception as exc:
+                conn.send(("error", exc))
+    finally:
+        group.close()
+
+
+class _Remote:
+    """A simulation process holding some sub-environments, and the socket to it. A process of its own
+    (not multiprocessing's), so that no user script is imported again in it."""
+
+    def __init__(self, task: str, kwargs: dict[str, Any], indices: range) -> None:
+        self.indices = indices
+        mine, theirs = socket.socketpair()
+        code = f"from simbot.gym.vector import serve; serve({theirs.fileno()})"
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", code], pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL
+        )
+        theirs.close()
+        self.conn = Connection(mine.detach())
+        self.ask_raw((task, kwargs, len(indices)))
+
+    def ask(self, request: str, *args: Any) -> None:
+        self.ask_raw((request, args))
+
+    def ask_raw(self, message: Any) -> None:
+        try:
+            self.conn.send(message)
+        except OSError:
+            raise self._died() from None
+
+    def answer(self) -> Any:
+        try:
+            status, value = self.conn.recv()
+        except (EOFError, OSError):
+            raise self._died() from None
+        if status == "error":
+            raise value
+        return value
+
+    def _died(self) -> SimServerError:
+        try:
+            code = self.process.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            code = None
+        envs = ", ".join(str(i) for i in self.indices)
+        return SimServerError(f"the simulation process of envs {envs} (pid {self.process.pid}) exited with code {code}")
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            with contextlib.suppress(OSError):
+                self.conn.send(("close", ()))
+            try:
+                self.process.wait(timeout=STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                log.warning("simulation process %s did not stop within %g s: killed", self.process.pid, STOP_TIMEOUT_S)
+                self.process.kill()
+                self.process.wait()
+        self.conn.close()
+
+
+class _Local:
+    """Sub-environments in this process (`processes=0`): `_Remote`'s requests as calls."""
+
+    def __init__(self, task: str, kwargs: dict[str, Any], indices: range) -> None:
+        self.indices = indices
+        self.group = EnvGroup(task, kwargs, len(indices))
+        self._value: Any = None
+
+    def ask(self, request: str, *args: Any) -> None:
+        self._value = getattr(self.group, request)(*args)
+
+    def answer(self) -> Any:
+        return self._value
+
+    def close(self) -> None:
+        self.group.close()
+
+
+class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArray[Any]]):
+    """N sub-environments of one task; see the module docstring."""
+
+    task = ""
+    """The single environment's class, as `module:Class`."""
+
+    def __init__(self, num_envs: int = 1, processes: int | None = None, **kwargs: Any) -> None:
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
+            raise EnvConfigError(f"num_envs {num_envs!r}: must be a whole number ≥ 1")
+        template = _task(self.task)(**kwargs)
+        template.close()
+        if template.options.on_bus:
+            raise EnvConfigError(
+                f"vectorization_mode='vector_entry_point': {_why_on_bus(template)} needs a server on the bus per env; "
+                "use vectorization_mode='async'"
+            )
+        self.num_envs = num_envs
+        self._first_seed = template.options.seed
+        self.single_observation_space = template.observation_space
+        self.single_action_space = template.action_space
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.metadata = {**template.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+        self.render_mode = None
+        self.processes = _processes(num_envs, processes)
+        self._groups: list[_Remote | _Local] = []
+        try:
+            self._start(kwargs)
+        except BaseException:
+            self.close()
+            raise
+
+    def _start(self, kwargs: dict[str, Any]) -> None:
+        if self.processes == 0:
+            self._groups = [_Local(self.task, kwargs, range(self.num_envs))]
+            return
+        bounds = np.linspace(0, self.num_envs, self.processes + 1).round().astype(int)
+        self._groups = [_Remote(self.task, kwargs, range(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        self._gather()
+
+    def _all(self, request: str, per_group: Callable[[range], tuple[Any, ...]]) -> list[Any]:
+        for group in self._groups:
+            group.ask(request, *per_group(group.indices))
+        return self._gather()
+
+    def _gather(self) -> list[Any]:
+        """Every group's answer; when one fails, the rest are still read so that none is left mid-request."""
+        answers, failure = [], None
+        for group in self._groups:
+            try:
+                answers.append(group.answer())
+            except Exception as exc:
+                failure = failure or exc
+        if failure is not None:
+            if isinstance(failure, SimServerError):
+                self.close()
+            raise failure
+        return answers
+
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Observation, dict[str, Any]]:
+        seeds = self._seeds(seed)
+        super().reset(seed=seed if isinstance(seed, int) else None)
+        answers = self._all("reset", lambda r: ([seeds[i] for i in r], options))
+        return self._merge([obs for obs, _ in answers], [info for _, infos in answers for info in infos])
+
+    def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
+        if seed is None:
+            return [None] * self.num_envs if self._started else [self._first_seed + i for i in range(self.num_envs)]
+        if isinstance(seed, int):
+            return [seed + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise EnvConfigError(f"reset seed: {len(seeds)} seeds for {self.num_envs} envs")
+        return seeds
+
+    def step(
+        self, actions: npt.NDArray[np.float32]
+    ) -> tuple[Observation, npt.NDArray[Any], npt.NDArray[Any], npt.NDArray[Any], dict[str, Any]]:
+        values = np.asarray(actions)
+        if values.shape[:1] != (self.num_envs,):
+            raise ValueError(f"actions of shape {values.shape}, expected ({self.num_envs}, ...)")
+        answers = self._all("step", lambda r: (values[r.start : r.stop],))
+        obs, infos = self._merge([a[0] for a in answers], [info for a in answers for info in a[4]])
+        join = np.concatenate
+        return obs, join([a[1] for a in answers]), join([a[2] for a in answers]), join([a[3] for a in answers]), infos
+
+    def _merge(self, parts: list[Observation], infos: list[dict[str, Any]]) -> tuple[Observation, dict[str, Any]]:
+        self._started = True
+        obs = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+        merged: dict[str, Any] = {}
+        for i, info in enumerate(infos):
+            merged = self._add_info(merged, info, i)
+        return obs, merged
+
+    _started = False
+
+    def close_extras(self, **kwargs: Any) -> None:
+        groups, self._groups = self._groups, []
+        for group in groups:
+            group.close()
+
+
+def _processes(num_envs: int, asked: int | None) -> int:
+    """Simulation processes: as asked (0: this process), else one per core for several envs."""
+    if asked is None:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+        return min(num_envs, cores) if min(num_envs, cores) > 1 else 0
+    if isinstance(asked, bool) or not isinstance(asked, int) or not 0 <= asked <= num_envs:
+        raise EnvConfigError(
+            f"processes {asked!r}: must be a whole number from 0 (this process) to num_envs ({num_envs})"
+        )
+    return asked
+
+
+def _why_on_bus(env: SimbotEnv) -> str:
+    options = env.options
+    if options.endpoint is not None:
+        return "endpoint="
+    if options.watch:
+        return "watch=True"
+    return f"cameras {', '.join(options.observed_cameras)}"
+
+
+class NavigateVectorEnv(SimbotVectorEnv):
+    """simbot/Navigate-v0, N at a time."""
+
+    task = "simbot.gym.navigate:NavigateEnv"
+
+
+class DockVectorEnv(SimbotVectorEnv):
+    """simbot/Dock-v0, N at a time."""
+
+    task = "simbot.gym.dock:DockEnv"

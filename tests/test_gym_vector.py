@@ -1,0 +1,200 @@
+"""Learning at scale (issue 47, items 2 and 3): the world off the bus, and native vector envs.
+
+- An env that no one watches steps its world in its own process (simbot.gym.local); its
+  observations, rewards and contacts equal, byte for byte, those of the same env on a lockstep
+  server (`watch=True`), for the same seed and actions: kinematic in the warehouse with its
+  people (the lidars see their legs), and dynamic.
+- `make_vec(..., vectorization_mode="vector_entry_point")`: sub-env i, seeded S + i, gives the
+  single env's episode with that seed, through Gymnasium 1.x's next-step autoreset, in this process
+  and in two simulation processes; Dock too.
+- Bad input is one line naming it; a simulation process that dies is a SimServerError naming its
+  envs, with nothing left running; a parent killed with SIGKILL leaves no simulation process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+from server_helpers import alive, wait_until
+from test_gym import WALL_WORLD
+
+from simbot.gym import EnvConfigError, SimServerError
+from simbot.gym.local import LocalSession
+from simbot.gym.session import Session
+from simbot.gym.vector import SimbotVectorEnv
+
+KINEMATIC_PEOPLE: dict[str, Any] = {"world": "warehouse", "people": True, "physics": "kinematic"}
+DYNAMIC_EMPTY: dict[str, Any] = {"world": "empty", "max_linear": 1.0, "max_angular": 1.0}
+
+
+def actions(step: int, env: int = 0) -> np.ndarray:
+    """A drive that turns back and forth, different per env."""
+    return np.array([0.8, 0.6 * np.sin(step / 4 + env)], np.float32)
+
+
+def run_single(env: Any, seed: int, steps: int, index: int = 0) -> list[tuple[Any, ...]]:
+    """The single env's episode(s) from `reset(seed)`, reset with no seed after each ends (as the
+    vector env's autoreset does): (obs, reward, terminated, truncated) per step, reward 0 at a reset."""
+    obs, _ = env.reset(seed=seed)
+    record: list[tuple[Any, ...]] = [(obs, 0.0, False, False)]
+    ended = False
+    for step in range(steps):
+        if ended:
+            obs, _ = env.reset()
+            record.append((obs, 0.0, False, False))
+            ended = False
+            continue
+        obs, reward, terminated, truncated, _ = env.step(actions(step, index))
+        record.append((obs, float(reward), bool(terminated), bool(truncated)))
+        ended = terminated or truncated
+    return record
+
+
+def assert_same(a: dict[str, np.ndarray], b: dict[str, np.ndarray], what: str) -> None:
+    assert a.keys() == b.keys(), what
+    for key in a:
+        assert a[key].dtype == b[key].dtype and np.array_equal(a[key], b[key]), f"{what}: {key} differs"
+
+
+@pytest.fixture(scope="module")
+def walled(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The test world with a wall 2.4 m ahead of the origin, kinematic, short episodes: collisions
+    and time limits end episodes within the run."""
+    world = tmp_path_factory.mktemp("vector") / "walled.sdf"
+    world.write_text(WALL_WORLD)
+    return {"world": str(world), "physics": "kinematic", "max_episode_steps": 12, "max_linear": 1.0}
+
+
+# --- the world off the bus --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kwargs", [KINEMATIC_PEOPLE, DYNAMIC_EMPTY], ids=["kinematic-people", "dynamic"])
+def test_the_world_off_the_bus_observes_exactly_what_the_bus_path_observes(kwargs: dict[str, Any]) -> None:
+    local = gymnasium.make("simbot/Navigate-v0", **kwargs)
+    watched = gymnasium.make("simbot/Navigate-v0", watch=True, **kwargs)
+    try:
+        runs = [run_single(env, 11, 25) for env in (local, watched)]
+        assert isinstance(local.unwrapped.session, LocalSession) and local.unwrapped.session.process is None
+        assert isinstance(watched.unwrapped.session, Session) and watched.unwrapped.session.process is not None
+    finally:
+        local.close()
+        watched.close()
+    moved = np.hypot(*runs[0][-1][0]["goal"][:2] - runs[0][0][0]["goal"][:2])
+    assert moved > 0.5, "the robot should have moved relative to its goal"
+    for step, (a, b) in enumerate(zip(*runs, strict=True)):
+        assert_same(a[0], b[0], f"step {step}")
+        assert a[1:] == b[1:], f"step {step}: reward and ends {a[1:]} vs {b[1:]}"
+
+
+# --- native vector envs ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("processes", [0, 2])
+def test_each_sub_env_is_the_single_env_with_its_seed_through_autoreset(walled: dict[str, Any], processes: int) -> None:
+    steps, seed, count = 30, 5, 3
+    envs = gymnasium.make_vec(
+        "simbot/Navigate-v0", num_envs=count, vectorization_mode="vector_entry_point", processes=processes, **walled
+    )
+    try:
+        assert isinstance(envs, SimbotVectorEnv) and envs.processes == processes
+        assert envs.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.NEXT_STEP
+        obs, _ = envs.reset(seed=seed)
+        vector: list[list[tuple[Any, ...]]] = [
+            [({k: v[i] for k, v in obs.items()}, 0.0, False, False)] for i in range(count)
+        ]
+        for step in range(steps):
+            obs, rewards, terminated, truncated, _ = envs.step(np.stack([actions(step, i) for i in range(count)]))
+            for i in range(count):
+                vector[i].append(
+                    ({k: v[i] for k, v in obs.items()}, float(rewards[i]), bool(terminated[i]), bool(truncated[i]))
+                )
+    finally:
+        envs.close()
+    single = gymnasium.make("simbot/Navigate-v0", **walled)
+    try:
+        for i in range(count):
+            expected = run_single(single, seed + i, steps, i)
+            ends = sum(1 for record in expected if record[2] or record[3])
+            assert ends >= 1, f"env {i}: no episode ended in {steps} steps; autoreset untested"
+            for step, (a, b) in enumerate(zip(vector[i], expected, strict=True)):
+                assert_same(a[0], b[0], f"env {i} step {step}")
+                assert a[1:] == b[1:], f"env {i} step {step}: {a[1:]} vs {b[1:]}"
+    finally:
+        single.close()
+
+
+def test_dock_batches_too_and_its_sub_envs_are_the_single_env() -> None:
+    envs = gymnasium.make_vec("simbot/Dock-v0", num_envs=2, vectorization_mode="vector_entry_point", world="empty")
+    single = gymnasium.make("simbot/Dock-v0", world="empty")
+    try:
+        assert envs.action_space.shape == (2, 3)
+        obs, _ = envs.reset(seed=[8, 9])
+        step = envs.step(np.tile(np.array([0.3, 0.0, 0.0], np.float32), (2, 1)))
+        for i, seed in enumerate((8, 9)):
+            first, _ = single.reset(seed=seed)
+            assert_same({k: v[i] for k, v in obs.items()}, first, f"env {i} reset")
+            after = single.step(np.array([0.3, 0.0, 0.0], np.float32))
+            assert_same({k: v[i] for k, v in step[0].items()}, after[0], f"env {i} step")
+            assert float(step[1][i]) == float(after[1])
+    finally:
+        envs.close()
+        single.close()
+
+
+# --- bad input and failures --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"num_envs": 0}, "num_envs 0: must be a whole number ≥ 1"),
+        ({"num_envs": -2}, "num_envs -2"),
+        ({"num_envs": 2, "processes": 3}, "processes 3: must be a whole number from 0"),
+        ({"num_envs": 2, "cameras": ("camera_front",)}, "cameras camera_front needs a server on the bus per env"),
+        ({"num_envs": 2, "watch": True}, "watch=True needs a server"),
+        ({"num_envs": 2, "physics": "warp"}, "physics 'warp': one of dynamic, kinematic"),
+    ],
+)
+def test_bad_vector_input_is_one_line_naming_it(kwargs: dict[str, Any], named: str) -> None:
+    with pytest.raises(EnvConfigError) as raised:
+        gymnasium.make_vec("simbot/Navigate-v0", vectorization_mode="vector_entry_point", world="empty", **kwargs)
+    assert named in str(raised.value) and "\n" not in str(raised.value)
+
+
+def test_a_dead_simulation_process_is_an_error_naming_its_envs_and_nothing_is_left_running() -> None:
+    envs = gymnasium.make_vec(
+        "simbot/Navigate-v0", num_envs=3, vectorization_mode="vector_entry_point", processes=2, world="empty"
+    )
+    pids = {group.process.pid for group in envs._groups}  # type: ignore[attr-defined]
+    try:
+        envs.reset(seed=1)
+        os.kill(envs._groups[1].process.pid, signal.SIGKILL)  # type: ignore[attr-defined]
+        with pytest.raises(SimServerError, match=r"simulation process of envs 2 \(pid \d+\) exited with code -9"):
+            envs.step(np.zeros((3, 2), np.float32))
+        assert alive(pids) == set(), f"left running: {alive(pids)}"
+    finally:
+        envs.close()
+
+
+def test_a_parent_killed_with_sigkill_leaves_no_simulation_process() -> None:
+    code = (
+        "import json, os, signal, gymnasium, simbot.gym\n"
+        "envs = gymnasium.make_vec('simbot/Navigate-v0', num_envs=2, vectorization_mode='vector_entry_point', "
+        "processes=2, world='empty')\n"
+        "envs.reset(seed=0)\n"
+        "print(json.dumps([g.process.pid for g in envs._groups]), flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == -signal.SIGKILL, done.stderr[-2000:]
+    pids = set(json.loads(done.stdout))
+    assert len(pids) == 2
+    wait_until(lambda: not alive(pids), 60.0, f"simulation processes {sorted(pids)} to end")
