@@ -16,6 +16,8 @@ episode `gymnasium.make(id, **kwargs)` gives after `reset(seed=s)` (tests/test_g
 seeds them with the `seed` option + i. Autoreset follows Gymnasium 1.x's default (`NEXT_STEP`):
 the step after an episode ends resets that sub-env (its next seed drawn from its own generator,
 as a single env's `reset()` draws it) and returns its first observation with reward 0.
+`autoreset_mode="same_step"` resets it in the step that ended it instead, the last observation and
+info in `info["final_obs"]` and `info["final_info"]` (what Stable-Baselines3 expects: simbot.gym.sb3).
 
 Errors: a `num_envs` below 1, or an env that cannot step off the bus (cameras, `watch=True`,
 `endpoint=`: use `vectorization_mode="async"`), is one EnvConfigError naming it before anything
@@ -54,8 +56,10 @@ class EnvGroup:
     """Some of a vector env's sub-environments, stepped one after the other with autoreset; the same
     code in this process and in a simulation process."""
 
-    def __init__(self, task: str, kwargs: dict[str, Any], count: int) -> None:
+    def __init__(self, task: str, kwargs: dict[str, Any], count: int, same_step: bool = False) -> None:
         make = _task(task)
+        self.same_step = same_step
+        """Gymnasium's SAME_STEP autoreset: an ended episode's env is reset in the step that ended it."""
         self.envs: list[SimbotEnv] = []
         try:
             for _ in range(count):
@@ -80,7 +84,11 @@ class EnvGroup:
                 reward, term, trunc = 0.0, False, False
             else:
                 obs, reward, term, trunc, info = env.step(actions[i])
-            self._ended[i] = term or trunc
+                if self.same_step and (term or trunc):
+                    final_obs, final_info = obs, info
+                    obs, info = env.reset()
+                    info = {**info, "final_obs": final_obs, "final_info": final_info}
+            self._ended[i] = (term or trunc) and not self.same_step
             observations.append(obs)
             rewards.append(reward)
             terminated.append(term)
@@ -113,9 +121,9 @@ def serve(fd: int) -> None:
     """A simulation process (`python -c`, on the socket `fd`): builds its group from the first
     message, then answers requests until `close`, or until its vector env's process is gone."""
     conn = Connection(fd)
-    task, kwargs, count = conn.recv()
+    task, kwargs, count, same_step = conn.recv()
     try:
-        group = EnvGroup(task, kwargs, count)
+        group = EnvGroup(task, kwargs, count, same_step)
     except Exception as exc:
         conn.send(("error", exc))
         return
@@ -140,7 +148,7 @@ class _Remote:
     """A simulation process holding some sub-environments, and the socket to it. A process of its own
     (not multiprocessing's), so that no user script is imported again in it."""
 
-    def __init__(self, task: str, kwargs: dict[str, Any], indices: range) -> None:
+    def __init__(self, task: str, kwargs: dict[str, Any], indices: range, same_step: bool) -> None:
         self.indices = indices
         mine, theirs = socket.socketpair()
         code = f"from simbot.gym.vector import serve; serve({theirs.fileno()})"
@@ -149,7 +157,7 @@ class _Remote:
         )
         theirs.close()
         self.conn = Connection(mine.detach())
-        self.ask_raw((task, kwargs, len(indices)))
+        self.ask_raw((task, kwargs, len(indices), same_step))
 
     def ask(self, request: str, *args: Any) -> None:
         self.ask_raw((request, args))
@@ -193,9 +201,9 @@ class _Remote:
 class _Local:
     """Sub-environments in this process (`processes=0`): `_Remote`'s requests as calls."""
 
-    def __init__(self, task: str, kwargs: dict[str, Any], indices: range) -> None:
+    def __init__(self, task: str, kwargs: dict[str, Any], indices: range, same_step: bool) -> None:
         self.indices = indices
-        self.group = EnvGroup(task, kwargs, len(indices))
+        self.group = EnvGroup(task, kwargs, len(indices), same_step)
         self._value: Any = None
 
     def ask(self, request: str, *args: Any) -> None:
@@ -214,9 +222,16 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
     task = ""
     """The single environment's class, as `module:Class`."""
 
-    def __init__(self, num_envs: int = 1, processes: int | None = None, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int = 1,
+        processes: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **kwargs: Any,
+    ) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise EnvConfigError(f"num_envs {num_envs!r}: must be a whole number ≥ 1")
+        self.autoreset_mode = _autoreset_mode(autoreset_mode)
         template = _task(self.task)(**kwargs)
         template.close()
         if template.options.on_bus:
@@ -230,7 +245,7 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
         self.single_action_space = template.action_space
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self.metadata = {**template.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+        self.metadata = {**template.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = None
         self.processes = _processes(num_envs, processes)
         self._groups: list[_Remote | _Local] = []
@@ -241,11 +256,14 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
             raise
 
     def _start(self, kwargs: dict[str, Any]) -> None:
+        same_step = self.autoreset_mode is AutoresetMode.SAME_STEP
         if self.processes == 0:
-            self._groups = [_Local(self.task, kwargs, range(self.num_envs))]
+            self._groups = [_Local(self.task, kwargs, range(self.num_envs), same_step)]
             return
         bounds = np.linspace(0, self.num_envs, self.processes + 1).round().astype(int)
-        self._groups = [_Remote(self.task, kwargs, range(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+        self._groups = [
+            _Remote(self.task, kwargs, range(a, b), same_step) for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        ]
         self._gather()
 
     def _all(self, request: str, per_group: Callable[[range], tuple[Any, ...]]) -> list[Any]:
@@ -273,7 +291,8 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
         seeds = self._seeds(seed)
         super().reset(seed=seed if isinstance(seed, int) else None)
         answers = self._all("reset", lambda r: ([seeds[i] for i in r], options))
-        return self._merge([obs for obs, _ in answers], [info for _, infos in answers for info in infos])
+        obs = self._joined([obs for obs, _ in answers])
+        return obs, self._vector_info([info for _, infos in answers for info in infos])
 
     def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
         if seed is None:
@@ -288,21 +307,29 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
     def step(
         self, actions: npt.NDArray[np.float32]
     ) -> tuple[Observation, npt.NDArray[Any], npt.NDArray[Any], npt.NDArray[Any], dict[str, Any]]:
+        obs, rewards, terminated, truncated, infos = self.step_each(actions)
+        return obs, rewards, terminated, truncated, self._vector_info(infos)
+
+    def step_each(self, actions: npt.NDArray[np.float32]) -> Step:
+        """`step`, with each sub-env's info dict as it gave it (what a per-env API, Stable-Baselines3's, wants)."""
         values = np.asarray(actions)
         if values.shape[:1] != (self.num_envs,):
             raise ValueError(f"actions of shape {values.shape}, expected ({self.num_envs}, ...)")
         answers = self._all("step", lambda r: (values[r.start : r.stop],))
-        obs, infos = self._merge([a[0] for a in answers], [info for a in answers for info in a[4]])
         join = np.concatenate
+        obs = self._joined([a[0] for a in answers])
+        infos = [info for a in answers for info in a[4]]
         return obs, join([a[1] for a in answers]), join([a[2] for a in answers]), join([a[3] for a in answers]), infos
 
-    def _merge(self, parts: list[Observation], infos: list[dict[str, Any]]) -> tuple[Observation, dict[str, Any]]:
+    def _joined(self, parts: list[Observation]) -> Observation:
         self._started = True
-        obs = {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+        return {key: np.concatenate([part[key] for part in parts]) for key in parts[0]}
+
+    def _vector_info(self, infos: list[dict[str, Any]]) -> dict[str, Any]:
         merged: dict[str, Any] = {}
         for i, info in enumerate(infos):
             merged = self._add_info(merged, info, i)
-        return obs, merged
+        return merged
 
     _started = False
 
@@ -322,6 +349,15 @@ def _processes(num_envs: int, asked: int | None) -> int:
             f"processes {asked!r}: must be a whole number from 0 (this process) to num_envs ({num_envs})"
         )
     return asked
+
+
+def _autoreset_mode(asked: AutoresetMode | str) -> AutoresetMode:
+    """NEXT_STEP (Gymnasium's default) or SAME_STEP; EnvConfigError naming any other."""
+    modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+    for mode in modes:
+        if asked in (mode, mode.value):
+            return mode
+    raise EnvConfigError(f"autoreset_mode {asked!r}: one of {', '.join(m.value for m in modes)}")
 
 
 def _why_on_bus(env: SimbotEnv) -> str:
