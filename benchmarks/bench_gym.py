@@ -1,27 +1,31 @@
-"""Benchmark of simbot's Gymnasium environments: env steps per second of `simbot/Navigate-v0` in
-Gymnasium's async vector env with 1, 2 and 4 envs, dynamic and kinematic, against a bare PyBullet
-loop in the same run.
+"""Benchmark of simbot's Gymnasium environments: env steps per second of `simbot/Navigate-v0` against
+two baselines measured in the same run.
 
-One run, one machine, so the ratio holds where the machine is shared:
+One run, one machine, so the ratios hold where the machine is shared. The baselines:
 
-1. bare loop: bench_server's, the warehouse and the robot in PyBullet alone, the robot's wheels
-   turning as (0.3 m/s, 0.1 rad/s) turns them, `stepSimulation` at 1 kHz and nothing else; one
-   control period of it (100 steps) counts as an env step: what a step would cost if it were
-   physics only. Measured before each vector env, each row against its own;
-2. `gymnasium.make_vec("simbot/Navigate-v0", num_envs=N, vectorization_mode="async")` in the
-   warehouse, its workers spawned (docs/learning.md says why): each env in a process of its own
-   with its own lockstep server (physics, lidars, contacts, odometry, and the bus between them),
-   every env given (0.3, 0.1) each step; figures are env steps per wall second of all envs
-   together, counted after a few warm-up steps (an episode that ends resets itself, as in
-   training, and its reset counts);
-3. the same with one 160×120 camera (`camera_front`) in the observation;
-4. both again with `physics="kinematic"` (the server's kinematic stepper at 200 Hz: 20 physics
-   steps an env step instead of 100), against the same bare loop of the dynamic physics.
+1. bare loader loop: bench_server's, the warehouse and the robot in PyBullet alone, the robot's
+   wheels turning as (0.3 m/s, 0.1 rad/s) turns them, `stepSimulation` at 1 kHz and nothing
+   else; one control period of it (100 steps) counts as an env step: what a step would cost if it
+   were the dynamic physics only;
+2. ray ceiling: the two lidars' 1440 rays of one env step, cast in one `rayTestBatch` call, the
+   robot where seed 0's episode starts in the warehouse with its people: what a step would cost if
+   it were its rays only (no env step can be cheaper: every step casts them).
 
-The start-up column is the wall time from `make_vec` to the end of the first `reset`: the servers
-start in parallel, one per env.
+The measurements, every env given (0.3, 0.1) each step, counted after a few warm-up steps (an
+episode that ends resets itself, as in training, and its reset counts):
 
-    python benchmarks/bench_gym.py [--envs 1,2,4] [--seconds S] [--control-period S]
+- kinematic physics in the warehouse with its people, lidar only (the learning set-up of issue
+  47): the single env off the bus, and the native vector env
+  (`vectorization_mode="vector_entry_point"`) with its sub-envs in this process or in one
+  simulation process per core: the measurement behind its default;
+- the same with one 160×120 camera (`camera_front`) per env: its render workers put frames on the
+  bus, so each env runs a server, in Gymnasium's async vector env (workers spawned);
+- dynamic physics in the warehouse, one env: off the bus, and on a server (`watch=True`), each
+  against the bare loader loop.
+
+The start-up column is the wall time from `make`/`make_vec` to the end of the first `reset`.
+
+    python benchmarks/bench_gym.py [--seconds S]
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, NoReturn
 
 import gymnasium
@@ -38,16 +42,20 @@ from bench_server import STEP_S, bare_loop
 from tables import publish
 
 import simbot.gym  # noqa: F401  registers simbot/Navigate-v0
-from simbot.gym.options import PHYSICS
+from simbot.gym.base import SimbotEnv
+from simbot.gym.local import LocalSession
+from simbot.sim.bullet import pb
 
 ENV_ID = "simbot/Navigate-v0"
 WORLD = "warehouse"
 """The environments' default world, and bench_server's bare loop's."""
+LEARNING: dict[str, Any] = {"world": WORLD, "people": True, "physics": "kinematic"}
 CAMERA = "camera_front"
 CAMERA_SIZE = (160, 120)
 ACTION = (0.3, 0.1)
 """(v, ω) every env gets each step: what the bare loop's wheel speeds drive (bench_server's LEFT, RIGHT)."""
 WARM_UP_STEPS = 5
+CONTROL_PERIOD_S = 0.1
 
 
 class _Parser(argparse.ArgumentParser):
@@ -55,17 +63,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message}\n")
-
-
-def env_counts(text: str) -> list[int]:
-    """`1,2,4` → [1, 2, 4]; each at least 1."""
-    try:
-        counts = [int(part) for part in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers, got {text!r}") from None
-    if not counts or min(counts) < 1:
-        raise argparse.ArgumentTypeError(f"expected env counts of at least 1, got {text!r}")
-    return counts
 
 
 def positive(text: str) -> float:
@@ -78,71 +75,138 @@ def positive(text: str) -> float:
     return value
 
 
-def bare_env_steps(seconds: float, control_period: float) -> float:
-    """Env steps per wall second of PyBullet alone: bench_server's bare loop (the warehouse, the
-    robot at the server's spawn, its wheels driven at ACTION's speeds, 1 kHz), one control period
-    of sim time per env step."""
-    return bare_loop(seconds, driving=True) / control_period
+def bare_env_steps(seconds: float) -> float:
+    """Env steps per wall second of bench_server's bare loop, one control period of sim time an env step."""
+    return bare_loop(seconds, driving=True) / CONTROL_PERIOD_S
 
 
-def vector_env_steps(envs: int, seconds: float, kwargs: dict[str, Any]) -> tuple[float, float]:
-    """(env steps per wall second, all envs together; seconds from make_vec to the first reset's end)."""
-    started = time.perf_counter()
-    vector = gymnasium.make_vec(
-        ENV_ID, num_envs=envs, vectorization_mode="async", vector_kwargs={"context": "spawn"}, **kwargs
-    )
+def ray_ceiling(seconds: float) -> float:
+    """Env steps per wall second if a step were its two lidars' rays alone, cast in one call."""
+    env = gymnasium.make(ENV_ID, **LEARNING)
     try:
-        vector.reset(seed=0)
+        env.reset(seed=0)
+        unwrapped = env.unwrapped
+        assert isinstance(unwrapped, SimbotEnv) and isinstance(unwrapped.session, LocalSession)
+        physics = unwrapped.session.sim_world.physics
+        cast: list[tuple[np.ndarray, np.ndarray, int]] = []
+        original = physics._rays.cast
+
+        def recording(starts: np.ndarray, ends: np.ndarray, mask: int) -> np.ndarray:
+            cast.append((starts, ends, mask))
+            return original(starts, ends, mask)
+
+        physics._rays.cast = recording  # type: ignore[method-assign]
+        env.step(np.asarray(ACTION, np.float32))
+        physics._rays.cast = original  # type: ignore[method-assign]
+        starts = np.concatenate([c[0] for c in cast])
+        ends = np.concatenate([c[1] for c in cast])
+        mask, client = cast[0][2], physics.client
+        calls, start = 0, time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            pb.rayTestBatch(starts, ends, collisionFilterMask=mask, physicsClientId=client)
+            calls += 1
+        print(f"ray ceiling: {len(starts)} rays a step", file=sys.stderr)
+        return calls / (time.perf_counter() - start)
+    finally:
+        env.close()
+
+
+def stepped(make: Callable[[], Any], envs: int, seconds: float) -> tuple[float, float]:
+    """(env steps per wall second of all envs, seconds from `make()` to the first reset's end)."""
+    started = time.perf_counter()
+    env = make()
+    try:
+        env.reset(seed=0)
         startup = time.perf_counter() - started
-        action = np.tile(np.asarray(ACTION, dtype=np.float32), (envs, 1))
+        action = np.asarray(ACTION, dtype=np.float32)
+        action = np.tile(action, (envs, 1)) if envs > 1 or hasattr(env, "num_envs") else action
         for _ in range(WARM_UP_STEPS):
-            vector.step(action)
+            _step(env, action)
         steps, start = 0, time.perf_counter()
         while time.perf_counter() - start < seconds:
-            vector.step(action)
+            _step(env, action)
             steps += 1
         return steps * envs / (time.perf_counter() - start), startup
     finally:
-        vector.close()
+        env.close()
 
 
-def row(physics: str, envs: int, camera: bool, rate: float, startup: float, bare: float) -> str:
-    looks = f"{CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}" if camera else "none"
-    return f"| {physics} | {envs} | {looks} | {rate:.1f} | {rate / envs:.1f} | {rate / bare:.2f} | {startup:.1f} s |"
+def _step(env: Any, action: np.ndarray) -> None:
+    _, _, terminated, truncated, _ = env.step(action)
+    if not hasattr(env, "num_envs") and (terminated or truncated):
+        env.reset()
 
 
-def measure(args: argparse.Namespace) -> list[str]:
-    """The table: the bare loop measured before each vector env, each row against its own."""
-    table = [
-        "| physics | envs (async) | camera in the observation | env steps/s, all envs | per env | ÷ bare loop | start-up |",
-        "| --- | --- | --- | --- | --- | --- | --- |",
-    ]
-    bares = []
-    for physics in PHYSICS:
-        base = {"world": WORLD, "control_period": args.control_period, "physics": physics}
-        for camera in (False, True):
-            kwargs = {**base, "cameras": (CAMERA,), "camera_size": CAMERA_SIZE} if camera else dict(base)
-            for envs in args.envs:
-                bare = bare_env_steps(min(args.seconds, 3.0), args.control_period)
-                rate, startup = vector_env_steps(envs, args.seconds, kwargs)
-                bares.append(bare)
-                table.append(row(physics, envs, camera, rate, startup, bare))
-                print(table[-1], file=sys.stderr, flush=True)
-    steps = round(args.control_period / STEP_S)
-    table.append(
-        f"| bare PyBullet loop, {WORLD} + robot, wheels driven, {steps} physics steps an env step | — | — | "
-        f"{np.median(bares):.1f} (median of {len(bares)}; {min(bares):.1f}–{max(bares):.1f}) | — | 1 | — |"
+def native(envs: int, processes: int) -> Callable[[], Any]:
+    return lambda: gymnasium.make_vec(
+        ENV_ID, num_envs=envs, vectorization_mode="vector_entry_point", processes=processes, **LEARNING
     )
+
+
+def cameras_async(envs: int) -> Callable[[], Any]:
+    kwargs = {**LEARNING, "cameras": (CAMERA,), "camera_size": CAMERA_SIZE}
+    return lambda: gymnasium.make_vec(
+        ENV_ID, num_envs=envs, vectorization_mode="async", vector_kwargs={"context": "spawn"}, **kwargs
+    )
+
+
+def single(**kwargs: Any) -> Callable[[], Any]:
+    return lambda: gymnasium.make(ENV_ID, **kwargs)
+
+
+CASES: list[tuple[str, int, str, Callable[[], Any]]] = [
+    ("kinematic, people, lidar only: one env, off the bus", 1, "this one", single(**LEARNING)),
+    ("the same, native vector env", 2, "2 simulation", native(2, 2)),
+    ("the same, native vector env", 4, "this one", native(4, 0)),
+    ("the same, native vector env", 4, "2 simulation", native(4, 2)),
+    ("the same, native vector env", 8, "2 simulation", native(8, 2)),
+    (
+        f"the same with {CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}: async vector env, a server each",
+        2,
+        "2 workers + 2 servers",
+        cameras_async(2),
+    ),
+    ("dynamic, warehouse: one env, off the bus", 1, "this one", single(world=WORLD)),
+    (
+        "dynamic, warehouse: one env on a server (`watch=True`)",
+        1,
+        "this one + a server",
+        single(world=WORLD, watch=True),
+    ),
+]
+
+
+def measure(seconds: float) -> list[str]:
+    """The table: the baselines measured around the rows, each row against their medians."""
+    bares, ceilings, rows = [], [], []
+    for name, envs, processes, make in CASES:
+        bares.append(bare_env_steps(min(seconds, 3.0)))
+        ceilings.append(ray_ceiling(min(seconds, 3.0)))
+        rate, startup = stepped(make, envs, seconds)
+        rows.append((name, envs, processes, rate, startup))
+        print(f"{name} ({envs}, {processes}): {rate:.1f} env steps/s", file=sys.stderr, flush=True)
+    bare, ceiling = float(np.median(bares)), float(np.median(ceilings))
+    table = [
+        "| measurement | envs | processes stepping worlds | env steps/s, all envs | ÷ bare loader loop | ÷ ray ceiling | start-up |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+        *(
+            f"| {name} | {envs} | {processes} | {rate:.1f} | {rate / bare:.2f} | {rate / ceiling:.2f} | {startup:.1f} s |"
+            for name, envs, processes, rate, startup in rows
+        ),
+        f"| baseline: bare loader loop, {WORLD} + robot, wheels driven, {round(CONTROL_PERIOD_S / STEP_S)} physics "
+        f"steps an env step | — | one | {bare:.1f} (median of {len(bares)}; {min(bares):.1f}–{max(bares):.1f}) | 1 | "
+        f"{bare / ceiling:.2f} | — |",
+        f"| baseline: ray ceiling, one env step's 1440 lidar rays in one `rayTestBatch`, {WORLD} with people | — | one | "
+        f"{ceiling:.1f} (median of {len(ceilings)}; {min(ceilings):.1f}–{max(ceilings):.1f}) | {ceiling / bare:.2f} | 1 | — |",
+    ]
     return table
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _Parser(prog="bench_gym.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--envs", type=env_counts, default=[1, 2, 4], help="env counts (default: 1,2,4)")
     parser.add_argument("--seconds", type=positive, default=8.0, help="wall seconds per measurement")
-    parser.add_argument("--control-period", type=positive, default=0.1, help="sim seconds per env step")
     args = parser.parse_args(argv)
-    publish("gym", measure(args))
+    publish("gym", measure(args.seconds))
     return 0
 
 

@@ -43,7 +43,8 @@ class LocalSession:
         self.name = f"simbot world {world!r} in process"
         self.folder = folder
         self.closed = False
-        self._world = build_world(parse_config(spec.args()), SimBus(self.node))
+        self.sim_world = build_world(parse_config(spec.args()), SimBus(self.node))
+        """The running world (a benchmark reads its physics)."""
         self._publishers: dict[str, LocalPublisher] = {}
 
     def check(self, what: str) -> None:
@@ -51,26 +52,26 @@ class LocalSession:
 
     def state(self) -> dict[str, Any]:
         """The part of world control's `state` an environment reads: every model's pose."""
-        physics = self._world.physics
+        physics = self.sim_world.physics
         models = {}
         for name in physics.body_names():
             xyz, quat = physics.model_pose(name)
             models[name] = {"position": list(xyz), "orientation": list(quat)}
-        return {"sim_time": self._world.sim.clock.now_ns / 1e9, "models": models}
+        return {"sim_time": self.sim_world.sim.clock.now_ns / 1e9, "models": models}
 
     def step(self, steps: int) -> int:
         """`steps` physics steps; the sim time reached, in nanoseconds."""
-        sim = self._world.sim
+        sim = self.sim_world.sim
         for _ in range(steps):
             sim.step()
         return sim.clock.now_ns
 
     def reset(self, seed: int | None = None) -> None:
-        self._world.reset(seed)
+        self.sim_world.reset(seed)
 
     def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:
         quat = unit_quaternion(list(upright(yaw)))
-        self._world.physics.set_model_pose(model, Transform((x, y, z), quat))
+        self.sim_world.physics.set_model_pose(model, Transform((x, y, z), quat))
 
     def send(self, items: Sequence[tuple[str, Any]]) -> None:
         """Hands each (topic, message) to the system that takes it; the next step acts on it."""
@@ -83,6 +84,6 @@ class LocalSession:
         if self.closed:
             return
         self.closed = True
-        self._world.close()
+        self.sim_world.close()
         self.node.close()
         shutil.rmtree(self.folder, ignore_errors=True)
