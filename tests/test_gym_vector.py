@@ -40,9 +40,11 @@ def actions(step: int, env: int = 0) -> np.ndarray:
     return np.array([0.8, 0.6 * np.sin(step / 4 + env)], np.float32)
 
 
-def run_single(env: Any, seed: int, steps: int, index: int = 0) -> list[tuple[Any, ...]]:
+def run_single(env: Any, seed: int, steps: int, index: int = 0, same_step: bool = False) -> list[tuple[Any, ...]]:
     """The single env's episode(s) from `reset(seed)`, reset with no seed after each ends (as the
-    vector env's autoreset does): (obs, reward, terminated, truncated) per step, reward 0 at a reset."""
+    vector env's autoreset does): (obs, reward, terminated, truncated) per step. Next-step: the
+    step after an end is the reset, reward 0; same-step: the reset's observation replaces the
+    last one, which is kept as the record's fifth item."""
     obs, _ = env.reset(seed=seed)
     record: list[tuple[Any, ...]] = [(obs, 0.0, False, False)]
     ended = False
@@ -53,8 +55,12 @@ def run_single(env: Any, seed: int, steps: int, index: int = 0) -> list[tuple[An
             ended = False
             continue
         obs, reward, terminated, truncated, _ = env.step(actions(step, index))
-        record.append((obs, float(reward), bool(terminated), bool(truncated)))
         ended = terminated or truncated
+        if same_step and ended:
+            final, (obs, _), ended = obs, env.reset(), False
+            record.append((obs, float(reward), bool(terminated), bool(truncated), final))
+            continue
+        record.append((obs, float(reward), bool(terminated), bool(truncated)))
     return record
 
 
@@ -131,6 +137,47 @@ def test_each_sub_env_is_the_single_env_with_its_seed_through_autoreset(walled: 
         single.close()
 
 
+def test_same_step_autoreset_gives_the_final_observation_in_the_info(walled: dict[str, Any]) -> None:
+    """`autoreset_mode="SameStep"` (what Stable-Baselines3 runs on): the step that ends an episode
+    returns the next episode's first observation, the last one in `info["final_obs"]`."""
+    steps, seed = 30, 5
+    envs = gymnasium.make_vec(
+        "simbot/Navigate-v0", num_envs=1, vectorization_mode="vector_entry_point", autoreset_mode="SameStep", **walled
+    )
+    single = gymnasium.make("simbot/Navigate-v0", **walled)
+    try:
+        expected = run_single(single, seed, steps, same_step=True)
+        obs, _ = envs.reset(seed=seed)
+        assert_same({k: v[0] for k, v in obs.items()}, expected[0][0], "reset")
+        finals = 0
+        for step in range(steps):
+            obs, rewards, terminated, truncated, info = envs.step(actions(step)[None])
+            want = expected[step + 1]
+            assert_same({k: v[0] for k, v in obs.items()}, want[0], f"step {step}")
+            assert (float(rewards[0]), bool(terminated[0]), bool(truncated[0])) == want[1:4], f"step {step}"
+            if len(want) == 5:
+                finals += 1
+                assert info["_final_obs"][0]
+                assert_same(info["final_obs"][0], want[4], f"step {step}: final")  # an object array, as Gymnasium's own
+        assert finals >= 1, "no episode ended: the same-step reset went untested"
+    finally:
+        envs.close()
+        single.close()
+
+
+def test_goal_ahead_puts_the_goal_straight_ahead_at_the_starts_heading() -> None:
+    env = gymnasium.make(
+        "simbot/Navigate-v0", world="empty", physics="kinematic", goal_distance=(2.0, 2.0), goal_ahead=True
+    )
+    try:
+        for seed in range(5):
+            obs, info = env.reset(seed=seed)
+            assert obs["goal"] == pytest.approx([2.0, 0.0, 0.0], abs=0.01), f"seed {seed}: {obs['goal']}"
+            assert info["distance"] == pytest.approx(2.0, abs=0.01)
+    finally:
+        env.close()
+
+
 def test_dock_batches_too_and_its_sub_envs_are_the_single_env() -> None:
     envs = gymnasium.make_vec("simbot/Dock-v0", num_envs=2, vectorization_mode="vector_entry_point", world="empty")
     single = gymnasium.make("simbot/Dock-v0", world="empty")
@@ -161,6 +208,7 @@ def test_dock_batches_too_and_its_sub_envs_are_the_single_env() -> None:
         ({"num_envs": 2, "cameras": ("camera_front",)}, "cameras camera_front needs a server on the bus per env"),
         ({"num_envs": 2, "watch": True}, "watch=True needs a server"),
         ({"num_envs": 2, "physics": "warp"}, "physics 'warp': one of dynamic, kinematic"),
+        ({"num_envs": 2, "autoreset_mode": "later"}, "autoreset_mode 'later': one of NextStep, SameStep"),
     ],
 )
 def test_bad_vector_input_is_one_line_naming_it(kwargs: dict[str, Any], named: str) -> None:

@@ -1,7 +1,11 @@
-"""What simbot's environments share: the server they own, the spaces, the step and the reset.
+"""What simbot's environments share: the world they step, the spaces, the step and the reset.
+
+The world is in the environment's own process, off the bus (simbot.gym.local), unless it is
+watched, observes a camera or is given an `endpoint=`: then a lockstep server (simbot.gym.session).
+Both have the same requests, and the observations are the same for the same seed.
 
 An environment step is: the action clipped into the action space, sent as `cmd_vel` (and any
-other command the task adds) so that the server has it before it steps, `control_period / step
+other command the task adds) so that the world has it before it steps, `control_period / step
 size` physics steps through world control, then the observation of the sim time reached (see
 observe.py). A reset is: the robot stopped, the world reset (sim time 0, every model where the
 server started it), the robot moved to the episode's start (`set_pose`), one control period

@@ -17,9 +17,12 @@ from __future__ import annotations
 import itertools
 import logging
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from simbot.description import DescriptionError, load_description
 from simbot.description.model import Model, World
@@ -70,6 +73,21 @@ class Placement:
     namespace: str = ""
 
 
+@dataclass(frozen=True)
+class RandomStream:
+    """A system's random stream as it was made: a reset starts it again from there."""
+
+    generator: np.random.Generator
+    state: Mapping[str, Any]
+
+    @staticmethod
+    def of(generator: np.random.Generator) -> RandomStream:
+        return RandomStream(generator, generator.bit_generator.state)
+
+    def restart(self) -> None:
+        self.generator.bit_generator.state = self.state
+
+
 @dataclass
 class Placed:
     """A model in the running world: its bodies (one per joint tree), the bus view of its systems
@@ -86,6 +104,8 @@ class Placed:
     """Its systems the world runs without, for bad SDF parameters: they leave with it."""
     created: bool = False
     """Created through world control: a reset removes it."""
+    streams: list[RandomStream] = field(default_factory=list)
+    """Its systems' random streams."""
 
     def event(self) -> ModelEvent:
         return ModelEvent(self.name, tuple(self.bodies), tuple(s.system for s in self.systems), self.created)
@@ -113,6 +133,7 @@ class SimWorld:
         self._options = options or RunOptions()
         self.models: dict[str, Placed] = {}
         self._world_systems: list[Scheduled] = []
+        self._world_streams: list[RandomStream] = []
         self._left_out: list[LeftOut] = []
         self._placements = placements
         self.variations = variations
@@ -251,7 +272,9 @@ class SimWorld:
         log.info("removed %s", name)
 
     def reset(self, seed: int | None = None) -> None:
-        """Gazebo's reset: the world as it started, so models created since leave it. With a seed, the
+        """Gazebo's reset: the world as it started, so models created since leave it, and every
+        system's random stream starts again where it started (what follows a reset is the same
+        whatever came before it: how many steps, how many resets). With a seed, the
         variant it draws from the world's variation profile (simbot.variation) instead: every model and
         system is taken out and the variant loaded in their place, as a server started with
         `--randomise SEED` loads it. ValueError naming the field, with the world as it was, when the
@@ -261,6 +284,8 @@ class SimWorld:
             return
         for placed in [p for p in self.models.values() if p.created]:
             self.remove(placed.name)
+        for stream in [*self._world_streams, *(s for p in self.models.values() for s in p.streams)]:
+            stream.restart()
         self.sim.reset()
 
     def _draw(self, seed: int) -> Variant:
@@ -280,7 +305,7 @@ class SimWorld:
         systems = [entry.system for entry in self._world_systems]
         self.sim.remove_systems(systems)
         Simulation.close_all(systems)
-        self._world_systems, self._left_out = [], []
+        self._world_systems, self._world_streams, self._left_out = [], [], []
         world = variant.world
         self.description = self.physics.world = kinematic(world) if world.physics.type == KINEMATIC else world
         self._load(variant.robot, self._placements)
@@ -298,10 +323,12 @@ class SimWorld:
         """Builds each system of the world (`placed` None) or of a placed model in turn, leaving out
         one with bad parameters (`_drop`); if one fails otherwise, those already built close."""
         bus, left_out = (self.bus, self._left_out) if placed is None else (placed.bus, placed.left_out)
+        streams = self._world_streams if placed is None else placed.streams
         built: list[tuple[Wanted, Scheduled]] = []
         try:
             for one in wanted:
                 ctx = one.context(self.physics, bus, self.description, self._seed, self._options)
+                streams.append(RandomStream.of(ctx.rng))
                 try:
                     built.append((one, one.build(ctx)))
                 except SystemConfigError as exc:
