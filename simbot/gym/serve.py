@@ -5,7 +5,8 @@ hand (or on another machine) for environments given `endpoint=`.
         --listen tcp/127.0.0.1:7500 --namespace gym_a
 
 starts (in the foreground, until Ctrl-C) exactly the lockstep server that
-`gymnasium.make("simbot/Dock-v0", world="empty", control_period=0.1)` would start for itself:
+`gymnasium.make("simbot/Dock-v0", world="empty", control_period=0.1, watch=True)` would start for
+itself (and the world an env off the bus builds in its own process, simbot.gym.local):
 the robot's SDF with its lidars due at every environment step and its contact sensors, the
 trolley where the world has none, the cameras' size and rate. Then
 `gymnasium.make("simbot/Dock-v0", world="empty", control_period=0.1,
