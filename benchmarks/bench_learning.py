@@ -20,7 +20,8 @@ The easy variant is `simbot/Navigate-v0` in the empty world, kinematic, with (v,
 ahead of it at its heading (`goal_ahead=True`).
 
 `--long` instead trains PPO for `--long-steps` (1 M) env steps on kinematic Navigate-v0 in the
-warehouse with its people (the default task: goals 1–5 m away, any heading, 500 steps), records
+warehouse with its people (the default task: goals 1–5 m away, any heading, 500 steps; (v, ω)
+within 1 m/s and 1 rad/s), records
 the success rate of the training episodes after each rollout, and writes the curve as
 docs/learning-curve.svg and its table into docs/learning.md. `make bench-learning` runs both;
 it needs the `learning` extra, which it installs.
@@ -65,8 +66,15 @@ EASY: dict[str, Any] = {
 """Navigate-v0's keywords for the easy variant."""
 NAVIGATE_ONLY = ("goal_distance", "goal_ahead")
 """Of those, the ones Dock-v0 does not take (its checker runs with the rest)."""
-LONG: dict[str, Any] = {"world": "warehouse", "people": True, "physics": "kinematic"}
-"""The long run's task: Navigate-v0's defaults in the warehouse with its people, kinematic."""
+LONG: dict[str, Any] = {
+    "world": "warehouse",
+    "people": True,
+    "physics": "kinematic",
+    "max_linear": 1.0,
+    "max_angular": 1.0,
+}
+"""The long run's task: Navigate-v0's defaults in the warehouse with its people, kinematic, (v, ω)
+within 1 m/s and 1 rad/s (the drive's own 7.5 m/s and 37.5 rad/s leave a Gaussian policy crashing)."""
 PPO_SETTINGS: dict[str, Any] = {"batch_size": 64, "n_epochs": 10, "learning_rate": 3e-4, "gamma": 0.99}
 ROLLOUT = 256
 """Env steps per PPO rollout, all envs together (each env's `n_steps` is this ÷ envs): the one-env
