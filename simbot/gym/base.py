@@ -323,7 +323,7 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
 
     @property
     def session(self) -> Session | LocalSession:
-        """The server and bus session (for tests and tools: its process, its node)."""
+        """The world's session: a server and its bus node, or the world in this process (for tests and tools)."""
         return self._started()[0]
 
     @property
@@ -335,9 +335,10 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         return self._started()[1]
 
     def _started(self) -> tuple[Session | LocalSession, Observer, weakref.finalize]:
-        """The server, its observer and the finaliser that ends it, started at first use rather than
-        in `__init__`: a vector env makes one env in its parent to read the spaces, then forks its
-        workers, and a process forked after Zenoh's threads started hangs in the child."""
+        """The session, its observer and the finaliser that ends it, started at first use rather than
+        in `__init__`: a vector env makes one env in its parent to read the spaces, then starts its
+        workers (a process forked after Zenoh's threads started hangs in the child), and needs no
+        world in the parent."""
         if self._live is None:
             session = self._open()
             finalizer = weakref.finalize(self, session.close)
