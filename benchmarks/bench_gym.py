@@ -18,8 +18,9 @@ episode that ends resets itself, as in training, and its reset counts):
   47): the single env off the bus, and the native vector env
   (`vectorization_mode="vector_entry_point"`) with its sub-envs in this process or in one
   simulation process per core: the measurement behind its default;
-- the same with one 160×120 camera (`camera_front`) per env: its render workers put frames on the
-  bus, so each env runs a server, in Gymnasium's async vector env (workers spawned);
+- the same with one 160×120 camera (`camera_front`) per env: in the native vector env (each
+  sub-env's render worker hands its frames back), and in Gymnasium's async vector env with a
+  server each (workers spawned), for comparison;
 - dynamic physics in the warehouse, one env: off the bus, and on a server (`watch=True`), each
   against the bare loader loop.
 
@@ -137,9 +138,10 @@ def _step(env: Any, action: np.ndarray) -> None:
         env.reset()
 
 
-def native(envs: int, processes: int) -> Callable[[], Any]:
+def native(envs: int, processes: int, camera: bool = False) -> Callable[[], Any]:
+    kwargs = {**LEARNING, "cameras": (CAMERA,), "camera_size": CAMERA_SIZE} if camera else LEARNING
     return lambda: gymnasium.make_vec(
-        ENV_ID, num_envs=envs, vectorization_mode="vector_entry_point", processes=processes, **LEARNING
+        ENV_ID, num_envs=envs, vectorization_mode="vector_entry_point", processes=processes, **kwargs
     )
 
 
@@ -161,11 +163,18 @@ CASES: list[tuple[str, int, str, Callable[[], Any]]] = [
     ("the same, native vector env", 4, "2 simulation", native(4, 2)),
     ("the same, native vector env", 8, "2 simulation", native(8, 2)),
     (
-        f"the same with {CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}: async vector env, a server each",
+        f"the same with {CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}: native vector env",
         2,
-        "2 workers + 2 servers",
-        cameras_async(2),
+        "2 simulation",
+        native(2, 2, True),
     ),
+    (
+        f"the same with {CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}: native vector env",
+        4,
+        "2 simulation",
+        native(4, 2, True),
+    ),
+    (f"the same with {CAMERA}: async vector env, a server each", 2, "2 workers + 2 servers", cameras_async(2)),
     ("dynamic, warehouse: one env, off the bus", 1, "this one", single(world=WORLD)),
     (
         "dynamic, warehouse: one env on a server (`watch=True`)",

@@ -3,10 +3,10 @@
 - An env that no one watches steps its world in its own process (simbot.gym.local); its
   observations, rewards and contacts equal, byte for byte, those of the same env on a lockstep
   server (`watch=True`), for the same seed and actions: kinematic in the warehouse with its
-  people (the lidars see their legs), and dynamic.
+  people (the lidars see their legs), dynamic, and with a camera.
 - `make_vec(..., vectorization_mode="vector_entry_point")`: sub-env i, seeded S + i, gives the
   single env's episode with that seed, through Gymnasium 1.x's next-step autoreset, in this process
-  and in two simulation processes; Dock too.
+  and in two simulation processes; Dock too, with a camera (its frames rendered off the bus).
 - Bad input is one line naming it; a simulation process that dies is a SimServerError naming its
   envs, with nothing left running; a parent killed with SIGKILL leaves no simulation process.
 """
@@ -33,6 +33,13 @@ from simbot.gym.vector import SimbotVectorEnv
 
 KINEMATIC_PEOPLE: dict[str, Any] = {"world": "warehouse", "people": True, "physics": "kinematic"}
 DYNAMIC_EMPTY: dict[str, Any] = {"world": "empty", "max_linear": 1.0, "max_angular": 1.0}
+CAMERA: dict[str, Any] = {
+    "world": "warehouse",
+    "physics": "kinematic",
+    "cameras": ("camera_front",),
+    "camera_size": (32, 24),
+}
+"""A camera off the bus: its render worker started from this process (pytest's main module is guarded)."""
 
 
 def actions(step: int, env: int = 0) -> np.ndarray:
@@ -82,9 +89,11 @@ def walled(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 # --- the world off the bus --------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kwargs", [KINEMATIC_PEOPLE, DYNAMIC_EMPTY], ids=["kinematic-people", "dynamic"])
+@pytest.mark.parametrize(
+    "kwargs", [KINEMATIC_PEOPLE, DYNAMIC_EMPTY, CAMERA], ids=["kinematic-people", "dynamic", "camera"]
+)
 def test_the_world_off_the_bus_observes_exactly_what_the_bus_path_observes(kwargs: dict[str, Any]) -> None:
-    local = gymnasium.make("simbot/Navigate-v0", **kwargs)
+    local = gymnasium.make("simbot/Navigate-v0", cameras_in_process=bool(kwargs.get("cameras")), **kwargs)
     watched = gymnasium.make("simbot/Navigate-v0", watch=True, **kwargs)
     try:
         runs = [run_single(env, 11, 25) for env in (local, watched)]
@@ -178,12 +187,16 @@ def test_goal_ahead_puts_the_goal_straight_ahead_at_the_starts_heading() -> None
         env.close()
 
 
-def test_dock_batches_too_and_its_sub_envs_are_the_single_env() -> None:
-    envs = gymnasium.make_vec("simbot/Dock-v0", num_envs=2, vectorization_mode="vector_entry_point", world="empty")
-    single = gymnasium.make("simbot/Dock-v0", world="empty")
+def test_dock_batches_too_with_a_camera_and_its_sub_envs_are_the_single_env() -> None:
+    """Each sub-env's render worker started by its simulation process, the frames taken back."""
+    kwargs = {"world": "empty", "cameras": ("camera_front",), "camera_size": (32, 24)}
+    envs = gymnasium.make_vec("simbot/Dock-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    single = gymnasium.make("simbot/Dock-v0", cameras_in_process=True, **kwargs)
     try:
         assert envs.action_space.shape == (2, 3)
         obs, _ = envs.reset(seed=[8, 9])
+        image = obs["camera_front"]
+        assert image.shape == (2, 24, 32, 3) and 100 < image.mean() < 250, "not the lit floor (an empty buffer?)"
         step = envs.step(np.tile(np.array([0.3, 0.0, 0.0], np.float32), (2, 1)))
         for i, seed in enumerate((8, 9)):
             first, _ = single.reset(seed=seed)
@@ -205,7 +218,7 @@ def test_dock_batches_too_and_its_sub_envs_are_the_single_env() -> None:
         ({"num_envs": 0}, "num_envs 0: must be a whole number ≥ 1"),
         ({"num_envs": -2}, "num_envs -2"),
         ({"num_envs": 2, "processes": 3}, "processes 3: must be a whole number from 0"),
-        ({"num_envs": 2, "cameras": ("camera_front",)}, "cameras camera_front needs a server on the bus per env"),
+        ({"num_envs": 2, "processes": 0, "cameras": ("camera_front",)}, "cameras camera_front with processes=0"),
         ({"num_envs": 2, "watch": True}, "watch=True needs a server"),
         ({"num_envs": 2, "physics": "warp"}, "physics 'warp': one of dynamic, kinematic"),
         ({"num_envs": 2, "autoreset_mode": "later"}, "autoreset_mode 'later': one of NextStep, SameStep"),

@@ -167,8 +167,9 @@ class LocalNode(Node):
     def __init__(self) -> None:
         self.hub = LocalHub()
         self.options = BusOptions()
-        """What a helper process would connect with: a local node has no endpoint, so no render
-        worker can reach it (an environment that observes a camera runs a server)."""
+        self.hosts_helpers = False
+        """No other process can reach it: a render worker hands its frames back to the world, which
+        puts them here."""
 
     def key(self, topic: str) -> str:
         return topic_key(topic)
@@ -204,7 +205,7 @@ class LocalNode(Node):
         return LocalRosService(self.key(name), typename)
 
     def answering(self, key_suffix: str) -> None:
-        """A lockstep barrier's key: no helper process calls it."""
+        """A lockstep barrier's key: no helper process can call it."""
 
     def close(self) -> None:
         self.hub.listeners.clear()

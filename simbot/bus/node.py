@@ -345,6 +345,9 @@ class Node:
     def __init__(self, options: BusOptions, role: Role, name: str | None = None) -> None:
         """`name`: the node's name on the ROS 2 graph (default: the server `simbot`, a client after its program)."""
         self.options = options
+        self.hosts_helpers = True
+        """Whether a process it starts can join its bus (`helper_options`): a render worker then puts
+        its camera's frames itself."""
         self.role = role
         self.namespace = options.namespace
         self.robot_namespace = options.robot_namespace.strip("/")

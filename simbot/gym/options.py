@@ -63,6 +63,11 @@ class EnvOptions:
     watch: bool = False
     """Run the world in a server on the bus (Foxglove, the clients and `simbot view` can watch it);
     by default it steps in the environment's own process, off the bus (simbot.gym.local)."""
+    cameras_in_process: bool = False
+    """With cameras, step the world off the bus too, its render workers started from this process
+    (multiprocessing's "spawn") and their frames taken back: for a script whose main module is
+    guarded (`if __name__ == "__main__":`, which spawn needs), and what the native vector env's
+    simulation processes do. Otherwise an env that observes a camera runs a server."""
     robot: Path = field(default_factory=lambda: asset("urdf/flexley_tug.sdf"))
 
     def __post_init__(self) -> None:
@@ -92,9 +97,10 @@ class EnvOptions:
 
     @property
     def on_bus(self) -> bool:
-        """Whether the world runs on the bus: watched, given by `endpoint`, or with cameras (their
-        render workers put frames on Zenoh)."""
-        return self.watch or self.endpoint is not None or bool(self.observed_cameras)
+        """Whether the world runs on the bus: watched, given by `endpoint`, or rendering cameras
+        whose workers this process is not to start (`cameras_in_process`)."""
+        cameras_on_bus = bool(self.observed_cameras) and not self.cameras_in_process
+        return self.watch or self.endpoint is not None or cameras_on_bus
 
     @property
     def observed_cameras(self) -> tuple[str, ...]:

@@ -19,9 +19,10 @@ as a single env's `reset()` draws it) and returns its first observation with rew
 `autoreset_mode="same_step"` resets it in the step that ended it instead, the last observation and
 info in `info["final_obs"]` and `info["final_info"]` (what Stable-Baselines3 expects: simbot.gym.sb3).
 
-Errors: a `num_envs` below 1, or an env that cannot step off the bus (cameras, `watch=True`,
-`endpoint=`: use `vectorization_mode="async"`), is one EnvConfigError naming it before anything
-starts. A simulation process that dies raises SimServerError naming the envs it held and its exit
+Cameras render in each sub-env's own render workers, started by its simulation process, and the
+frames come back to the world (`cameras_in_process`). Errors: a `num_envs` below 1, or an env that
+cannot step off the bus (`watch=True`, `endpoint=`: use `vectorization_mode="async"`; cameras with
+`processes=0`), is one EnvConfigError naming it before anything starts. A simulation process that dies raises SimServerError naming the envs it held and its exit
 code, and every other process is stopped: nothing is left running.
 """
 
@@ -35,6 +36,7 @@ import socket
 import subprocess
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -45,6 +47,7 @@ from gymnasium.vector.utils import batch_space
 
 from simbot.gym.base import Observation, SimbotEnv
 from simbot.gym.errors import EnvConfigError, SimServerError
+from simbot.gym.options import EnvOptions
 
 log = logging.getLogger(__name__)
 
@@ -234,11 +237,13 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
         template = _task(self.task)(**kwargs)
         template.close()
-        if template.options.on_bus:
-            raise EnvConfigError(
-                f"vectorization_mode='vector_entry_point': {_why_on_bus(template)} needs a server on the bus per env; "
-                "use vectorization_mode='async'"
-            )
+        options = template.options
+        self.processes = _processes(num_envs, processes, bool(options.observed_cameras))
+        if self.processes:  # a simulation process may start render workers: its main module is no user's script
+            kwargs = {**kwargs, "cameras_in_process": True}
+            options = replace(options, cameras_in_process=True)
+        if options.on_bus:
+            raise EnvConfigError(f"vectorization_mode='vector_entry_point': {_why_on_bus(options)}")
         self.num_envs = num_envs
         self._first_seed = template.options.seed
         self.single_observation_space = template.observation_space
@@ -247,7 +252,6 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
         self.action_space = batch_space(self.single_action_space, num_envs)
         self.metadata = {**template.metadata, "autoreset_mode": self.autoreset_mode}
         self.render_mode = None
-        self.processes = _processes(num_envs, processes)
         self._groups: list[_Remote | _Local] = []
         try:
             self._start(kwargs)
@@ -339,11 +343,13 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
             group.close()
 
 
-def _processes(num_envs: int, asked: int | None) -> int:
-    """Simulation processes: as asked (0: this process), else one per core for several envs."""
+def _processes(num_envs: int, asked: int | None, cameras: bool) -> int:
+    """Simulation processes: as asked (0: this process), else one per core for several envs (at
+    least one for an env with cameras, whose render workers this process is not to start)."""
     if asked is None:
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        return min(num_envs, cores) if min(num_envs, cores) > 1 else 0
+        several = min(num_envs, cores)
+        return several if several > 1 or cameras else 0
     if isinstance(asked, bool) or not isinstance(asked, int) or not 0 <= asked <= num_envs:
         raise EnvConfigError(
             f"processes {asked!r}: must be a whole number from 0 (this process) to num_envs ({num_envs})"
@@ -360,13 +366,15 @@ def _autoreset_mode(asked: AutoresetMode | str) -> AutoresetMode:
     raise EnvConfigError(f"autoreset_mode {asked!r}: one of {', '.join(m.value for m in modes)}")
 
 
-def _why_on_bus(env: SimbotEnv) -> str:
-    options = env.options
-    if options.endpoint is not None:
-        return "endpoint="
-    if options.watch:
-        return "watch=True"
-    return f"cameras {', '.join(options.observed_cameras)}"
+def _why_on_bus(options: EnvOptions) -> str:
+    """Why an env cannot batch, and what to do instead."""
+    if options.endpoint is not None or options.watch:
+        given = "endpoint=" if options.endpoint is not None else "watch=True"
+        return f"{given} needs a server on the bus per env; use vectorization_mode='async'"
+    return (
+        f"cameras {', '.join(options.observed_cameras)} with processes=0 would start their render workers from this "
+        "process; use processes ≥ 1, or cameras_in_process=True in a script guarded by if __name__ == '__main__'"
+    )
 
 
 class NavigateVectorEnv(SimbotVectorEnv):

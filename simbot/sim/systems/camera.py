@@ -208,8 +208,10 @@ class Camera(Sampled):
             for product, output in zip(self.products, outputs, strict=True)
         ]
         self._info = ctx.bus.publisher(self.info_key(topic), messages.CameraInfo)
-        self.publication = self._publication(ctx.bus) if self.published_by_worker else None
-        """What its render worker publishes of each frame; None: the server publishes them (`send`)."""
+        by_worker = self.published_by_worker and ctx.bus.node.hosts_helpers
+        self.publication = self._publication(ctx.bus) if by_worker else None
+        """What its render worker publishes of each frame; None: the server publishes them (`send`),
+        as where no worker can reach the bus."""
         self.status = RenderStatus()
         """The world's rendering system shares its own when it takes the camera."""
         self.skipped = 0

@@ -119,10 +119,12 @@ class Rendering:
         self.threads: int | None = ctx.override("rendering.threads")
         self.light = world_light(ctx.world)
         node = ctx.bus.node
-        if self.lockstep:
+        if self.lockstep and node.hosts_helpers:
             node.answering(BARRIER)
-        self.bus = Bus(helper_options(node.options), node.key("/" + BARRIER) if self.lockstep else None)
-        """Where the render workers publish."""
+        barrier = node.key("/" + BARRIER) if self.lockstep else None
+        self.bus = Bus(helper_options(node.options), barrier) if node.hosts_helpers else None
+        """Where the render workers publish; None where they cannot reach the bus (a world in a
+        learning environment's process): the cameras publish their frames themselves."""
         self.status = RenderStatus()
         self.cameras: list[RenderedSensor] = []
         self.pool: RenderPool | None = None
