@@ -38,7 +38,9 @@ keys the camera found subscribed when the frame was asked for (`audience`: the s
 what a lockstep client receives never depends on when a worker's session heard of it); the
 frames come back here only to be counted (and saved, and boxed). In lockstep the workers wait at
 the server's barrier queryable (`BARRIER`) until their samples are routed, so a step's images
-arrive before its clock, as when the server published them.
+arrive before its clock, as when the server published them. Where no other process can join the
+node (`Node.hosts_helpers`: a learning environment's world, simbot.bus.local), the workers get no
+bus and the cameras put their frames from shared memory here, in the step that asked for them.
 
 A render worker that dies, or a pool that does not start, stops the cameras (an error in the log
 and in each camera's world state), never the simulation.
