@@ -220,6 +220,14 @@ def exited(pid: int) -> bool:
         return True
 
 
+def killed_script(code: str, timeout: float = 300.0) -> str:
+    """Runs `code` in a Python process of its own, which ends by SIGKILLing itself (no finaliser
+    runs); its standard output."""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
+    assert done.returncode == -signal.SIGKILL, done.stderr[-2000:]
+    return done.stdout
+
+
 def descendants(pid: int) -> set[int]:
     """Every process below `pid` (/proc's parent links), however deep: an async env's server is
     a grandchild, a Ray actor's a great-grandchild."""

@@ -28,7 +28,7 @@ import pytest
 from bus_helpers import free_port, unique_namespace
 from conftest import ROBOT_SDF
 from gymnasium.utils.env_checker import check_env
-from server_helpers import running_server, wait_until
+from server_helpers import killed_script, running_server, wait_until
 
 import simbot.gym
 from simbot.gym import EnvConfigError, SimServerError
@@ -423,9 +423,7 @@ def test_a_process_that_dies_without_closing_its_environment_leaves_no_server() 
         "print(s.process.pid, s.server_pid, flush=True)\n"
         "os.kill(os.getpid(), signal.SIGKILL)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert done.returncode == -signal.SIGKILL, done.stderr[-2000:]
-    group, server = (int(v) for v in done.stdout.split())
+    group, server = (int(v) for v in killed_script(code).split())
     wait_gone(group)
     assert (
         not Path(f"/proc/{server}").exists() or "Z" in (Path(f"/proc/{server}") / "stat").read_text().split(")")[-1][:3]

@@ -16,14 +16,12 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
-import sys
 from typing import Any
 
 import gymnasium
 import numpy as np
 import pytest
-from server_helpers import alive, wait_until
+from server_helpers import alive, killed_script, wait_until
 from test_gym import WALL_WORLD
 
 from simbot.gym import EnvConfigError, SimServerError
@@ -254,8 +252,6 @@ def test_a_parent_killed_with_sigkill_leaves_no_simulation_process() -> None:
         "print(json.dumps([g.process.pid for g in envs._groups]), flush=True)\n"
         "os.kill(os.getpid(), signal.SIGKILL)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert done.returncode == -signal.SIGKILL, done.stderr[-2000:]
-    pids = set(json.loads(done.stdout))
+    pids = set(json.loads(killed_script(code)))
     assert len(pids) == 2
     wait_until(lambda: not alive(pids), 60.0, f"simulation processes {sorted(pids)} to end")
