@@ -271,14 +271,22 @@ class SimbotVectorEnv(VectorEnv[Observation, npt.NDArray[np.float32], npt.NDArra
         self._gather()
 
     def _all(self, request: str, per_group: Callable[[range], tuple[Any, ...]]) -> list[Any]:
+        """Every group asked, then every answer read (`_gather`); a group that cannot be asked (its
+        process died) fails the request as one that cannot answer does."""
+        asked, failure = [], None
         for group in self._groups:
-            group.ask(request, *per_group(group.indices))
-        return self._gather()
+            try:
+                group.ask(request, *per_group(group.indices))
+                asked.append(group)
+            except Exception as exc:
+                failure = failure or exc
+        return self._gather(asked, failure)
 
-    def _gather(self) -> list[Any]:
-        """Every group's answer; when one fails, the rest are still read so that none is left mid-request."""
-        answers, failure = [], None
-        for group in self._groups:
+    def _gather(self, groups: Sequence[_Remote | _Local] | None = None, failure: Exception | None = None) -> list[Any]:
+        """The answers of `groups` (every group by default); when one fails, the rest are still read so
+        that none is left mid-request, and a dead process closes them all."""
+        answers = []
+        for group in self._groups if groups is None else groups:
             try:
                 answers.append(group.answer())
             except Exception as exc:
