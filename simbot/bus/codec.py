@@ -171,6 +171,14 @@ def message_type(typename: str) -> type[Any]:
         ) from None
 
 
+def checked_typename(msgtype: type[Any] | str) -> str:
+    """The ROS 2 type name of `msgtype` (a `messages` class or the name itself); an unknown one fails
+    here, where the publisher is declared, not at its first put."""
+    typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
+    message_type(typename)
+    return typename
+
+
 def _msgdef(typename: str) -> Msgdef[object]:
     message_type(typename)
     return TYPESTORE.get_msgdef(typename)

@@ -5,7 +5,7 @@ the server's systems still publish and take commands through a node, and this on
 message object to the subscribers and inboxes of its key in the same call, as a Zenoh session
 delivers a put to its own subscribers, only without encoding it. What a subscriber gets is the
 message the system put (frame ids prefixed as `Publisher` prefixes them), so an observation made
-from it equals one made from the same message after a CDR round trip (tests/test_gym_local.py).
+from it equals one made from the same message after a CDR round trip (tests/test_gym_vector.py).
 
 A latched publisher hands its latest message to a subscriber that comes later. Services and
 queryables (world control, the ROS services of a few systems) are declared and never called: the
@@ -22,7 +22,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from simbot.bus.codec import decode, message_type
+from simbot.bus.codec import checked_typename, decode, message_type
 from simbot.bus.frames import with_frame_prefix
 from simbot.bus.keys import topic_key
 from simbot.bus.node import Inbox, Node, Publisher, Subscription
@@ -184,9 +184,7 @@ class LocalNode(Node):
         frame_prefix: str = "",
         announced: bool = True,
     ) -> LocalPublisher:
-        typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
-        message_type(typename)
-        return LocalPublisher(self.hub, self.key(topic), typename, latched, frame_prefix)
+        return LocalPublisher(self.hub, self.key(topic), checked_typename(msgtype), latched, frame_prefix)
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False

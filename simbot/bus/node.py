@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any, Generic, Literal, Protocol, TypeVar
 import zenoh
 import zenoh.ext
 
-from simbot.bus.codec import DecodeError, decode, encode, message_type
+from simbot.bus.codec import DecodeError, checked_typename, decode, encode, message_type
 from simbot.bus.forks import check_fork_safe, zenoh_starts
 from simbot.bus.frames import with_frame_prefix
 from simbot.bus.graph import Announcement
@@ -404,8 +404,7 @@ class Node:
         serves the latest message to late joiners (TRANSIENT_LOCAL), `drop=False` blocks (RELIABLE);
         `frame_prefix` puts the frames of what it sends under a robot's namespace; `announced=False`:
         the key's owner announces it (a server's render worker puts what the server announces)."""
-        typename = msgtype if isinstance(msgtype, str) else msgtype.__msgtype__
-        message_type(typename)
+        typename = checked_typename(msgtype)
         qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
         route = self.route(self.key(topic), typename, "MP" if announced else None, qos)
         return self._keep(Publisher(self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix))

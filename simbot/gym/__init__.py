@@ -7,10 +7,11 @@ and `simbot/Dock-v0` (drive under the trolley and attach, `simbot.gym.dock`) wit
     env = gymnasium.make("simbot/Navigate-v0", world="empty", control_period=0.1)
 
 Each environment steps its world in its own process, off the bus (simbot.gym.local); with
-`watch=True` or a camera observed it starts its own lockstep server in a subprocess (or uses one
-given by `endpoint=`) and ends it on `close()`. `gymnasium.make_vec(id, num_envs=N,
-vectorization_mode="vector_entry_point")` steps N at a time (simbot.gym.vector). docs/learning.md describes the spaces, rewards, options and
-the choices behind them. Needs the `gym` extra (`pip install 'simbot[gym]'`: Gymnasium).
+`watch=True` (or a camera not rendered in process) it starts its own lockstep server in a
+subprocess (or uses one given by `endpoint=`) and ends it on `close()`.
+`gymnasium.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point")` steps N at a time
+(simbot.gym.vector). docs/learning.md describes the spaces, rewards, options and the choices
+behind them. Needs the `gym` extra (`pip install 'simbot[gym]'`: Gymnasium).
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@ into a CSV table with one row per episode.
                       --episodes K --actors A --seed S [--world W] [--max-episode-steps N]
                       [--env-arg KEY=VALUE ...] [--num-cpus N | --address ADDR] -o results.csv
 
-Each actor owns one environment, and so one simbot world (a server when it is watched); episode i has seed S + i whichever
-actor runs it, so the same command gives the same table (`simbot.gym.ray`). Without `--address`
+Each actor owns one environment, and so one simbot world (a server when it is watched); episode
+i has seed S + i whichever actor runs it, so the same command gives the same table (`simbot.gym.ray`). Without `--address`
 it starts Ray on this machine (`--num-cpus`, default all cores); with `--address auto` it joins
 the cluster `ray start` made, whose machines each need simbot (and the policy's module) installed.
 Prints one line: the success rate. Exit codes: 0 done; 1 the run failed (an actor or its server

@@ -6,10 +6,11 @@ runs the very world a started server would run for the same `ServerSpec` (`simbo
 system publishes reaches the environment's observer as the object it is, with no Zenoh, no CDR,
 no other process and no round trip. A step is `steps` calls of the simulation's step; a request
 world control would answer is a call on the world. The observations therefore equal the bus
-path's for the same seed (tests/test_gym_local.py compares them).
+path's for the same seed (tests/test_gym_vector.py compares them).
 
-Cameras render in worker processes that put their frames on Zenoh themselves, so an environment
-that observes one runs a server (`watch=True` behaviour); docs/learning.md says when to use which.
+Cameras render in worker processes that hand their frames back to the world (no process can join
+a `LocalNode`); this process starts them, so an env that observes one runs here only with
+`cameras_in_process` (docs/learning.md says why), else on a server.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 from simbot.bus.local import LocalNode, LocalPublisher
 from simbot.gym.session import ServerSpec, upright
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.world_control import unit_quaternion
+from simbot.sim.loop.world_control import model_states, unit_quaternion
 from simbot.sim.server import build_world, parse_config
 from simbot.transform import Transform
 
@@ -52,12 +53,7 @@ class LocalSession:
 
     def state(self) -> dict[str, Any]:
         """The part of world control's `state` an environment reads: every model's pose."""
-        physics = self.sim_world.physics
-        models = {}
-        for name in physics.body_names():
-            xyz, quat = physics.model_pose(name)
-            models[name] = {"position": list(xyz), "orientation": list(quat)}
-        return {"sim_time": self.sim_world.sim.clock.now_ns / 1e9, "models": models}
+        return {"sim_time": self.sim_world.sim.clock.now_ns / 1e9, "models": model_states(self.sim_world.physics)}
 
     def step(self, steps: int) -> int:
         """`steps` physics steps; the sim time reached, in nanoseconds."""

@@ -2,8 +2,9 @@
 
 An experiment (K episodes of one policy in one environment) is embarrassingly parallel: each
 episode needs only its seed. `run_episodes` starts A actors (Ray's processes, anywhere in the Ray
-cluster), each of which makes one environment (its world in the actor's process, off the bus, or its own
-lockstep server subprocess on that actor's machine when watched or with a camera) and runs the episodes it is handed, seed by seed, until none are left. The
+cluster), each of which makes one environment (its world in the actor's process, off the bus,
+or, when watched, its own lockstep server subprocess on that actor's machine) and runs the
+episodes it is handed, seed by seed, until none are left. The
 results come back sorted by episode, one `EpisodeResult` each.
 
 Why it repeats: episode i always gets seed `seed + i` whichever actor runs it, the environment's

@@ -22,8 +22,9 @@ info in `info["final_obs"]` and `info["final_info"]` (what Stable-Baselines3 exp
 Cameras render in each sub-env's own render workers, started by its simulation process, and the
 frames come back to the world (`cameras_in_process`). Errors: a `num_envs` below 1, or an env that
 cannot step off the bus (`watch=True`, `endpoint=`: use `vectorization_mode="async"`; cameras with
-`processes=0`), is one EnvConfigError naming it before anything starts. A simulation process that dies raises SimServerError naming the envs it held and its exit
-code, and every other process is stopped: nothing is left running.
+`processes=0`), is one EnvConfigError naming it before anything starts. A simulation process
+that dies raises SimServerError naming the envs it held and its exit code, and every other
+process is stopped: nothing is left running.
 """
 
 from __future__ import annotations
@@ -31,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import logging
-import os
 import socket
 import subprocess
 import sys
@@ -48,6 +48,7 @@ from gymnasium.vector.utils import batch_space
 from simbot.gym.base import Observation, SimbotEnv
 from simbot.gym.errors import EnvConfigError, SimServerError
 from simbot.gym.options import EnvOptions
+from simbot.sim.render.pool import usable_cores
 
 log = logging.getLogger(__name__)
 
@@ -355,8 +356,7 @@ def _processes(num_envs: int, asked: int | None, cameras: bool) -> int:
     """Simulation processes: as asked (0: this process), else one per core for several envs (at
     least one for an env with cameras, whose render workers this process is not to start)."""
     if asked is None:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-        several = min(num_envs, cores)
+        several = min(num_envs, usable_cores())
         return several if several > 1 or cameras else 0
     if isinstance(asked, bool) or not isinstance(asked, int) or not 0 <= asked <= num_envs:
         raise EnvConfigError(

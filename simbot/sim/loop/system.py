@@ -26,9 +26,9 @@ Systems come from SDF `<plugin>` elements (by plugin name), `<sensor>` elements 
 and the built-in groups every world or described model gets (`simbot.sim.loop.registry`); all get the
 same context, a sensor's with its link and sensor filled in. A `<plugin>` inside a `<visual>` (or
 on a nested model, which simbot flattens: it goes to the nested model's visuals) runs only where its
-class says `runs_on_visuals = True` (Label, Thermal), with its link and visual filled in. Each gets its own random stream from
-the seed and its scoped name (`simbot.sim.loop.naming.scoped_rng`), started again at each reset. Bus callbacks only queue
-(`simbot.sim.loop.bus_view.Input`); systems act in the loop, so everything a system does happens at a
+class says `runs_on_visuals = True` (Label, Thermal), with its link and visual filled in. Each
+gets its own random stream from the seed and its scoped name (`simbot.sim.loop.naming.scoped_rng`),
+started again at each reset. Bus callbacks only queue (`simbot.sim.loop.bus_view.Input`); systems act in the loop, so everything a system does happens at a
 definite sim time.
 """
 

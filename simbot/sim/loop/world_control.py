@@ -44,6 +44,7 @@ from simbot.sim.loop.ros_world_control import RosWorldControl
 from simbot.sim.loop.sdf_systems import LeftOut
 from simbot.sim.loop.simulation import Mode, Simulation
 from simbot.sim.loop.system import Reporting
+from simbot.sim.physics import Physics
 from simbot.transform import Transform
 from simbot.variation import Variant
 
@@ -155,16 +156,11 @@ class WorldControl:
         request.reply(self._time(ok=True))
 
     def _state(self, request: Request, body: dict[str, Any]) -> None:
-        physics = self.sim.physics
-        models = {}
-        for name in physics.body_names():
-            xyz, quat = physics.model_pose(name)
-            models[name] = {"position": _finite(xyz), "orientation": _finite(quat)}
         state = self._time(ok=True) | {
             "paused": self.sim.paused,
             "mode": self.sim.mode.value,
             "real_time_factor": self.sim.rtf.value(),
-            "models": models,
+            "models": model_states(self.sim.physics),
             "sensors": {
                 name: sensor.report() for name, sensor in self.models.sensors.items() if isinstance(sensor, Reporting)
             },
@@ -284,6 +280,16 @@ def _vector(value: Any, axes: str, field: str, default: float) -> list[float]:
             raise ValueError(f"{field}.{axis} expects a number within ±{MAX_COORDINATE:g}, got {number!r}")
         numbers.append(float(number))
     return numbers
+
+
+def model_states(physics: Physics) -> dict[str, dict[str, list[float | None]]]:
+    """Every model's pose as `state` reports it (a learning environment's world in its own process
+    answers the same)."""
+    models = {}
+    for name in physics.body_names():
+        xyz, quat = physics.model_pose(name)
+        models[name] = {"position": _finite(xyz), "orientation": _finite(quat)}
+    return models
 
 
 def _finite(values: tuple[float, ...]) -> list[float | None]:
