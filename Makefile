@@ -50,6 +50,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_wide_angle.py
 	$(BIN)/python benchmarks/bench_vo.py
 	$(BIN)/python benchmarks/bench_merger.py
+	$(BIN)/python benchmarks/bench_codec.py
 	$(BIN)/python benchmarks/bench_stitcher.py
 	$(BIN)/python benchmarks/bench_record.py
 	$(BIN)/python benchmarks/bench_ros2.py

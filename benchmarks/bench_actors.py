@@ -44,9 +44,9 @@ from tables import publish
 from simbot.bus import BusOptions, Node
 from simbot.description.additions import addition_path
 from simbot.description.resources import asset
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.loop.simulation import Mode
 from simbot.sim.loop.world_control import create_request
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.specs import BodyState
 from simbot.sim.server import Server, ServerConfig, world_path

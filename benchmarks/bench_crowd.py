@@ -27,7 +27,7 @@ from contextlib import ExitStack
 from bench_actors import FRAME_SIZE, ms_per_step, paired_frame_costs, server
 from tables import publish
 
-from simbot.sim.kit.social_force import Crowd
+from simbot.description.crowd_params import Crowd
 
 PLUGIN = '<plugin name="simbot::systems::SocialForce" filename="simbot-social-force-system">{}</plugin>'
 RATES = (Crowd().update_rate, 100.0, 1000.0)

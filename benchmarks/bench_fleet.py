@@ -19,25 +19,42 @@ wall time (what real time means) and their own CPU time:
 The dynamic rows stop after the first N whose server, in fast mode, makes less than half a sim
 second per CPU second (the real-time factor on a shared machine counts the others' work).
 
+Then issue 48's goals, each a real-time run of the full Flexley Tug (every sensor declared: six
+cameras, two lidars, the IMU) on the empty world, with a client in this process reading ten tugs'
+scans and odometry (decoded), against the bare loop of the same tugs in the same run (kinematic:
+`Physics.step` of the kinematic world, 5 ms steps; dynamic: the loader's bare loop):
+
+6. a hundred kinematic tugs, the server pinned to one CPU (`taskset`): the real-time factor held,
+   and the CPU it took per tug per sim second;
+7. two hundred kinematic tugs in two zones (`simbot launch --zones 2`: two servers, launch's
+   router, the handover watching the fleet), on every core: the slower zone's factor held, and
+   the CPU of every process the launch started per tug per sim second;
+8. ten dynamic tugs on one CPU, and twenty in two zones, the same way.
+
     python benchmarks/bench_fleet.py [--fleets 1,10,20,50,100] [--seconds S] [--repeats R] [--kinematic-only]
+                                     [--goals-only | --no-goals]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from bench_server import free_port
-from live_runs import cpu_seconds
+from live_runs import cpu_seconds, stop
 from tables import publish
 
 from simbot.bus import BusOptions, Node
@@ -46,6 +63,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
+from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, kinematic
 
 STEP_S = 0.001
 SPACING_M = 1.0
@@ -53,6 +71,9 @@ SPACING_M = 1.0
 SPAWN_Z = 0.1
 SETTLE_STEPS = 300
 SETTLE_S = 2.0
+DRIVE = (0.3, 0.0, 0.05)
+"""The kinematic bare loop's twist of every tug (forward m/s, lateral m/s, turn rad/s): a kinematic
+step of standing tugs does nothing, so its baseline drives them (a move each, one collision pass a step)."""
 WORLD = "empty"
 
 
@@ -79,16 +100,20 @@ def plain_world(n: int) -> Iterator[Callable[[], None]]:
 
 @contextmanager
 def simbot_world(
-    n: int, fixed_castors: bool = True, merge_fixed_links: bool = True, full_step: bool = False
+    n: int, fixed_castors: bool = True, merge_fixed_links: bool = True, full_step: bool = False, moving: bool = False
 ) -> Iterator[Callable[[], None]]:
-    """The empty world and N tugs through simbot's loader; yields a bare step, or `Physics.step`."""
+    """The empty world and N tugs through simbot's loader; yields a bare step, or `Physics.step`
+    (with `moving`, of the kinematic world, 5 ms steps, every tug driven at DRIVE)."""
     world = load_world(asset(f"worlds/{WORLD}.sdf"))
+    world = kinematic(world) if moving else world
     physics = Physics(world, fixed_castors=fixed_castors, merge_fixed_links=merge_fixed_links)
     for model in world.models:
         physics.add_model(model)
     robot = load_model(asset("urdf/flexley_tug.sdf"))
     for i, position in enumerate(row(n)):
         physics.add_model(robot, f"tug_{i + 1}", Pose(position))
+        if moving:
+            physics.drive_base(f"tug_{i + 1}", *DRIVE)
     client = physics.client
     try:
         yield physics.step if full_step else lambda: pb.stepSimulation(physicsClientId=client)
@@ -106,17 +131,22 @@ LOOPS: dict[str, Loop] = {
 }
 
 
-def loop_rtf(world: Loop, n: int, seconds: float) -> float:
+def loop_rtf(world: Loop, n: int, seconds: float, step_s: float = STEP_S) -> float:
     """Sim seconds per CPU second of `seconds` of sim time, after the tugs settle on their wheels:
     the loop's own CPU time, as on a machine of its own (wall time here counts others' work too)."""
     with world(n) as step:
         for _ in range(SETTLE_STEPS):
             step()
-        steps = round(seconds / STEP_S)
+        steps = round(seconds / step_s)
         start = time.process_time()
         for _ in range(steps):
             step()
-        return steps * STEP_S / (time.process_time() - start)
+        return steps * step_s / (time.process_time() - start)
+
+
+def kinematic_loop_rtf(n: int, seconds: float) -> float:
+    """`loop_rtf` of the kinematic world's `Physics.step`, every tug driven."""
+    return loop_rtf(lambda k: simbot_world(k, full_step=True, moving=True), n, seconds, KINEMATIC_STEP_S)
 
 
 def fleet_tug(folder: Path, imu: bool) -> Path:
@@ -194,6 +224,175 @@ def kinematic_row(n: int, args: argparse.Namespace) -> str:
     return f"{held:.3f} | {fast:.2f}×, {1 / fast:.3f} s | {fast_imu:.2f}×, {1 / fast_imu:.3f} s"
 
 
+READ = 10
+"""Tugs whose scans and odometry the goals' client reads (decoded): tug_1..tug_10."""
+READ_TOPICS = (("lidar_front", "sensor_msgs/msg/LaserScan"), ("lidar_back", "sensor_msgs/msg/LaserScan"))
+ODOM = ("odom", "nav_msgs/msg/Odometry")
+SCANS_HZ, ODOM_HZ = 2 * 5.0, 50.0
+"""A tug's two lidars at 5 Hz, its odometry at 50 Hz (its SDF)."""
+GOAL_SPAWN = ("--spawn", "0", "0", str(SPAWN_Z), "0")
+STARTUP_S = 600.0
+"""A hundred full tugs on one CPU of a loaded two-core machine load in well under a minute; 200 in two zones too."""
+
+
+class Reader:
+    """A client's subscriptions to the scans and odometry of tug_1..tug_READ, counted once decoded."""
+
+    def __init__(self, node: Node) -> None:
+        self._lock = threading.Lock()
+        self.scans = self.odom = 0
+        for i in range(1, READ + 1):
+            for topic, typename in READ_TOPICS:
+                node.subscribe(f"tug_{i}/{topic}", typename, self._scan)
+            node.subscribe(f"tug_{i}/{ODOM[0]}", ODOM[1], self._odom)
+
+    def _scan(self, _msg: Any) -> None:
+        with self._lock:
+            self.scans += 1
+
+    def _odom(self, _msg: Any) -> None:
+        with self._lock:
+            self.odom += 1
+
+    def counts(self) -> tuple[int, int]:
+        with self._lock:
+            return self.scans, self.odom
+
+
+@dataclass(frozen=True)
+class Held:
+    """What a goal run held over its window."""
+
+    tugs: int
+    rtf: float
+    """The slowest world's sim seconds per wall second."""
+    cpu_per_sim_s: float
+    """CPU seconds of every process the run started, per sim second (of the slowest world)."""
+    scans: float
+    odom: float
+    """What the client received, per wall second, of READ tugs' scans and odometry."""
+
+    def cells(self, baseline: float) -> str:
+        """The row's figures: the bare loop, the factor held and its share of the loop, CPU a tug, messages."""
+        per_tug_ms = 1000 * self.cpu_per_sim_s / self.tugs
+        expected = self.rtf * READ
+        return (
+            f"{baseline:.2f}× | {self.rtf:.3f} = {self.rtf / baseline:.2f} of the bare loop | {per_tug_ms:.1f} ms "
+            f"| {self.scans:.0f} of {expected * SCANS_HZ:.0f}, {self.odom:.0f} of {expected * ODOM_HZ:.0f}"
+        )
+
+
+def _sim_times(node: Node, worlds: Sequence[str]) -> list[float]:
+    return [float(node.call(f"{w}world/{WORLD}/state", {}, timeout=60.0)["sim_time"]) for w in worlds]
+
+
+def _wait_worlds(node: Node, worlds: Sequence[str], procs: Sequence[subprocess.Popen[bytes]]) -> None:
+    """Until each world's state answers; RuntimeError if a process exits first."""
+    deadline = time.monotonic() + STARTUP_S
+    for world in worlds:
+        while True:
+            if any(p.poll() is not None for p in procs):
+                raise RuntimeError(f"a process exited with code {[p.poll() for p in procs]} at start")
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"{world}world/{WORLD}/state did not answer within {STARTUP_S:g} s")
+            try:
+                if node.call(f"{world}world/{WORLD}/state", {}, timeout=2.0).get("ok"):
+                    break
+            except (TimeoutError, RuntimeError):
+                time.sleep(0.2)
+
+
+def held(node: Node, worlds: Sequence[str], pids: Sequence[int], tugs: int, seconds: float) -> Held:
+    """After SETTLE_S, `seconds` of wall time: the worlds' sim time, the processes' CPU, the client's messages."""
+    reader = Reader(node)
+    time.sleep(SETTLE_S)
+    sim0, wall0, cpu0, got0 = _sim_times(node, worlds), time.perf_counter(), _cpu(pids), reader.counts()
+    time.sleep(seconds)
+    sim1, wall1, cpu1, got1 = _sim_times(node, worlds), time.perf_counter(), _cpu(pids), reader.counts()
+    wall, sim = wall1 - wall0, min(b - a for a, b in zip(sim0, sim1, strict=True))
+    scans, odom = ((b - a) / wall for a, b in zip(got0, got1, strict=True))
+    return Held(tugs, sim / wall, (cpu1 - cpu0) / sim, scans, odom)
+
+
+def _cpu(pids: Sequence[int]) -> float:
+    return sum(cpu_seconds(pid) for pid in pids)
+
+
+def one_core(n: int, moving: bool, seconds: float) -> Held:
+    """`simbot-server --robots N`, the full tug, real time, pinned to this process's last CPU."""
+    port, namespace = free_port(), f"bench_{uuid.uuid4().hex[:8]}"
+    endpoint = f"tcp/127.0.0.1:{port}"
+    cpu = max(os.sched_getaffinity(0))
+    command = ["taskset", "-c", str(cpu), sys.executable, "-m", "simbot.sim.server", "--world", WORLD]
+    command += ["--robots", str(n), *GOAL_SPAWN, "--quiet", "--physics", "kinematic" if moving else "dynamic"]
+    proc = subprocess.Popen([*command, "--listen", endpoint, "--namespace", namespace], stderr=subprocess.DEVNULL)
+    try:
+        with Node(BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=STARTUP_S), "client") as node:
+            _wait_worlds(node, [""], [proc])
+            return held(node, [""], [proc.pid], n, seconds)
+    finally:
+        stop(proc)
+
+
+def two_zones(n: int, moving: bool, seconds: float) -> Held:
+    """`simbot launch --zones 2` of N full tugs, real time, on every core; CPU counted for the zone
+    servers, launch (its router) and the handover."""
+    port, namespace = free_port(), f"bench_{uuid.uuid4().hex[:8]}"
+    endpoint = f"tcp/127.0.0.1:{port}"
+    fleet = f"--robots {n} {' '.join(GOAL_SPAWN)} --quiet --physics {'kinematic' if moving else 'dynamic'}"
+    command = [sys.executable, "-m", "simbot.clients.launch", "--world", WORLD, "--zones", "2", "--clients", ""]
+    command += [f"--server-args={fleet}", "--listen", endpoint, "--namespace", namespace]
+    with tempfile.TemporaryFile() as out:
+        proc = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
+        try:
+            with Node(
+                BusOptions(connect=(endpoint,), namespace=namespace, connect_timeout=STARTUP_S), "client"
+            ) as node:
+                worlds = ["zone_1/", "zone_2/"]
+                _wait_worlds(node, worlds, [proc])
+                pids = _started(out, proc, "handover")
+                return held(node, worlds, [proc.pid, *pids.values()], n, seconds)
+        finally:
+            stop(proc)
+
+
+def _started(out: Any, proc: subprocess.Popen[bytes], last: str) -> dict[str, int]:
+    """The pids of what launch started (its `started NAME (pid N)` lines), once it has started `last`."""
+    deadline = time.monotonic() + STARTUP_S
+    while time.monotonic() < deadline and proc.poll() is None:
+        out.seek(0)
+        pids = {m[1]: int(m[2]) for m in re.finditer(rb"\[launch\] started (\w+) \(pid (\d+)\)", out.read())}
+        if last.encode() in pids:
+            return {name.decode(): pid for name, pid in pids.items()}
+        time.sleep(0.2)
+    raise RuntimeError(f"launch did not start {last}")
+
+
+GOALS = (
+    ("100 kinematic tugs, one core", 100, True, one_core, "≥ 1.0; ≤ 5 ms"),
+    ("200 kinematic tugs, two zones, both cores", 200, True, two_zones, "≥ 1.0"),
+    ("10 dynamic tugs, one core", 10, False, one_core, "≥ 1.0"),
+    ("20 dynamic tugs, two zones, both cores", 20, False, two_zones, "measured and explained"),
+)
+
+
+def bare_loop(n: int, moving: bool, seconds: float) -> float:
+    """The goal's baseline: the kinematic world's `Physics.step`, or the loader's bare loop."""
+    return kinematic_loop_rtf(n, seconds) if moving else loop_rtf(simbot_world, n, seconds)
+
+
+def goal_rows(args: argparse.Namespace) -> list[str]:
+    """Issue 48's goals, each against the bare loop of the same tugs in this run."""
+    table = ["| goal run (full tugs, real time) | bare loop, same tugs: per CPU second | factor held | CPU per tug "
+             "per sim second | client got, per second: scans, odometry of 10 tugs | goal (factor; CPU) |",
+             "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    for label, n, moving, run, goal in GOALS:
+        loops = [bare_loop(n, moving, args.seconds) for _ in range(args.repeats)]
+        table.append(f"| {label} | {run(n, moving, 5 * args.seconds).cells(statistics.median(loops))} | {goal} |")
+        print(table[-1], flush=True)
+    return table
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fleets", default="1,10,20,50,100", help="the numbers of tugs, comma-separated")
@@ -202,20 +401,26 @@ def main() -> None:
     )
     parser.add_argument("--repeats", type=int, default=3, help="runs of each bare loop (median)")
     parser.add_argument("--kinematic-only", action="store_true", help="the kinematic servers alone")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--goals-only", action="store_true", help="issue 48's goal runs alone, not the table by N")
+    which.add_argument("--no-goals", action="store_true", help="the table by N alone")
     args = parser.parse_args()
     table = ["| tugs | dynamic: plain URDF, bare loop | loader's bare loop | `Physics.step` | server, real time: "
           "factor held | server fast, per CPU second | CPU per sim second | kinematic server, real time: "
           "factor held | kinematic fast, per CPU second; CPU per sim second | the same with IMUs at 200 Hz |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     dynamic = not args.kinematic_only
-    for n in (int(part) for part in args.fleets.split(",")):
+    for n in () if args.goals_only else (int(part) for part in args.fleets.split(",")):
         cells = "— | — | — | — | — | —"
         if dynamic:
             cells, fast = dynamic_row(n, args)
             dynamic = fast >= 0.5
         table.append(f"| {n} | {cells} | {kinematic_row(n, args)} |")
         print(table[-1], flush=True)
-    publish("fleet", table)
+    lines = [] if args.goals_only else table
+    if not args.no_goals:
+        lines += ([""] if lines else []) + goal_rows(args)
+    publish("fleet", lines)
 
 
 if __name__ == "__main__":

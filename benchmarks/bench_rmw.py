@@ -32,7 +32,6 @@ import importlib.util
 import json
 import os
 import shutil
-import signal
 import statistics
 import struct
 import subprocess
@@ -49,11 +48,11 @@ from typing import Any
 import numpy as np
 import zenoh
 from bench_ros2 import INSIDE, RosSide, bridge, free_port, run_in_namespace
-from live_runs import connect, wait_ready
+from live_runs import connect, stop, wait_ready
 from tables import publish
 
 from simbot.bus import BusOptions, Node, encode, messages
-from simbot.bus.node import CDR_ENCODING
+from simbot.bus.publisher import CDR_ENCODING
 from simbot.bus.rmw import parse_attachment
 
 REPO = Path(__file__).resolve().parents[1]
@@ -285,12 +284,7 @@ def image_latency(args: argparse.Namespace) -> list[str]:
                 ros.close()
                 sdk.close()
     finally:
-        server.send_signal(signal.SIGINT)
-        try:
-            server.wait(20)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
+        stop(server, 20.0)
     sources = sdk.sources.since()
     stamps = sorted(arrivals["sdk"].keys() & arrivals["ros2"].keys() & sources.keys())
     ms = {side: [(arrivals[side][stamp] - sources[stamp]) / 1e6 for stamp in stamps] for side in sides}

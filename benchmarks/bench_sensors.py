@@ -63,13 +63,14 @@ from live_runs import (
 )
 from timing import per_call_ms
 
+from simbot.description.lidar_params import LidarParams
 from simbot.sim.bullet import pb
 from simbot.sim.render import BodyState, plan_pool
 from simbot.sim.server import ROBOT_NAME, Server
 from simbot.sim.systems.camera import Camera
 from simbot.sim.systems.camera_rendering import Rendering
 from simbot.sim.systems.imu import Imu
-from simbot.sim.systems.lidar import Lidar, LidarParams, ray_fan
+from simbot.sim.systems.lidar import Lidar, ray_fan
 
 log = logging.getLogger("bench_sensors")
 

@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from in_process import camera_mounts, in_process_server, systems_of
 from tables import publish
 
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.render import CameraSpec, RenderPool
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.wide_lens import WideLens
 from simbot.sim.systems.camera_rendering import Rendering
 

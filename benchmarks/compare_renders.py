@@ -70,9 +70,9 @@ def draw(folder: Path) -> None:
 
 
 def _scene_body(physics: Any, name: str) -> Any:
-    """A body as the revision's render workers get it (`render/bodies.py`, or before it a SceneBody of the URDF)."""
+    """A body as the revision's render workers get it (`kit/scene_bodies.py`, or before it a SceneBody of the URDF)."""
     try:
-        from simbot.sim.render.bodies import scene_body
+        from simbot.sim.kit.scene_bodies import scene_body
     except ImportError:
         from simbot.sim.render import SceneBody
 

@@ -24,10 +24,10 @@ from live_runs import WORLD
 from simbot.bus import BusOptions, Node
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.loop.simulation import Mode
 from simbot.sim.physics import Physics
 from simbot.sim.render import CameraSpec, Light
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.gl import GlRenderer
 from simbot.sim.render.kinds import Raw
 from simbot.sim.render.scene import BulletScene

@@ -72,6 +72,16 @@ def count_topics(node: Node, topics: Sequence[str]) -> dict[str, Counter]:
     return counters
 
 
+def stop(proc: subprocess.Popen[bytes], grace: float = 60.0) -> None:
+    """SIGINT, as Ctrl-C ends a simbot program; SIGKILL after `grace` seconds."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(grace)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
 def cpu_seconds(pid: int) -> float:
     """User + system CPU seconds of one process so far (/proc/<pid>/stat utime, stime)."""
     try:

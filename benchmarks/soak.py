@@ -53,11 +53,11 @@ from simbot.clients.merger import FIXED_TOPICS, MERGED_TOPIC
 from simbot.clients.stitcher import IMAGE_TOPIC, INFO_TOPIC
 from simbot.clients.topics import live_topics
 from simbot.description import Model, load_model
+from simbot.description.drive_params import DiffDriveParams
 from simbot.description.resources import asset
+from simbot.sim.kit.joints import JOINT_STATE_RATE_HZ as STATE_RATE
 from simbot.sim.server import ROBOT_NAME
 from simbot.sim.systems.clock_publisher import CLOCK_RATE
-from simbot.sim.systems.diff_drive import DiffDriveParams
-from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ as STATE_RATE
 from simbot.sim.systems.pose_publisher import POSE_RATE
 
 WORLD = "warehouse"

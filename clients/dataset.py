@@ -78,7 +78,8 @@ POSE_WAIT_S = 3.0
 GRAPH_POLL_S = 0.5
 QUEUE = 64
 RESET_S = 60.0
-"""Seconds a seeded reset may take beyond `--timeout`: the server loads the whole world anew."""
+"""Seconds a seeded reset may take beyond `--timeout`: where the variant cannot be applied in place,
+the server loads the whole world anew (docs/variation.md)."""
 
 Kind = Literal["image", "segmentation", "boxes"]
 
@@ -401,8 +402,9 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
     try:
         if args.randomise is None:
             _collect(collector, status, stop)
+        world = _world_control(node) if args.randomise else ""
         for index, seed in enumerate(args.randomise or ()):
-            _reset(node, seed, args.timeout)
+            _reset(node, world, seed, args.timeout)
             collector.restart(seed)
             collector.count = args.count * (index + 1)
             _collect(collector, status, stop)
@@ -418,11 +420,16 @@ def _collect(collector: Collector, status: StatusLine, stop: threading.Event) ->
         status.show(time.monotonic(), collector.progress)
 
 
-def _reset(node: Node, seed: int, timeout: float) -> None:
-    """The world drawn from `seed`; ClientError naming the seed when the world cannot."""
+def _world_control(node: Node) -> str:
+    """The world's name, as its world control's key has it (found once: the graph is asked no more per seed)."""
     world = next(iter(world_names(live_topics(node).values())), None)
     if world is None:
         raise ClientError("--randomise: no world control on the bus")
+    return world
+
+
+def _reset(node: Node, world: str, seed: int, timeout: float) -> None:
+    """The world drawn from `seed`; ClientError naming the seed when the world cannot."""
     reply = node.call(f"world/{world}/control", {"reset": {"seed": seed}}, timeout=timeout + RESET_S)
     if not reply.get("ok"):
         raise ClientError(f"--randomise: seed {seed}: {reply.get('error')}")

@@ -1,35 +1,42 @@
-"""`simbot handover`: one warehouse split into zones, a server each, and a robot moved across as it crosses.
+"""`simbot handover`: one warehouse split into zones, a server each, and robots moved across as they cross.
 
-    simbot handover ROBOT --zone NS:XMIN:XMAX --zone NS:XMIN:XMAX [...] [--file SDF] [--every SECONDS]
-                    [--once] [--world NAME] [--timeout SECONDS] [--connect E] [--namespace NS]
+    simbot handover ROBOT [ROBOT ...] --zone NS:XMIN:XMAX --zone NS:XMIN:XMAX [...] [--file SDF]
+                    [--every SECONDS] [--once] [--world NAME] [--timeout SECONDS] [--connect E] [--namespace NS]
 
-Each zone is a server under its own bus namespace NS (the servers joined by Zenoh routers: see
-"Beyond one machine" in the README) and owns the band XMIN ≤ x < XMAX of a world frame the zones
-share. Every `--every` seconds the client finds ROBOT in the zones' world states; when it stands
-in one zone's world outside that zone's band and inside another's, the client creates it in the
-other (world control's `create`: FILE, the same name, the robot namespace ROBOT, its pose) and
-then removes it from the first (`remove`). Created first, so a refused create leaves it where it
-was. What crosses is its pose; its drive starts from rest there, so whatever commands it sends to
-`<next zone>/ROBOT/cmd_vel` from then on (one line on stdout per handover says where it went).
-FILE must be readable by every zone's server (the same path on each host).
+Each zone is a server whose world control is under NS (its bus namespace, the servers joined by
+Zenoh routers, see docs/fleets.md; or the `--zone` name of a `simbot-server --zone`, as
+`simbot launch --zones` starts them) and owns the band XMIN ≤ x < XMAX of a world frame the zones
+share. Each ROBOT is a model name or a shell pattern (`'tug_*'`: every model whose name matches),
+so one client watches a whole fleet. Every `--every` seconds it reads each zone's world state
+once; when a robot stands in one zone's world outside that zone's band and inside another's, the
+client creates it in the other (world control's `create`: FILE, the same name, the robot
+namespace of its name, its pose) and then removes it from the first (`remove`). Created first, so
+a refused create leaves it where it was. What crosses is its pose; its drive starts from rest
+there, and follows the commands on its `cmd_vel` in the zone that now holds it (one line on
+stdout per handover says where it went). FILE must be readable by every zone's server (the same
+path on each host).
 
-Exit codes: 0 stopped (or, with `--once`, after one handover); 1 a zone's world control does not
-answer; 2 a user's mistake (a bad zone, a refused create or remove: its one line on stderr).
+A zone whose world control stops answering is left out, with one line on stderr, until it
+answers again; the others are watched on.
+
+Exit codes: 0 stopped (or, with `--once`, after one handover); 1 no zone's world control answers
+(with `--once`: one zone's does not); 2 a user's mistake (a bad zone, a refused create or remove:
+its one line on stderr).
 """
 
 from __future__ import annotations
 
 import argparse
-import math
+import fnmatch
 import sys
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from simbot.arguments import number
 from simbot.bus import Node, ServiceError
+from simbot.description.fleet import Zone, zone
 from simbot.description.resources import asset
 
 from .common import ClientError, client_parser, run_client
@@ -39,38 +46,18 @@ DEFAULT_TIMEOUT_S = 60.0
 """Loading a robot with its sensors takes a second or two; a loaded machine, more."""
 
 
-@dataclass(frozen=True)
-class Zone:
-    """A server's namespace and the band of x it owns."""
-
-    namespace: str
-    x_min: float
-    x_max: float
-
-    def holds(self, x: float) -> bool:
-        return self.x_min <= x < self.x_max
-
-
-def zone(text: str) -> Zone:
-    """An argparse type: `NS:XMIN:XMAX` (either bound may be -inf or inf)."""
-    namespace, _, bounds = text.partition(":")
-    low, _, high = bounds.partition(":")
-    try:
-        x_min, x_max = float(low), float(high)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected NS:XMIN:XMAX such as site_a:-inf:20, got {text!r}") from None
-    if not namespace.strip("/") or math.isnan(x_min) or math.isnan(x_max) or x_min >= x_max:
-        raise argparse.ArgumentTypeError(f"expected NS:XMIN:XMAX with a namespace and XMIN < XMAX, got {text!r}")
-    return Zone(namespace.strip("/"), x_min, x_max)
-
-
 class NoAnswer(Exception):
     """A zone's world control did not answer."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = client_parser("simbot handover", "Move a robot between zone servers as it crosses their boundary.")
-    parser.add_argument("robot", help="the robot's model name (and robot namespace) in the zones' worlds")
+    parser = client_parser("simbot handover", "Move robots between zone servers as they cross their boundaries.")
+    parser.add_argument(
+        "robots",
+        nargs="+",
+        metavar="ROBOT",
+        help="a robot's model name (and robot namespace) in the zones' worlds, or a shell pattern such as 'tug_*'",
+    )
     parser.add_argument("--zone", type=zone, action="append", required=True, metavar="NS:XMIN:XMAX")
     parser.add_argument("--file", type=Path, default=asset("urdf/flexley_tug.sdf"), help="the robot's model file")
     parser.add_argument("--world", default="warehouse", metavar="NAME", help="the zones' world (default warehouse)")
@@ -83,45 +70,91 @@ def build_parser() -> argparse.ArgumentParser:
 def _call(node: Node, args: argparse.Namespace, zone: Zone, service: str, request: dict[str, Any]) -> dict[str, Any]:
     """One world-control call in `zone`; NoAnswer when it does not answer, ClientError when it refuses."""
     try:
-        reply = node.call(f"{zone.namespace}/world/{args.world}/{service}", request, timeout=args.timeout)
+        reply = node.call(f"{zone.name}/world/{args.world}/{service}", request, timeout=args.timeout)
     except (TimeoutError, ServiceError) as exc:
-        raise NoAnswer(f"zone {zone.namespace}: the world does not answer: {exc}") from None
+        raise NoAnswer(f"zone {zone.name}: the world does not answer: {exc}") from None
     if reply.get("ok") is not True:
-        raise ClientError(f"zone {zone.namespace}: {service} refused: {reply.get('error', reply)}")
+        raise ClientError(f"zone {zone.name}: {service} refused: {reply.get('error', reply)}")
     return reply
 
 
-def find(node: Node, args: argparse.Namespace) -> tuple[Zone, dict[str, Any]] | None:
-    """The zone whose world holds the robot, and its state there; None when none does (mid-handover)."""
-    for each in args.zone:
-        models = _call(node, args, each, "state", {})["models"]
-        if args.robot in models:
-            return each, models[args.robot]
-    return None
+def wanted(args: argparse.Namespace, name: str) -> bool:
+    """Whether model `name` is one of the robots to watch (a name or a pattern of the command line)."""
+    return any(fnmatch.fnmatchcase(name, pattern) for pattern in args.robots)
 
 
-def hand_over(node: Node, args: argparse.Namespace, source: Zone, target: Zone, state: dict[str, Any]) -> None:
+class Watch:
+    """The zones and what their worlds hold at each look; which zones stopped answering."""
+
+    def __init__(self, node: Node, args: argparse.Namespace) -> None:
+        self.node, self.args = node, args
+        self.silent: set[Zone] = set()
+
+    def look(self) -> list[tuple[str, Zone, Zone, dict[str, Any]]]:
+        """Each watched robot that stands outside the band of the zone holding it and inside
+        another's: (name, its zone, the other, its state). A robot in two zones (mid-handover, or
+        a create whose remove was refused) counts in the first. NoAnswer when no zone answers."""
+        seen: dict[str, tuple[Zone, dict[str, Any]]] = {}
+        for each in self.args.zone:
+            models = self._models(each)
+            for name, state in (models or {}).items():
+                if wanted(self.args, name):
+                    seen.setdefault(name, (each, state))
+        if len(self.silent) == len(self.args.zone):
+            raise NoAnswer("no zone's world answers")
+        moves = []
+        for name, (source, state) in seen.items():
+            x = state["position"][0]
+            if x is None or source.holds(x):  # null: a body that left the world
+                continue
+            target = next((z for z in self.args.zone if z.holds(x) and z not in self.silent), None)
+            if target is not None:
+                moves.append((name, source, target, state))
+        return moves
+
+    def _models(self, zone: Zone) -> dict[str, Any] | None:
+        """The models of `zone`'s world, or None (said once) while it does not answer."""
+        try:
+            models: dict[str, Any] = _call(self.node, self.args, zone, "state", {})["models"]
+        except NoAnswer as exc:
+            if self.args.once:
+                raise
+            if zone not in self.silent:
+                print(f"simbot handover: {exc}; watching the other zones", file=sys.stderr, flush=True)
+            self.silent.add(zone)
+            return None
+        if zone in self.silent:
+            print(f"simbot handover: zone {zone.name} answers again", file=sys.stderr, flush=True)
+            self.silent.discard(zone)
+        return models
+
+
+def hand_over(
+    node: Node, args: argparse.Namespace, robot: str, source: Zone, target: Zone, state: dict[str, Any]
+) -> None:
     """Created in `target` at the pose it has in `source`, then removed from `source`."""
     (x, y, z), (qx, qy, qz, qw) = state["position"], state["orientation"]
     pose = {"position": {"x": x, "y": y, "z": z}, "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
-    request = {"sdf_filename": str(args.file.absolute()), "name": args.robot, "namespace": args.robot, "pose": pose}
+    request = {"sdf_filename": str(args.file.absolute()), "name": robot, "namespace": robot, "pose": pose}
     _call(node, args, target, "create", request)
-    _call(node, args, source, "remove", {"name": args.robot})
-    print(f"{args.robot}: {source.namespace} → {target.namespace} at x {x:.3f} y {y:.3f}", flush=True)
+    _call(node, args, source, "remove", {"name": robot})
+    print(f"{robot}: {source.name} → {target.name} at x {x:.3f} y {y:.3f}", flush=True)
 
 
 def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+    watch = Watch(node, args)
     try:
         while not stop.is_set():
-            found = find(node, args)
-            if found is not None:
-                source, state = found
-                x = state["position"][0]
-                target = next((z for z in args.zone if z.holds(x)), None)
-                if not source.holds(x) and target is not None:
-                    hand_over(node, args, source, target, state)
+            for robot, source, target, state in watch.look():
+                try:
+                    hand_over(node, args, robot, source, target, state)
+                except NoAnswer as exc:
                     if args.once:
-                        return 0
+                        raise
+                    print(f"simbot handover: {robot} stays in {source.name}: {exc}", file=sys.stderr, flush=True)
+                    continue
+                if args.once:
+                    return 0
             stop.wait(args.every)
     except NoAnswer as exc:
         print(f"simbot handover: {exc}", file=sys.stderr)

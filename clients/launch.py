@@ -1,7 +1,7 @@
 """`simbot launch`: the server and the chosen clients in one command; Ctrl-C ends them all.
 
     simbot launch [--world W] [--clients merger,stitcher,monitor] [--server-args "--mode fast ..."]
-                  [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
+                  [--zones N | --zone NAME:XMIN:XMAX ...] [--listen E] [--connect E] [--zenoh-config F] [--namespace NS]
 
 Each child is a subprocess (`python -m simbot.sim.server`, `python -m simbot.clients.<name>`) whose
 stdout and stderr come out line by line prefixed with its name (`[server] `, `[merger] `). When
@@ -19,6 +19,19 @@ and launch with a non-zero code. SIGINT or SIGTERM to launch ends the clients fi
 server (SIGINT, then SIGTERM, then SIGKILL, each after a grace period), and exits 0. The children
 stay in launch's process group, so a terminal's Ctrl-C reaches them too, but launch signals them
 itself: a SIGTERM sent to launch alone still ends them.
+
+With `--zones N` (or bands of its own, `--zone NAME:XMIN:XMAX` repeated) launch splits the
+`--robots N` fleet of `--server-args` across zone servers, each a band of x of the same world
+(`simbot-server --zone`, simbot.description.fleet): the fleet stands in one column per zone
+unless `--columns` says otherwise, and the boundaries lie between columns so that each zone holds
+about as many robots. Launch itself is the Zenoh router that joins them: it listens where
+`--listen` says (the clients connect there) and connects where `--connect` says (other hosts'
+routers); each zone server listens on a free loopback port and connects to it. Once every zone
+answers, `simbot handover 'tug_*'` runs as one more child and moves each robot to the zone whose
+band it enters. Each robot's keys are `tug_7/...` whichever zone holds it; each zone's world
+control and clock are under its name (`zone_1/world/<w>/state`). A zone that exits is reported
+with its exit code and the others run on; launch ends (non-zero) when the last one has gone. No
+clients by default (the default ones follow the one `flexley_tug`). docs/fleets.md says more.
 
 Only long-running clients can be launched: the keyboard clients need the terminal, and the
 one-shot tools (topics, echo, snapshot) are meant to be run beside a launch.
@@ -40,16 +53,22 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, TextIO
 
+import zenoh
+
+from simbot.arguments import whole
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, zenoh_config
+from simbot.bus.options import zenoh_reason
+from simbot.description.fleet import zone
 
 from .common import EXIT_USAGE, client_parser
 from .state import NoWorld, ask
 from .topics import live_topics, world_names
+from .zones import ServerPlan, ZoneError, zone_plan
 
 EXIT_FAILURE = 1
 LAUNCHABLE = ("merger", "stitcher", "monitor", "record", "foxglove", "ros2")
@@ -64,7 +83,7 @@ NOT_LAUNCHABLE: dict[str, str] = {
     "play": "publishes a recording in place of a server: run `simbot play BAG` on a bus without one",
     "launch": "is this command",
 }
-OWN_OPTIONS = ("--world", "--listen", "--connect", "--zenoh-config", "--namespace")
+OWN_OPTIONS = ("--world", "--listen", "--connect", "--zenoh-config", "--namespace", "--zone")
 """Server options that launch sets itself (the clients must agree with them), refused in --server-args."""
 
 STARTUP_TIMEOUT_S = 60.0
@@ -97,11 +116,22 @@ def emit(name: str, text: str) -> None:
 
 @dataclass(frozen=True)
 class Plan:
-    """What to start: the server's command, each client's, and the bus options that reach the server."""
+    """What to start: the servers (one, or a zone each), each client's command, and for zones the
+    router that joins them and the handover (`--world` added once the world's name is known)."""
 
-    server: list[str]
+    servers: list[ServerPlan]
     clients: dict[str, list[str]]
-    bus: BusOptions
+    router: zenoh.Config | None = None
+    handover: list[str] = field(default_factory=list)
+    startup_timeout: float = STARTUP_TIMEOUT_S
+
+    @property
+    def zoned(self) -> bool:
+        return self.router is not None
+
+    def names(self) -> list[str]:
+        """Every child's name, as its log file is named."""
+        return [*(s.name for s in self.servers), *(["handover"] if self.handover else []), *self.clients]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -109,15 +139,29 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--world", default="warehouse", help="world file, or a built-in world (default: warehouse)")
     parser.add_argument(
         "--clients",
-        default=DEFAULT_CLIENTS,
         metavar="NAMES",
-        help=f"comma-separated clients to start, from {', '.join(LAUNCHABLE)} (default: {DEFAULT_CLIENTS}; '' for none)",
+        help=f"comma-separated clients to start, from {', '.join(LAUNCHABLE)} "
+        f"(default: {DEFAULT_CLIENTS}, none with zones; '' for none)",
     )
     parser.add_argument(
         "--server-args",
         default="",
         metavar="ARGS",
         help='more simbot-server options, one shell-quoted string: --server-args="--mode fast --camera-size 320x240"',
+    )
+    parser.add_argument(
+        "--zones",
+        type=whole(1),
+        metavar="N",
+        help="split the --robots fleet of --server-args across N servers, each a band of x (docs/fleets.md)",
+    )
+    parser.add_argument(
+        "--zone",
+        type=zone,
+        action="append",
+        default=[],
+        metavar="NAME:XMIN:XMAX",
+        help="a zone of your own instead of --zones: its name and band of x (repeat for each)",
     )
     return parser
 
@@ -156,8 +200,9 @@ def listen_endpoints(args: argparse.Namespace) -> tuple[str, ...]:
 
 
 def make_plan(args: argparse.Namespace) -> Plan:
-    """The commands to run; LaunchError or BusConfigError for a mistake in the options."""
-    names = client_names(args.clients)
+    """The commands to run; LaunchError, ZoneError or BusConfigError for a mistake in the options."""
+    zoned = bool(args.zones or args.zone)
+    names = client_names(args.clients if args.clients is not None else "" if zoned else DEFAULT_CLIENTS)
     extra = server_args(args.server_args)
     endpoints = listen_endpoints(args)
     shared = ["--namespace", args.namespace] if args.namespace else []
@@ -166,13 +211,22 @@ def make_plan(args: argparse.Namespace) -> Plan:
     if args.verbose:
         shared.append("-v")
     server = [sys.executable, "-m", "simbot.sim.server", "--world", args.world, *shared]
-    server += [word for endpoint in args.listen for word in ("--listen", endpoint)]
-    server += [word for endpoint in args.connect for word in ("--connect", endpoint)]
     connect = [word for endpoint in endpoints for word in ("--connect", endpoint)]
     connect += ["--connect-timeout", str(args.connect_timeout)]
-    clients = {name: [sys.executable, "-m", f"simbot.clients.{name}", *connect, *shared] for name in names}
+    clients = {name: client_command(name, connect, shared) for name in names}
+    if zoned:
+        handover = client_command("handover", connect, shared)
+        zones = zone_plan(args, [*server, *extra], endpoints, handover, CONNECT_TRY_S)
+        timeout = STARTUP_TIMEOUT_S + zones.startup_timeout_s
+        return Plan(zones.servers, clients, zones.router, zones.handover, timeout)
+    server += [word for endpoint in args.listen for word in ("--listen", endpoint)]
+    server += [word for endpoint in args.connect for word in ("--connect", endpoint)]
     bus = BusOptions(connect=endpoints, namespace=args.namespace, connect_timeout=CONNECT_TRY_S)
-    return Plan([*server, *extra], clients, bus)
+    return Plan([ServerPlan("server", [*server, *extra], bus)], clients)
+
+
+def client_command(name: str, connect: Sequence[str], shared: Sequence[str]) -> list[str]:
+    return [sys.executable, "-m", f"simbot.clients.{name}", *connect, *shared]
 
 
 class Child:
@@ -266,71 +320,112 @@ class Launch:
         self.stop = stop
         self.logs = logs
         """The folder of every process's log while the monitor holds the terminal; None: all on stdout."""
-        self.server: Child | None = None
+        self.servers: list[Child] = []
         self.clients: list[Child] = []
 
     def run(self) -> int:
         """Start, supervise, end everything; the exit code."""
         try:
-            self.server = Child("server", self.plan.server, self.logs)
-            world = self.wait_ready(self.server)
-            if world is None:
-                return 0 if self.stop.is_set() else self.server_failed(self.server)
-            emit("launch", f"server ready: world {world}")
-            self.clients = [
-                Child(name, command, self.logs, terminal=name == MONITOR) for name, command in self.plan.clients.items()
-            ]
-            return self.supervise(self.server)
+            with self.router():
+                for server in self.plan.servers:
+                    if server.about:
+                        emit("launch", server.about)
+                    self.servers.append(Child(server.name, server.command, self.logs))
+                world = self.wait_ready()
+                if world is None:
+                    return 0 if self.stop.is_set() else self.servers_failed()
+                emit("launch", f"{'zones' if self.plan.zoned else 'server'} ready: world {world}")
+                if self.plan.handover:
+                    self.clients.append(Child("handover", [*self.plan.handover, "--world", world], self.logs))
+                self.clients += [
+                    Child(name, command, self.logs, terminal=name == MONITOR)
+                    for name, command in self.plan.clients.items()
+                ]
+                return self.supervise()
         except LaunchError as exc:
             emit("launch", f"error: {exc}")
             return EXIT_FAILURE
         finally:
             self.shutdown()
 
-    def wait_ready(self, server: Child) -> str | None:
-        """The world's name once its state service answers; None if the server exited or stop came first."""
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        node: Node | None = None
+    @contextlib.contextmanager
+    def router(self) -> Iterator[None]:
+        """For zones, launch's own Zenoh session in router mode, open while the children run."""
+        if self.plan.router is None:
+            yield
+            return
         try:
-            while not self.stop.is_set() and server.exited() is None:
+            session = zenoh.open(self.plan.router)
+        except zenoh.ZError as exc:
+            raise LaunchError(f"cannot open the router that joins the zones: {zenoh_reason(exc)}") from None
+        emit("launch", f"router on {', '.join(json.loads(self.plan.router.get_json('listen/endpoints')))}")
+        try:
+            yield
+        finally:
+            self.shutdown()  # the children first, while the router still carries their goodbyes
+            session.close()
+
+    def wait_ready(self) -> str | None:
+        """The world's name once every server's state service answers; None if a server exited or stop came first."""
+        deadline = time.monotonic() + self.plan.startup_timeout
+        nodes: dict[str, Node | None] = {}
+        worlds: dict[str, str] = {}
+        try:
+            while not self.stop.is_set() and all(s.exited() is None for s in self.servers):
                 if time.monotonic() > deadline:
-                    raise LaunchError(f"the server's world control did not answer within {STARTUP_TIMEOUT_S:g} s")
-                node = node or try_open(self.plan.bus)
-                if node is not None:
-                    world = world_name(node)
-                    if world is not None and answers(node, world):
-                        return world
+                    waiting = ", ".join(s.name for s in self.plan.servers if s.name not in worlds)
+                    raise LaunchError(
+                        f"the world control of {waiting} did not answer within {self.plan.startup_timeout:g} s"
+                    )
+                for server in self.plan.servers:
+                    if server.name not in worlds:
+                        node = nodes[server.name] = nodes.get(server.name) or try_open(server.bus)
+                        world = world_name(node) if node is not None else None
+                        if node is not None and world is not None and answers(node, world):
+                            worlds[server.name] = world
+                if len(worlds) == len(self.plan.servers):
+                    return next(iter(worlds.values()))
                 self.stop.wait(POLL_S)
             return None
         finally:
-            if node is not None:
-                node.close()
+            for node in nodes.values():
+                if node is not None:
+                    node.close()
 
-    def supervise(self, server: Child) -> int:
-        """Until stop (→ 0) or the server's exit (→ non-zero); clients that exit are reported."""
+    def supervise(self) -> int:
+        """Until stop (→ 0) or the server's exit (→ non-zero; with zones, the last zone's): children
+        that exit are reported, and a zone's the others outlive."""
         while not self.stop.wait(POLL_S):
-            for client in self.clients:
-                client.report()
-            if server.exited() is not None:
-                return self.server_failed(server)
+            for child in self.clients:
+                child.report()
+            gone = [s for s in self.servers if s.exited() is not None]
+            for server in gone:
+                if not server.reported and self.plan.zoned and len(gone) < len(self.servers):
+                    server.report()
+                    running = ", ".join(s.name for s in self.servers if s.exited() is None)
+                    emit("launch", f"{server.name} is gone with the robots it held; still running: {running}")
+            if len(gone) == len(self.servers) or (gone and not self.plan.zoned):
+                return self.servers_failed()
         return 0
 
-    def server_failed(self, server: Child) -> int:
-        """Report the server's end; launch's exit code: the server's own, or 1 when that says success or a signal."""
-        server.report()
+    def servers_failed(self) -> int:
+        """Report the servers' ends; launch's exit code: the first positive code among them, else 1
+        (a server that says success, or that a signal ended)."""
+        for server in self.servers:
+            server.report()
         if self.clients:
-            emit("launch", "the server is gone: ending the clients")
-        code = server.process.returncode
-        return code if code > 0 else EXIT_FAILURE
+            emit("launch", f"the {'zones are' if self.plan.zoned else 'server is'} gone: ending the clients")
+        codes = [s.process.returncode for s in self.servers if s.exited() is not None]
+        return next((code for code in codes if code > 0), EXIT_FAILURE)
 
     def shutdown(self) -> None:
-        """The clients first (they may still want the bus to say goodbye), then the server."""
+        """The clients first (they may still want the bus to say goodbye), then the servers."""
         end(self.clients)
         for client in self.clients:
             client.report()
-        if self.server is not None:
-            end([self.server])
-            self.server.report()
+        end(self.servers)
+        for server in self.servers:
+            server.report()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -339,7 +434,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         plan = make_plan(args)
-    except (LaunchError, BusConfigError) as exc:
+    except (LaunchError, ZoneError, BusConfigError) as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     stop = threading.Event()
@@ -361,7 +456,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def log_names(plan: Plan) -> str:
     """The log files of a launch whose monitor holds the terminal."""
-    return ", ".join(f"{name}.log" for name in ("launch", "server", *plan.clients))
+    return ", ".join(f"{name}.log" for name in ("launch", *plan.names()))
 
 
 if __name__ == "__main__":

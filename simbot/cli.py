@@ -33,7 +33,7 @@ CLIENTS: dict[str, str] = {
     "state": "print the world's state from its world control; exit 1 when it does not answer (the container's health check)",
     "spawn": "add a model to the running world (world control's create), in a namespace of its own if asked",
     "remove": "take a model out of the running world (world control's remove)",
-    "handover": "move a robot between zone servers (worlds joined by Zenoh routers) as it crosses their boundary",
+    "handover": "move robots between zone servers (one world split by x) as they cross their boundaries",
     "record": "record keys into a rosbag2 bag in MCAP storage; Ctrl-C closes it",
     "play": "publish a recorded bag back onto the bus at its recorded rate",
     "dataset": "write synchronised camera frames (RGB, depth, label maps, boxes) with intrinsics and poses as a dataset",

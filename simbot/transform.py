@@ -2,9 +2,11 @@
 
 The description (frames computed from SDF poses), the simulation (PyBullet's (xyz, xyzw) pairs),
 the renderers (camera and body poses) and the bus (tf seen by the clients) all hold a rigid
-transform as a `Transform`; 4×4 matrices and headings are made here and nowhere else. Plain
-numpy, depending on nothing else in simbot, so that the bus need not import the description
-layer (SPEC §7). A `Transform` is a tuple `(position, orientation)`: it unpacks as PyBullet's
+transform as a `Transform`; 4×4 matrices and headings are made here and nowhere else, and so is
+every rotation: a quaternion (always x, y, z, w) as a matrix and back, one or many at a time
+(Shepperd's method, safe at a half turn), from roll, pitch and yaw, or as turns about an axis (a
+skeleton's keys, a BVH channel). Plain numpy, depending on nothing else in simbot, so that the bus
+need not import the description layer (SPEC §7). A `Transform` is a tuple `(position, orientation)`: it unpacks as PyBullet's
 pose pairs do and crosses process boundaries as plain data.
 
 The products here (`matmul`, `norm`, `rigid_inverse`, `inverse3`) are what every published value
@@ -101,17 +103,95 @@ def inverse3(matrix: Matrix) -> Matrix:
     return cofactors.T / determinant
 
 
+def _rotation_rows(x: Any, y: Any, z: Any, w: Any) -> tuple[tuple[Any, Any, Any], ...]:
+    """The rows of the rotation matrix of the unit quaternion (x, y, z, w): one formula for one
+    quaternion (floats) and for many (arrays of each component)."""
+    return (
+        (1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)),
+        (2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)),
+        (2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)),
+    )
+
+
 def quaternion_to_matrix(xyzw: Sequence[float]) -> Matrix:
     """Rotation matrix of a (normalised here) quaternion given as x, y, z, w."""
     length = norm(xyzw)
     x, y, z, w = (float(v) / length for v in xyzw)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    return np.array(_rotation_rows(x, y, z, w))
+
+
+def quaternions_to_matrices(xyzw: Matrix) -> Matrix:
+    """N×4 unit quaternions (x, y, z, w; not normalised here) as N×3×3 rotation matrices."""
+    rows = _rotation_rows(xyzw[:, 0], xyzw[:, 1], xyzw[:, 2], xyzw[:, 3])
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def matrices_to_quaternions(rotations: ArrayLike) -> Matrix:
+    """(…×3×3) rotation matrices as (…×4) quaternions x, y, z, w, by Shepperd's method: each from
+    the largest of its trace and its diagonal, so that no component comes of dividing by a small one
+    (a half turn included, whose w is 0)."""
+    m = np.asarray(rotations, dtype=np.float64)
+    diagonal = (m[..., 0, 0], m[..., 1, 1], m[..., 2, 2])
+    trace = diagonal[0] + diagonal[1] + diagonal[2]
+    largest = np.argmax(np.stack([trace, *diagonal], axis=-1), axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # the cases not chosen may take a negative root
+        s = 2.0 * np.sqrt(1.0 + trace)
+        cases = [
+            [
+                (m[..., 2, 1] - m[..., 1, 2]) / s,
+                (m[..., 0, 2] - m[..., 2, 0]) / s,
+                (m[..., 1, 0] - m[..., 0, 1]) / s,
+                s / 4,
+            ]
         ]
+        for i in range(3):
+            j, k = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(1.0 + m[..., i, i] - m[..., j, j] - m[..., k, k])
+            case = [s / 4.0] * 4
+            case[j], case[k] = (m[..., j, i] + m[..., i, j]) / s, (m[..., k, i] + m[..., i, k]) / s
+            case[3] = (m[..., k, j] - m[..., j, k]) / s
+            cases.append(case)
+    stacked = np.stack([np.stack(case, axis=-1) for case in cases], axis=-2)
+    chosen: Matrix = np.take_along_axis(stacked, largest[..., np.newaxis, np.newaxis], axis=-2)[..., 0, :]
+    return chosen
+
+
+def matrix_to_quaternion(rotation: ArrayLike) -> Quat:
+    """The quaternion x, y, z, w of one 3×3 rotation matrix (`matrices_to_quaternions`)."""
+    x, y, z, w = matrices_to_quaternions(rotation).tolist()
+    return (x, y, z, w)
+
+
+def rpy_to_quaternion(rpy: Sequence[float]) -> Quat:
+    """The quaternion x, y, z, w of fixed-axis roll, pitch, yaw (R = Rz·Ry·Rx, as SDF and URDF write it)."""
+    roll, pitch, yaw = (a / 2 for a in rpy)
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
     )
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+def axis_rotations(axis: Sequence[float] | npt.NDArray[np.floating], angles: ArrayLike) -> Matrix:
+    """K×3×3 right-handed rotations about `axis` (normalised here) by each of `angles` (radians):
+    k kᵀ + cos·(I − k kᵀ) + sin·[k]×, exact for an axis along x, y or z (1, cos and ±sin as they are)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / (norm(k) or 1.0)
+    turns = np.atleast_1d(np.asarray(angles, dtype=np.float64))
+    cos, sin = np.cos(turns)[:, None, None], np.sin(turns)[:, None, None]
+    along = k[:, None] * k[None, :]
+    cross = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    rotations: Matrix = along + cos * (np.eye(3) - along) + sin * cross
+    return rotations
 
 
 def rotate_into(xyzw: Sequence[float], vector: Sequence[float] | npt.NDArray[np.floating]) -> Vec3:
@@ -129,6 +209,22 @@ def rotate_into(xyzw: Sequence[float], vector: Sequence[float] | npt.NDArray[np.
         vy + w * ty + (tz * x - tx * z),
         vz + w * tz + (tx * y - ty * x),
     )
+
+
+def rotate_many(xyzw: npt.NDArray[np.float64], vectors: npt.NDArray[np.float64], *, into: bool = False) -> Matrix:
+    """Each row of `vectors` (N×3) rotated by its row of quaternions (N×4, normalised here), or with
+    `into` by its inverse: `rotate_into` for a fleet's sensors at once, in elementwise products."""
+    qx, qy, qz, qw = xyzw[:, 0], xyzw[:, 1], xyzw[:, 2], xyzw[:, 3]
+    length = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)  # summed in order: no CPU-chosen reduction
+    x, y, z, w = qx / length, qy / length, qz / length, qw / length
+    vx, vy, vz = vectors[:, 0], vectors[:, 1], vectors[:, 2]
+    sign = 1.0 if into else -1.0  # t = 2 (v × q) into the frame, 2 (q × v) out of it
+    tx, ty, tz = sign * 2.0 * (vy * z - vz * y), sign * 2.0 * (vz * x - vx * z), sign * 2.0 * (vx * y - vy * x)
+    out = np.empty_like(vectors, dtype=float)
+    out[:, 0] = vx + w * tx + sign * (ty * z - tz * y)
+    out[:, 1] = vy + w * ty + sign * (tz * x - tx * z)
+    out[:, 2] = vz + w * tz + sign * (tx * y - ty * x)
+    return out
 
 
 def yaw_of(xyzw: Sequence[float]) -> float:

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,6 +29,28 @@ CAMERAS = (
     "camera_back_left",
 )
 """The tug's six cameras, as its SDF lists them; each publishes on its own name."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The tests' own simbot cache (render workers keep textures' mip chains in $XDG_CACHE_HOME/simbot), made
+    once for the run and shared by its xdist workers and the servers they start (they inherit the environment);
+    Mesa's shader cache stays where it was."""
+    if os.environ.get(TEST_CACHE):
+        return
+    home = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    os.environ.setdefault("MESA_SHADER_CACHE_DIR", str(Path(home) / "mesa_shader_cache"))
+    os.environ[TEST_CACHE] = os.environ["XDG_CACHE_HOME"] = tempfile.mkdtemp(prefix="simbot-test-cache-")
+    config.stash[_MADE_CACHE] = os.environ[TEST_CACHE]
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    made = config.stash.get(_MADE_CACHE, None)
+    if made is not None:
+        shutil.rmtree(made, ignore_errors=True)
+
+
+TEST_CACHE = "SIMBOT_TEST_CACHE"
+_MADE_CACHE = pytest.StashKey[str]()
 
 
 @pytest.fixture

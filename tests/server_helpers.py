@@ -201,23 +201,23 @@ def wait_until(
 
 
 def render_workers(pid: int) -> list[int]:
-    """The server's render worker processes: its spawned children other than multiprocessing's resource tracker."""
+    """The server's render worker processes: the children of its fork server (simbot.sim.render.starter), or
+    its spawned children other than multiprocessing's resource tracker where it has none."""
     found = []
-    for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split():
+    for child in _children(pid):
         cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
-        if b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
-            found.append(int(child))
+        if b"forkserver" in cmdline:
+            found += _children(child)
+        elif b"spawn_main" in cmdline and b"resource_tracker" not in cmdline:
+            found.append(child)
     return found
 
 
-def exited(pid: int) -> bool:
-    """Whether child `pid` of this process has exited, as waiting for it would tell (without reaping it, so its
-    owner still gets the exit code). A killed process shows as a zombie in /proc before all its threads are
-    gone, and until they are, waiting for it still says it runs."""
+def _children(pid: int) -> list[int]:
     try:
-        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
-    except ChildProcessError:  # reaped already
-        return True
+        return [int(child) for child in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except FileNotFoundError:  # gone meanwhile
+        return []
 
 
 def killed_script(code: str, timeout: float = 300.0) -> str:

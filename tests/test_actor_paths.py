@@ -1,4 +1,4 @@
-"""Where an actor's script puts it (simbot.sim.kit.actor_paths), against gz-sim's arithmetic worked by hand.
+"""Where an actor's script puts it (simbot.description.actor_paths), against gz-sim's arithmetic worked by hand.
 
 Scripts are read from SDF text as a user writes them; each expected pose follows from gz-math's
 formulas: a Hermite segment p0·h00 + m0·h10 + p1·h01 + m1·h11 of the time fraction s, its tangents
@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from simbot.description import load_sdf
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import ActorModel
-from simbot.sim.kit.actor_paths import ScriptPath
 from simbot.transform import yaw_of
 
 

@@ -1,15 +1,21 @@
-"""The shape of the package, held: no import cycles inside simbot/, the layers (the render workers'
-and the physics' code never import the simulation loop or its systems; the client programs import
-only the bus, the description and the shared leaves), no module of simbot/, clients/ or
-benchmarks/ over 500 lines, and `simbot/sim/systems/` holding exactly the registered systems.
+"""The shape of the package, held: simbot's layers, declared bottom up (`LAYERS`), with every
+import pointing down them; no import cycle between modules, nor between packages at any depth; the
+systems importing no other system; the client programs importing only the bus, the description and
+the shared leaves; no module of simbot/, clients/ or benchmarks/ over 500 lines; and
+`simbot/sim/systems/` holding exactly the registered systems.
 
 The import graph is read from the source (every `import` and `from ... import` of a simbot
 module, at any depth, those under `if TYPE_CHECKING:` included: a cycle that typing hides is still
-a cycle a reader follows)."""
+a cycle a reader follows). The client programs are in it as the package they install as,
+`simbot.clients` (clients/).
+
+`.venv/bin/python -m pytest tests/test_architecture.py` checks it; a failure lists each import
+that breaks the table, as `importer -> imported`."""
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterable, Mapping
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -18,11 +24,58 @@ from conftest import REPO
 from simbot.sim.loop.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
 
 PACKAGE = REPO / "simbot"
+CLIENTS = REPO / "clients"
 MAX_LINES = 500
+
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("simbot.transform", "simbot.plugins", "simbot.arguments", "simbot.sim.bullet"),
+    ("simbot.description", "simbot.bus"),
+    ("simbot.variation", "simbot.mapping", "simbot.dataset_format", "simbot.scan_merge"),
+    ("simbot.sim.physics", "simbot.sim.render"),
+    ("simbot.sim.loop",),
+    ("simbot.sim.kit",),
+    ("simbot.sim.systems",),
+    ("simbot.sim",),
+    ("simbot.gym", "simbot.clients"),
+    ("simbot.cli",),
+)
+"""simbot's layers, bottom up, each a few packages (or modules) side by side:
+
+0. the leaves every layer shares: transforms, plug-in loading, argument types, PyBullet itself;
+1. the description (SDF and URDF as typed data, and the parameters of its plugins and sensors) and
+   the bus (Zenoh, CDR, the messages), which know nothing of each other (SPEC §7);
+2. what is made of a description or of the bus alone: randomised worlds, ground-truth maps,
+   datasets on disk, merged scans;
+3. the physics and the render workers, neither of which imports the other;
+4. the simulation loop: the systems' contract, the world, world control;
+5. the kit the systems share;
+6. the systems;
+7. the server (what is left of simbot.sim: the server and what only it uses);
+8. the Gymnasium environments and the client programs;
+9. the command line.
+
+A module belongs to the longest of these names that it is or lies under. It imports its own
+package and the layers below its own; sideways, within its layer, only as `SIDEWAYS` says."""
+SIDEWAYS: Mapping[tuple[str, str], str] = {
+    (
+        "simbot.mapping",
+        "simbot.variation",
+    ): "`simbot map --seed` maps the randomised world it asks for (mapping/command.py)",
+}
+"""Imports between two packages of one layer, each with why it is so."""
+SYSTEMS = "simbot.sim.systems"
+SYSTEM_BASES: Mapping[str, str] = {
+    "simbot.sim.systems.camera": "a camera of another kind (depth, RGBD, segmentation, thermal, wide-angle, "
+    "bounding-box) is the camera system specialised: it subclasses `Camera` and declares its products",
+}
+"""The only systems another system may import, each with why: every other piece that two systems
+share lives in the kit (simbot/sim/kit/) or below."""
 
 
 def _module(path: Path) -> str:
+    """The dotted name `path` imports as: clients/ installs as simbot.clients."""
     parts = path.relative_to(REPO).with_suffix("").parts
+    parts = ("simbot", *parts) if parts[0] == "clients" else parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
@@ -46,13 +99,14 @@ def _imports(path: Path, modules: set[str]) -> set[str]:
 
 
 def _graph() -> dict[str, set[str]]:
-    files = {_module(path): path for path in PACKAGE.rglob("*.py")}
+    """Module → the simbot modules it imports, for simbot/ and clients/ (as simbot.clients)."""
+    files = {_module(path): path for folder in (PACKAGE, CLIENTS) for path in folder.rglob("*.py")}
     modules = set(files)
     return {name: _imports(path, modules) - {name} for name, path in files.items()}
 
 
-def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """Strongly connected components of more than one module (Tarjan's algorithm)."""
+def _cycles(graph: Mapping[str, Iterable[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one node (Tarjan's algorithm)."""
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -61,7 +115,7 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     def visit(node: str) -> None:
         index[node] = low[node] = len(index)
         stack.append(node)
-        for other in sorted(graph[node]):
+        for other in sorted(graph.get(node, ())):
             if other not in index:
                 visit(other)
                 low[node] = min(low[node], low[other])
@@ -83,18 +137,94 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
-def test_no_import_cycle_inside_simbot() -> None:
-    """Dependencies point one way: description → bus/sim core → systems → server."""
+def _packages(graph: Mapping[str, Iterable[str]], depth: int) -> dict[str, set[str]]:
+    """The graph between packages `depth` names deep (`simbot.sim` at 2, `simbot.sim.kit` at 3): a
+    module stands for its package of that depth, or for itself where it is shallower."""
+
+    def package(module: str) -> str:
+        return ".".join(module.split(".")[:depth])
+
+    found: dict[str, set[str]] = {}
+    for module, imported in graph.items():
+        found.setdefault(package(module), set()).update(package(m) for m in imported)
+    return {name: imported - {name} for name, imported in found.items()}
+
+
+def _under(module: str, packages: Iterable[str]) -> bool:
+    return any(module == package or module.startswith(package + ".") for package in packages)
+
+
+def _layer(module: str) -> tuple[int, str] | None:
+    """(the layer, the package of `LAYERS`) `module` belongs to: the longest name it is or lies under."""
+    placed = [
+        (len(name), level, name) for level, names in enumerate(LAYERS) for name in names if _under(module, [name])
+    ]
+    return max(placed)[1:] if placed else None
+
+
+def _wrong_imports(graph: Mapping[str, Iterable[str]]) -> list[str]:
+    """Each import that does not point down the layers (`importer -> imported: why`)."""
+    wrong = []
+    for module in sorted(graph):
+        here = _layer(module)
+        for imported in sorted(graph[module]):
+            there = _layer(imported)
+            if here is None or there is None:
+                continue  # `test_every_module_has_a_layer` names it
+            if here[1] == there[1] == SYSTEMS and imported not in SYSTEM_BASES:
+                wrong.append(f"{module} -> {imported}: a system imports another system (share it through the kit)")
+            elif here[1] == there[1] or there[0] < here[0] or (here[1], there[1]) in SIDEWAYS:
+                continue
+            elif there[0] > here[0]:
+                wrong.append(f"{module} -> {imported}: up from layer {here[0]} to layer {there[0]}")
+            else:
+                wrong.append(f"{module} -> {imported}: sideways within layer {here[0]}")
+    return wrong
+
+
+def test_every_module_has_a_layer() -> None:
     graph = _graph()
-    assert len(graph) > 50, f"only {len(graph)} modules found under {PACKAGE}"
+    assert len(graph) > 200, f"only {len(graph)} modules found under {PACKAGE} and {CLIENTS}"
+    assert any(_under(name, ["simbot.clients"]) for name in graph), "the client programs are not in the graph"
+    assert sorted(name for name in graph if _layer(name) is None and name != "simbot") == []
+
+
+def test_every_import_points_down_the_layers() -> None:
+    graph = _graph()
     assert any(graph.values()), "no imports found: the reader is broken"
-    assert _cycles(graph) == []
+    assert _wrong_imports(graph) == []
 
 
-def test_the_cycle_finder_finds_a_cycle() -> None:
-    """The check above can fail: a two-module and a three-module cycle are found, a chain is not."""
-    graph = {"a": {"b"}, "b": {"a"}, "c": {"d"}, "d": {"e"}, "e": {"c"}, "f": {"a"}}
-    assert sorted(_cycles(graph)) == [["a", "b"], ["c", "d", "e"]]
+def test_no_import_cycle_between_modules_nor_packages() -> None:
+    """Dependencies point one way between modules, and between packages at every depth: a cycle
+    of packages (the kit and the loop, the simulator and the maps) is one a reader follows too."""
+    graph = _graph()
+    depths = range(2, max(len(name.split(".")) for name in graph) + 1)
+    assert {depth: _cycles(_packages(graph, depth)) for depth in depths} == {depth: [] for depth in depths}
+
+
+def test_the_checks_find_a_wrong_import_and_a_cycle() -> None:
+    """Each check can fail: an import up the layers, one sideways, one system importing another,
+    a two-module and a three-module cycle, and a cycle that only the packages show."""
+    graph = {
+        "simbot.sim.loop.world": {"simbot.sim.kit.drive"},
+        "simbot.bus.node": {"simbot.description.model"},
+        "simbot.mapping.occupancy": {"simbot.variation.vary"},
+        "simbot.sim.systems.thermal": {"simbot.sim.systems.label", "simbot.sim.systems.camera"},
+        "simbot.sim.kit.drive": {"simbot.sim.loop.system", "simbot.description.model"},
+    }
+    assert _wrong_imports(graph) == [
+        "simbot.bus.node -> simbot.description.model: sideways within layer 1",
+        "simbot.sim.loop.world -> simbot.sim.kit.drive: up from layer 4 to layer 5",
+        "simbot.sim.systems.thermal -> simbot.sim.systems.label: a system imports another system (share it through the kit)",
+    ]
+    cycles = {"a": {"b"}, "b": {"a"}, "c": {"d"}, "d": {"e"}, "e": {"c"}, "f": {"a"}}
+    assert sorted(_cycles(cycles)) == [["a", "b"], ["c", "d", "e"]]
+    packaged = {"simbot.sim.kit.x": {"simbot.mapping.y"}, "simbot.mapping.y": {"simbot.sim.systems.z"}}
+    assert _cycles(packaged) == []
+    assert _cycles(_packages(packaged, 2)) == [["simbot.mapping", "simbot.sim"]]
+    assert _layer("simbot.sim.server") == (7, "simbot.sim") and _layer("simbot.sim.bullet") == (0, "simbot.sim.bullet")
+    assert _layer("simbot.clients.merger") == (8, "simbot.clients") and _layer("simbot.simulator") is None
 
 
 def test_no_module_of_simbot_clients_or_benchmarks_is_over_500_lines() -> None:
@@ -104,8 +234,6 @@ def test_no_module_of_simbot_clients_or_benchmarks_is_over_500_lines() -> None:
     assert {name: lines for name, lines in sizes.items() if lines > MAX_LINES} == {}
 
 
-LOOP = ("simbot.sim.loop", "simbot.sim.systems", "simbot.sim.server")
-"""The simulation loop, its systems and the server: what the render workers and the physics never import."""
 CLIENT_MAY_IMPORT = (
     "simbot.bus",
     "simbot.description",
@@ -117,25 +245,17 @@ CLIENT_MAY_IMPORT = (
 """The layers a client program stands on: the bus, the description, and the leaves every layer shares."""
 
 
-def _under(module: str, packages: tuple[str, ...]) -> bool:
-    return any(module == package or module.startswith(package + ".") for package in packages)
-
-
-def test_the_render_workers_and_the_physics_never_import_the_loop() -> None:
-    graph = _graph()
-    lower = {name for name in graph if _under(name, ("simbot.sim.render", "simbot.sim.physics"))}
-    assert len(lower) > 30, f"only {len(lower)} render and physics modules found"
-    found = {name: sorted(m for m in graph[name] if _under(m, LOOP)) for name in sorted(lower)}
-    assert {name: imported for name, imported in found.items() if imported} == {}
-
-
 def test_the_clients_import_only_the_bus_the_description_and_the_shared_leaves() -> None:
-    simbot_modules = set(_graph())
-    found = {}
-    for path in sorted((REPO / "clients").glob("*.py")):
-        imported = {m for m in _imports(path, simbot_modules | {"simbot"}) if m.startswith("simbot")}
-        if others := sorted(m for m in imported if not _under(m, CLIENT_MAY_IMPORT)):
-            found[path.name] = others
+    """Stricter than their layer: a client program is a process of its own that talks to the server
+    only over the bus (SPEC §5), so it imports nothing of the simulator, nor of the gym."""
+    graph = _graph()
+    clients = [name for name in graph if _under(name, ["simbot.clients"])]
+    assert len(clients) > 15, f"only {len(clients)} client modules found"
+    found = {
+        name: others
+        for name in sorted(clients)
+        if (others := sorted(m for m in graph[name] if not _under(m, [*CLIENT_MAY_IMPORT, "simbot.clients"])))
+    }
     assert found == {}
 
 
@@ -165,15 +285,9 @@ def test_the_library_never_imports_a_client_program() -> None:
     ) == [1, 2]
 
 
-def test_the_layer_checks_find_a_wrong_import() -> None:
-    assert _under("simbot.sim.loop.world", LOOP) and _under("simbot.sim.server", LOOP)
-    assert not _under("simbot.sim.loopy", LOOP)
-    assert not _under("simbot.sim.kit.rates", CLIENT_MAY_IMPORT)
-
-
 def test_the_systems_folder_holds_exactly_the_registered_systems() -> None:
     """Each module of simbot/sim/systems/ is named by an entry point of a system group, and each of
-    simbot's own entry points names a module there: helpers live beside what uses them."""
+    simbot's own entry points names a module there: what systems share lives in the kit."""
     groups = (GROUP, SENSOR_GROUP, WORLD_GROUP, ROBOT_GROUP)
     registered = {
         point.value.split(":")[0]

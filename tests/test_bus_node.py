@@ -22,6 +22,7 @@ from simbot.bus import (
     BusConfigError,
     BusOpenError,
     BusOptions,
+    EncodeError,
     ForkedSessionError,
     Node,
     Queryable,
@@ -392,3 +393,48 @@ def test_a_process_forked_after_zenoh_started_is_told_at_once_not_left_to_hang()
         _, status = os.waitpid(child, 0)
     assert os.waitstatus_to_exitcode(status) == 0
     assert outcome.startswith("this process was forked") and "'spawn'" in outcome, outcome
+
+
+def test_who_listens_is_told_not_polled_and_a_watched_only_publisher_sends_nothing_unheard() -> None:
+    """Zenoh's matching listener keeps `has_subscribers`: it turns true when another session
+    subscribes and false when it leaves; a `watched_only` publisher (the server's) neither encodes
+    nor puts while no one matches (a message it could not encode passes unnoticed, then fails once
+    someone listens), and a later subscriber gets what is put from then on."""
+    with node_pair() as pair:
+        publisher = pair.server.publisher("fleet_scan", TWIST, watched_only=True)
+        assert not publisher.has_subscribers
+        publisher.put({"linear": 0.5})  # not a message, and not encoded: no one to send it to
+        got: list[Any] = []
+        subscription = pair.client.subscribe("fleet_scan", TWIST, got.append)
+        wait_until(lambda: publisher.has_subscribers, what="the matching listener's news of the subscriber")
+        with pytest.raises(EncodeError, match="not a rosbags message"):
+            publisher.put({"linear": 0.5})
+        publisher.put(m.twist((1.5, 0.0, 0.0), (0.0, 0.0, 0.0)))
+        wait_until(lambda: got, what="the Twist put after the subscriber came")
+        assert [msg.linear.x for msg in got] == [1.5]
+        subscription.close()
+        wait_until(lambda: not publisher.has_subscribers, what="the matching listener's news that it left")
+
+
+def test_a_request_sees_every_subscriber_declared_before_it() -> None:
+    """World control refreshes what the publishers know (`Node.refresh_subscribers`) before the
+    steps a request asks for: a subscriber declared before the request is then seen every time,
+    even by a request handled the instant it arrives, where the matching listener alone hears of
+    it some time later (14 of 100 measured; issue 48)."""
+    seen: list[bool] = []
+    with node_pair() as pair:
+        publishers: list[Any] = []
+
+        def handle(query: zenoh.Query) -> None:  # on Zenoh's thread, as soon as the request arrives
+            pair.server.refresh_subscribers()
+            seen.append(publishers[-1].has_subscribers)
+            query.reply(query.key_expr, b"{}")
+
+        control = pair.server.session.declare_queryable(pair.server.key("/probe_control"), handle)
+        for attempt in range(50):
+            publishers.append(pair.server.publisher(f"probe_{attempt}", TWIST, watched_only=True))
+            subscriber = pair.client.subscribe(f"probe_{attempt}", TWIST, lambda msg: None)
+            list(pair.client.session.get(pair.server.key("/probe_control"), timeout=10.0))
+            subscriber.close()
+        control.undeclare()
+    assert seen == [True] * 50

@@ -27,7 +27,7 @@ import zenoh
 from bus_helpers import endpoint, free_port, unique_namespace, wait_until
 
 from simbot.bus import BusOptions, Node, decode, encode, messages
-from simbot.sim.loop.naming import scoped_rng
+from simbot.description.naming import scoped_rng
 from simbot.sim.loop.registry import GROUP, ROBOT_GROUP, SENSOR_GROUP, WORLD_GROUP
 from simbot.sim.loop.simulation import Mode
 from simbot.sim.loop.world_control import CreateRequest

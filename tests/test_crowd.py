@@ -23,7 +23,8 @@ import numpy as np
 import pytest
 from server_helpers import REPO, SimServer, running_server
 
-from simbot.sim.kit.social_force import Boxes, Crowd, Route, Surroundings, Walker, acceleration, advance, kept_clear
+from simbot.description.crowd_params import Crowd
+from simbot.sim.kit.social_force import Boxes, Route, Surroundings, Walker, acceleration, advance, kept_clear
 
 WORLD = REPO / "tests" / "fixtures" / "crowd.sdf"
 DT = 1 / Crowd().update_rate

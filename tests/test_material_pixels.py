@@ -16,8 +16,8 @@ from test_materials import COLLADA, write_image, write_obj
 from test_shading import AHEAD, DARK, SIZE, camera, drawing
 
 from simbot.description import load_world
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.physics import Physics
-from simbot.sim.render.bodies import scene_body
 
 pytestmark = pytest.mark.skipif(NO_EGL is not None, reason=NO_EGL or "")
 

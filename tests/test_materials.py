@@ -24,8 +24,8 @@ import yourdfpy
 from simbot.description import load_world
 from simbot.description.model import World
 from simbot.description.urdf_reader import load_urdf_model
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.physics import Physics
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.shapes import GEOM_MESH, primitive
 from simbot.sim.render.surfaces import Piece

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from simbot.description import load_model, load_world
+from simbot.description.lidar_params import LidarParams
 from simbot.description.model import Cylinder
 from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 
 MISSING_MESH = "not found (tried"
 

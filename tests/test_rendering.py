@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 from gl_helpers import INERTIA, NO_EGL, body_of, box_body, box_model
-from server_helpers import exited, wait_until
+from server_helpers import wait_until
 
 from simbot.description.model import (
     Axis,
@@ -495,7 +495,7 @@ def kill_worker(render_pool: RenderPool, index: int) -> None:
     pid = render_pool.pids[index]
     assert pid is not None
     os.kill(pid, signal.SIGKILL)
-    wait_until(lambda: exited(pid), WAIT, f"render worker {index} (pid {pid}) to exit")
+    wait_until(lambda: render_pool.exited(index), WAIT, f"render worker {index} (pid {pid}) to exit")
 
 
 def test_an_added_camera_goes_to_the_worker_with_the_fewest_cameras() -> None:

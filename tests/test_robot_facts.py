@@ -9,11 +9,11 @@ import pytest
 from conftest import ROBOT_SDF
 
 from simbot.description import Model, load_model
+from simbot.description.lidar_params import LidarParams
 from simbot.description.model import Box, Cylinder, Sphere
 from simbot.description.poses import Pose
 from simbot.sim.systems.camera import CameraParams
 from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 
 PI = math.pi
 TOL = 1e-9

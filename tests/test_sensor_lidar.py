@@ -25,10 +25,10 @@ from conftest import REPO, ROBOT_SDF
 from server_helpers import POSE_STAMPED, Collector, SimServer, pose_of, reset_before_each, running_server, stamp_ns
 
 from simbot.description import load_model, load_world
+from simbot.description.lidar_params import LidarParams
 from simbot.description.poses import Pose
 from simbot.sim.physics import Physics
 from simbot.sim.systems.imu import ImuParams
-from simbot.sim.systems.lidar import LidarParams
 from simbot.transform import quaternion_to_matrix
 
 WORLD = REPO / "tests" / "fixtures" / "lidar_boxes.sdf"

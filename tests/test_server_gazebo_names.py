@@ -18,8 +18,8 @@ from server_helpers import ODOMETRY, POSE_STAMPED, TF_MESSAGE, SimServer, planar
 from simbot.bus import messages
 from simbot.bus.graph import discover
 from simbot.description import load_world
+from simbot.description.drive_params import DiffDriveParams
 from simbot.description.model import Param, Plugin
-from simbot.sim.systems.diff_drive import DiffDriveParams
 
 IMU = "sensor_msgs/msg/Imu"
 WORLD = Path(__file__).parent / "fixtures" / "gazebo" / "two_vehicles.sdf"

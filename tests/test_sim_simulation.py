@@ -18,8 +18,8 @@ import pytest
 
 from simbot.description.model import Box, Collision, Inertial, Link, Model, Param, Plugin
 from simbot.description.model import World as SdfWorld
+from simbot.description.plugin_params import plugin_priority
 from simbot.description.poses import Pose
-from simbot.sim.kit.plugin_params import plugin_priority
 from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
 from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly

@@ -9,13 +9,16 @@ import pytest
 from conftest import ROBOT_SDF
 
 from simbot.description import load_model, load_world
+from simbot.description.drive_params import DiffDriveParams, Limits
 from simbot.description.model import Param, Plugin
+from simbot.description.naming import canonical_name
+from simbot.description.plugin_params import number_param
 from simbot.description.resources import asset
-from simbot.sim.kit.plugin_params import number_param
+from simbot.sim.kit.drive import check_twist
 from simbot.sim.kit.rates import Every
-from simbot.sim.loop.registry import canonical_name, lookup, registered
+from simbot.sim.loop.registry import lookup, registered
 from simbot.sim.loop.system import SystemConfigError
-from simbot.sim.systems.diff_drive import DiffDriveParams, Limits, Odometry, check_twist
+from simbot.sim.systems.diff_drive import Odometry
 from simbot.sim.systems.recognised import Recognised
 
 

@@ -15,8 +15,8 @@ from simbot.description.actor_scripts import ActorModel, SkinnedMesh
 from simbot.description.sdf_reader import load_world
 from simbot.description.skeleton_poses import ClipFile, global_pose, load_rig
 from simbot.description.skeletons import read_skeleton
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.physics import Physics
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.pool import RenderPool
 from simbot.sim.render.specs import Annotation, BodyState, CameraSpec
 from simbot.sim.render.visuals import visual_points

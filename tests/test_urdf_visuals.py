@@ -23,8 +23,8 @@ from simbot.description.poses import Pose
 from simbot.description.urdf_reader import load_urdf_model
 from simbot.description.urdf_visuals import UrdfVisual, urdf_visuals
 from simbot.description.urdf_writer import joint_trees
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.physics import Physics
-from simbot.sim.render.bodies import scene_body
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.specs import SceneBody
 from simbot.sim.render.visuals import body_pieces

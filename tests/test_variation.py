@@ -21,10 +21,10 @@ from pycocotools.coco import COCO
 from server_helpers import REPO, SimServer, running_server, server_command, wait_until
 
 from simbot.description import load_world
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import ActorModel
 from simbot.description.additions import with_additions
 from simbot.description.footprints import overlap
-from simbot.sim.kit.actor_paths import ScriptPath
 from simbot.sim.loop.world import load_robot
 from simbot.variation import Profile, ProfileError, read_profile, vary
 from simbot.variation.clutter import PREFIX

@@ -26,7 +26,8 @@ from test_worlds import collision_boxes, planar_gap
 
 from simbot.description import load_world
 from simbot.description.actor_scripts import ActorModel
-from simbot.sim.kit.social_force import Boxes, Crowd
+from simbot.description.crowd_params import Crowd
+from simbot.sim.kit.social_force import Boxes
 from simbot.sim.server import world_path
 
 PEOPLE = REPO / "worlds" / "additions" / "warehouse_people.sdf"

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from simbot.description import Model, World, load_model, load_world
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import PROXY_RADIUS, ActorModel
 from simbot.description.model import RGBA, Box, Cylinder, Geometry, Plane, Sphere
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.resources import RESOURCE_PATH_VARIABLES
-from simbot.sim.kit.actor_paths import ScriptPath
 
 REPO = Path(__file__).resolve().parents[1]
 WORLDS = REPO / "worlds"

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 from rosbags.interfaces import Msgdef
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from simbot.bus.fixed_cdr import encode_fixed
+
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 
@@ -185,10 +187,14 @@ def _msgdef(typename: str) -> Msgdef[object]:
 
 
 def encode(msg: Any) -> bytes:
-    """CDR little-endian bytes with the 4-byte encapsulation header `00 01 00 00`."""
+    """CDR little-endian bytes with the 4-byte encapsulation header `00 01 00 00`; the fixed-layout
+    types the server publishes at high rates are written by fixed_cdr, byte for byte as rosbags would."""
     typename = getattr(msg, "__msgtype__", None)
     if not isinstance(typename, str):
         raise EncodeError(f"cannot encode {type(msg).__name__}: not a rosbags message (no __msgtype__)")
+    fixed = encode_fixed(msg, typename)
+    if fixed is not None:  # Imu, Odometry, tf, Clock, LaserScan: the same bytes without rosbags' walk
+        return fixed
     message_type(typename)
     try:
         return bytes(TYPESTORE.serialize_cdr(msg, typename, little_endian=True))

@@ -1,9 +1,11 @@
-"""ROS topic names to Zenoh keys, the way zenoh-bridge-ros2dds maps them.
+"""ROS topic names as simbot's keys name them: the fully qualified name without its leading slash.
 
-`/cmd_vel` in namespace `robot1` is the key `robot1/cmd_vel`, so a ROS 2 host running the
-bridge sees our topics unchanged. Characters that Zenoh gives a meaning to (wildcards `*`, `$`,
-selector syntax `?`, `#`, verbatim chunks starting with `@`) and empty chunks are refused: a key
-built from them would silently match other keys, or none.
+`/cmd_vel` in namespace `robot1` is `robot1/cmd_vel`. On the wire that name is the middle of
+rmw_zenoh's data key, `<domain>/robot1/cmd_vel/<DDS type>/<type hash>` (simbot.bus.rmw), so a ROS 2
+node on rmw_zenoh sees the topic as ROS names it; the in-process bus (`local.py`) keys its topics
+by the name alone. Characters that Zenoh gives a meaning to (wildcards `*`, `$`, selector syntax
+`?`, `#`, verbatim chunks starting with `@`) and empty chunks are refused: a key built from them
+would silently match other keys, or none.
 """
 
 from __future__ import annotations

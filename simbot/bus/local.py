@@ -183,8 +183,12 @@ class LocalNode(Node):
         drop: bool = True,
         frame_prefix: str = "",
         announced: bool = True,
+        watched_only: bool = False,
     ) -> LocalPublisher:
         return LocalPublisher(self.hub, self.key(topic), checked_typename(msgtype), latched, frame_prefix)
+
+    def refresh_subscribers(self) -> None:
+        """A local listener is known the moment it listens."""
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False

@@ -39,13 +39,13 @@ from typing import TYPE_CHECKING, Any, Generic, Literal, Protocol, TypeVar
 import zenoh
 import zenoh.ext
 
-from simbot.bus.codec import DecodeError, checked_typename, decode, encode, message_type
+from simbot.bus.codec import DecodeError, checked_typename, decode, message_type
 from simbot.bus.forks import check_fork_safe, zenoh_starts
-from simbot.bus.frames import with_frame_prefix
 from simbot.bus.graph import Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
-from simbot.bus.rmw import AttachmentError, Attachments, EntityKind, NodeName, Qos, parse_attachment
+from simbot.bus.publisher import Publisher, Route
+from simbot.bus.rmw import AttachmentError, EntityKind, NodeName, Qos, parse_attachment
 from simbot.bus.services import (
     JSON_ENCODING,
     Answering,
@@ -62,7 +62,6 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 WARNING_PERIOD_S = 1.0
-CDR_ENCODING = zenoh.Encoding.APPLICATION_CDR
 TIMEOUT_REPLY = "Timeout"  # the error payload Zenoh delivers to a get when its timeout expires
 
 M = TypeVar("M")
@@ -101,109 +100,6 @@ class RateLimitedWarnings:
             held = self._held.pop(key, 0)
         suffix = f" ({held} more since the last warning)" if held else ""
         logger.warning("%s: %s%s", key, message, suffix)
-
-
-@dataclass(frozen=True)
-class Route:
-    """Where one entity of a node goes: its topic's name within simbot (`ns/odom`), its data key,
-    the type it carries and the graph token that announces it (None: off the graph)."""
-
-    name: str
-    key: str
-    typename: str
-    token: str | None
-
-
-class Publisher:
-    """Encodes messages and puts them on one key with rmw_zenoh's attachment; latched publishers
-    also serve the latest to late joiners. On the graph from its declaration."""
-
-    def __init__(
-        self, session: zenoh.Session, route: Route, *, latched: bool, drop: bool, frame_prefix: str = ""
-    ) -> None:
-        self.key = route.name
-        self.data_key = route.key
-        self.typename = route.typename
-        self.frame_prefix = frame_prefix
-        """Every frame id the messages carry goes out under it (`frames.with_frame_prefix`)."""
-        self.latched = latched
-        self._encoding = CDR_ENCODING.with_schema(route.typename)
-        """`application/cdr;TYPE`: lets a monitor decode a key without being told its type."""
-        self._attachments = Attachments()
-        self._announcement = Announcement(session, route.token) if route.token else None
-        congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
-        self._latest: bytes | None = None
-        self._lock = threading.Lock()
-        self._queryable: zenoh.Queryable[None] | None = None
-        self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
-        if latched:  # rmw_zenoh's TRANSIENT_LOCAL: an advanced publisher with a cache, and a plain `get`'s answer
-            self._publisher = zenoh.ext.declare_advanced_publisher(
-                session,
-                route.key,
-                encoding=self._encoding,
-                congestion_control=congestion,
-                cache=zenoh.ext.CacheConfig(1),
-                publisher_detection=True,
-            )
-            self._queryable = session.declare_queryable(route.key, self._serve_latest, complete=True)
-        else:
-            self._publisher = session.declare_publisher(
-                route.key, encoding=self._encoding, congestion_control=congestion
-            )
-
-    def put(self, msg: Any) -> None:
-        """Encode `msg` as CDR and put it."""
-        self._put(encode(with_frame_prefix(msg, self.frame_prefix) if self.frame_prefix else msg))
-
-    def put_raw(self, data: bytes | bytearray) -> None:
-        """Put bytes as they are, as CDR of the publisher's type: a recording played back goes out
-        unchanged, a render worker's image encoded in place, and tests send garbage this way. (A
-        latched publisher keeps a copy of its own.)"""
-        self._put(bytes(data) if self.latched else data)
-
-    def _put(self, data: bytes | bytearray) -> None:
-        if self.latched:
-            with self._lock:
-                self._latest = bytes(data)
-        self._publisher.put(data, encoding=self._encoding, attachment=self._attachments.next())
-
-    def _serve_latest(self, query: zenoh.Query) -> None:
-        """Plain `get` on a latched key: reply with the latest payload (called on a Zenoh thread)."""
-        with query:
-            with self._lock:
-                latest = self._latest
-            if latest is not None:
-                query.reply(self.data_key, latest, encoding=self._encoding, attachment=self._attachments.next())
-
-    @property
-    def has_subscribers(self) -> bool:
-        """Whether a subscriber matching the key is known (plain publishers only; latched ones say True)."""
-        if not isinstance(self._publisher, zenoh.Publisher):
-            return True
-        # zenoh 1.10 returns a MatchingStatus (always truthy), though its stub says bool
-        status: object = self._publisher.matching_status
-        return bool(getattr(status, "matching", status))
-
-    def await_subscribers(self, timeout: float) -> bool:
-        """Whether `has_subscribers` came true within `timeout` s: a session learns of a subscriber
-        some time after another session declared it, and Zenoh's publisher may drop a put for a
-        subscriber its session has not heard of yet."""
-        deadline = time.monotonic() + timeout
-        pause = 1e-4
-        while not self.has_subscribers:
-            if time.monotonic() >= deadline:
-                return False
-            time.sleep(pause)
-            pause = min(2 * pause, 0.01)
-        return True
-
-    def close(self) -> None:
-        """Undeclare the publisher (and the latched queryable)."""
-        if self._announcement is not None:
-            self._announcement.close()
-        undeclare(self._queryable)
-        undeclare(self._publisher)
-        self._queryable = None
 
 
 class Subscription(Generic[M]):
@@ -327,6 +223,8 @@ class Inbox:
 
     def drain(self) -> list[bytes | Refused]:
         """What arrived since the last drain, oldest first: payloads, and the samples refused."""
+        if not self._queue:  # most steps: nothing came (a length read needs no lock)
+            return []
         with self._lock:
             items = list(self._queue)
             self._queue.clear()
@@ -355,6 +253,8 @@ class Node:
         self._warnings = RateLimitedWarnings()
         self._entities: list[_Closable] = []
         self._entity_ids = 0
+        self._publishers: list[Publisher] = []
+        self._by_name: dict[str, list[Publisher]] = {}
         config = zenoh_config(options, role)
         check_fork_safe()
         zenoh_starts()
@@ -399,15 +299,33 @@ class Node:
         drop: bool = True,
         frame_prefix: str = "",
         announced: bool = True,
+        watched_only: bool = False,
     ) -> Publisher:
         """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name); `latched`
         serves the latest message to late joiners (TRANSIENT_LOCAL), `drop=False` blocks (RELIABLE);
         `frame_prefix` puts the frames of what it sends under a robot's namespace; `announced=False`:
-        the key's owner announces it (a server's render worker puts what the server announces)."""
+        the key's owner announces it (a server's render worker puts what the server announces);
+        `watched_only`: a put no subscriber matches is neither encoded nor sent (the server's)."""
         typename = checked_typename(msgtype)
         qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
         route = self.route(self.key(topic), typename, "MP" if announced else None, qos)
-        return self._keep(Publisher(self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix))
+        publisher = Publisher(
+            self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix, watched_only=watched_only
+        )
+        self._publishers.append(publisher)
+        self._by_name.setdefault(route.name, []).append(publisher)
+        return self._keep(publisher)
+
+    def refresh_subscribers(self) -> None:
+        """Every publisher that knows of no subscriber asks Zenoh again (`Publisher.refresh`): world
+        control calls it before the steps a request asks for, so that they see, in the order the
+        bus delivered them, the subscribers declared before the request."""
+        self._publishers = [publisher for publisher in self._publishers if publisher.refresh()]
+
+    def _heard(self, name: str) -> None:
+        """This node subscribed to topic `name`: its own publishers of it know at once."""
+        for publisher in self._by_name.get(name, []):
+            publisher.refresh()
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False
@@ -418,6 +336,7 @@ class Node:
         subscription: Subscription[Any] = Subscription(
             self.session, route, callback, latched=latched, warnings=self._warnings
         )
+        self._heard(route.name)
         return self._keep(subscription)
 
     def inbox(self, topic: str, typename: str, maxlen: int = 64) -> Inbox:
@@ -425,9 +344,9 @@ class Node:
         message_type(typename)
         name = self.key(topic)
         route = self.route(name, typename, "MS")
-        return self._keep(
-            Inbox(self.session, route, self.graph.type_suffix(typename), self.graph.any_type_key(name), maxlen)
-        )
+        inbox = Inbox(self.session, route, self.graph.type_suffix(typename), self.graph.any_type_key(name), maxlen)
+        self._heard(name)
+        return self._keep(inbox)
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> Queryable:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from simbot.description.skeletons import F64, Clip, Skeleton, SkeletonError
-from simbot.transform import matmul
+from simbot.transform import axis_rotations, matmul
 
 AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -181,15 +181,5 @@ def _locals(joint: _Joint, values: F64, scale: float) -> F64:
         if channel[1:].lower() == "position":
             out[:, axis, 3] = values[:, column] * scale
         else:
-            out[:, :3, :3] = matmul(out[:, :3, :3], _turns(axis, values[:, column]))
-    return out
-
-
-def _turns(axis: int, degrees: F64) -> F64:
-    """K×3×3 right-handed rotations about the x, y or z axis (0, 1, 2) by `degrees`."""
-    angles = np.radians(degrees)
-    cos, sin = np.cos(angles), np.sin(angles)
-    j, k = (axis + 1) % 3, (axis + 2) % 3
-    out = np.tile(np.eye(3), (len(angles), 1, 1))
-    out[:, j, j], out[:, k, k], out[:, k, j], out[:, j, k] = cos, cos, sin, -sin
+            out[:, :3, :3] = matmul(out[:, :3, :3], axis_rotations(np.eye(3)[axis], np.radians(values[:, column])))
     return out

@@ -1,4 +1,6 @@
-"""The one error a user's bad description file raises: it names the file, element and line."""
+"""The errors of a user's bad description: a file that cannot be read (`DescriptionError`, naming
+the file, element and line), and a system's `<plugin>` or `<sensor>` parameters that cannot be used
+(`SystemConfigError`, naming the plugin or sensor and the element)."""
 
 from __future__ import annotations
 
@@ -25,3 +27,9 @@ class DescriptionError(Exception):
         where = self.file if self.line is None else f"{self.file}:{self.line}"
         what = f" <{self.element}>" if self.element else ""
         return f"{where}:{what} {self.message}"
+
+
+class SystemConfigError(ValueError):
+    """A system's SDF parameters are unusable; the message names the plugin and the parameter. The
+    world leaves that system out with the message as one error line, and runs (simbot/sim/loop/world.py);
+    `simbot describe` lists it (simbot/sim/loop/sdf_systems.py)."""

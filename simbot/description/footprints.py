@@ -1,10 +1,13 @@
-"""Planar geometry for placing the robot: collision shapes as boxes, their shadows on the floor as
-convex polygons, and whether two convex polygons overlap.
+"""Collision shapes as the boxes that hold them, and their shadows on the floor: the one source of
+them for placing the robot and clutter (`free_poses.py`), the gym's view of the robot's shape
+(simbot/gym/robot.py) and the people's obstacles (simbot/sim/systems/crowd.py); and the planar
+geometry of those shadows (convex hulls, whether two convex polygons overlap).
 
-Placement only needs to be safe, not exact: every shape is taken as the box that holds it (a
-cylinder as its square prism, a sphere as its cube), so a free pose found here is free in the
-world too. Shapes without a size of their own (meshes, heightmaps, polylines) are left out with a
-warning: their model is not an obstacle to the sampler.
+A box is safe, not exact: every shape is taken as the box that holds it (a cylinder as its square
+prism, a sphere as its cube), so a pose free of the boxes is free in the world too. Shapes without
+a size of their own (meshes, heightmaps, polylines) are left out with a debug line: their model is
+not an obstacle here. The exact shadow of every shape in a band of heights, for the map, is
+simbot.mapping.shapes, whose boxes are these.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from simbot.description.model import Box, Capsule, Collision, Cone, Cylinder, Ellipsoid, Geometry, Sphere
+from simbot.description.model import Box, Capsule, Collision, Cone, Cylinder, Ellipsoid, Geometry, Link, Model, Sphere
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
@@ -24,6 +27,8 @@ log = logging.getLogger(__name__)
 Floats = npt.NDArray[np.float64]
 Planar = tuple[float, float, float]
 """(x, y, yaw) in the world: a pose on the floor."""
+BOX_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+"""A box's 8 corners about its centre, in half sizes, numbered by their (x, y, z) sides as bits."""
 
 
 def box_size(geometry: Geometry) -> tuple[float, float, float] | None:
@@ -45,8 +50,7 @@ def box_size(geometry: Geometry) -> tuple[float, float, float] | None:
 def box_corners(size: tuple[float, float, float], frame: Floats) -> Floats:
     """The 8 corners (8 × 3) of a box of `size` centred in `frame` (4 × 4, the box's frame in its parent)."""
     half = np.asarray(size, dtype=np.float64) / 2
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
-    local = np.hstack([signs * half, np.ones((8, 1))])
+    local = np.hstack([BOX_SIGNS * half, np.ones((8, 1))])
     corners: Floats = matmul(local, frame.T)[:, :3]
     return corners
 
@@ -59,6 +63,25 @@ def collision_corners(collision: Collision, parent: Floats) -> Floats | None:
         log.debug("%s: a %s has no size here; not an obstacle", collision.name, type(collision.geometry).__name__)
         return None
     return box_corners(size, matmul(parent, collision.pose.matrix()))
+
+
+def collision_boxes(model: Model, placed: Floats | None = None) -> list[tuple[Link, Collision, Floats]]:
+    """Each collision of `model` that has a size, with the corners of the box holding it: in the
+    model's frame, or in the world where `placed` (4 × 4) puts the model there."""
+    found = []
+    for link in model.links:
+        frame = link.pose.matrix() if placed is None else matmul(placed, link.pose.matrix())
+        for collision in link.collisions:
+            corners = collision_corners(collision, frame)
+            if corners is not None:
+                found.append((link, collision, corners))
+    return found
+
+
+def reaches_into(corners: Floats, low: float, high: float) -> bool:
+    """Whether a box (its corners) reaches into the heights between `low` and `high`; a box that only
+    touches one of them does not."""
+    return float(corners[:, 2].max()) > low and float(corners[:, 2].min()) < high
 
 
 def convex_hull(points: Floats) -> Floats:

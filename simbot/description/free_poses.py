@@ -4,7 +4,7 @@ Gymnasium environments), where clutter may stand (simbot.variation).
 An obstacle is any collision of the world's models (static, and dynamic ones where they start:
 the trolley) that reaches into the height the robot occupies, from just above the floor
 (`FLOOR_TOLERANCE`) to the top of its highest collision; its shadow on the floor is the convex
-hull of the box holding it (`geometry.py`). The floor is what lies at floor level (a `<plane>`,
+hull of the box holding it (`footprints.py`). The floor is what lies at floor level (a `<plane>`,
 or a collision whose top is within `FLOOR_TOLERANCE` of z = 0); the area poses are drawn from is
 the floor's extent, clipped to `MAX_HALF_WIDTH` around the origin (the empty world's 100 m plane
 would put goals 50 m away), unless the environment is given an `area`.
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simbot.description.footprints import Floats, Planar, Rectangle, collision_corners, convex_hull, overlap
+from simbot.description.footprints import Floats, Planar, Rectangle, collision_boxes, convex_hull, overlap, reaches_into
 from simbot.description.model import Model, Plane, World
 from simbot.transform import matmul
 
@@ -142,31 +142,26 @@ class Places:
 
 
 def _shadows(model: Model, robot_top: float, obstacles: list[Obstacle], floor: list[Area]) -> None:
-    """Adds the model's obstacles and floor pieces."""
+    """Adds the model's obstacles and floor pieces: its planes, and the boxes at floor level, are
+    floor; the boxes reaching into the robot's heights are obstacles (not those above it: a
+    trolley's deck, a shelf, a sign)."""
     placed = model.pose.matrix()
     for link in model.links:
-        frame = matmul(placed, link.pose.matrix())
         for collision in link.collisions:
-            name = f"{model.name}::{link.name}::{collision.name}"
             if isinstance(collision.geometry, Plane):
                 width, depth = collision.geometry.size
-                centre = matmul(frame, collision.pose.matrix())[:2, 3]
+                centre = matmul(matmul(placed, link.pose.matrix()), collision.pose.matrix())[:2, 3]
                 floor.append(
                     (centre[0] - width / 2, centre[1] - depth / 2, centre[0] + width / 2, centre[1] + depth / 2)
                 )
-                continue
-            corners = collision_corners(collision, frame)
-            if corners is None:
-                continue
-            low, high = float(corners[:, 2].min()), float(corners[:, 2].max())
-            if high <= FLOOR_TOLERANCE:
-                if high >= -FLOOR_TOLERANCE:
-                    xy = corners[:, :2]
-                    floor.append((xy[:, 0].min(), xy[:, 1].min(), xy[:, 0].max(), xy[:, 1].max()))
-                continue
-            if low >= robot_top:
-                continue  # above the robot: a trolley's deck, a shelf, a sign
-            obstacles.append(Obstacle.of(name, corners[:, :2]))
+    for link, collision, corners in collision_boxes(model, placed):
+        high = float(corners[:, 2].max())
+        if high <= FLOOR_TOLERANCE:
+            if high >= -FLOOR_TOLERANCE:
+                xy = corners[:, :2]
+                floor.append((xy[:, 0].min(), xy[:, 1].min(), xy[:, 0].max(), xy[:, 1].max()))
+        elif reaches_into(corners, FLOOR_TOLERANCE, robot_top):
+            obstacles.append(Obstacle.of(f"{model.name}::{link.name}::{collision.name}", corners[:, :2]))
 
 
 def _default_area(floor: list[Area]) -> Area:

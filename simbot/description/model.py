@@ -169,7 +169,7 @@ class Sensor:
     topic: str | None = None
     frame_name: str | None = None
     params: tuple[Param, ...] = ()
-    """The `<sensor>`'s children kept whole: each sensor module reads its own (simbot/sim/kit/sensor_params.py)."""
+    """The `<sensor>`'s children kept whole: each sensor module reads its own (simbot/description/sensor_params.py)."""
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 from simbot.description.bvh_clips import read_bvh_clip
 from simbot.description.skeletons import Clip, Skeleton, SkeletonError, read_clip, read_skeleton
+from simbot.transform import matrices_to_quaternions, quaternions_to_matrices
 
 F64 = npt.NDArray[np.float64]
 
@@ -115,40 +116,19 @@ def local_pose(clip: Clip, time: float) -> F64:
 
 def _blend(a: F64, b: F64, t: float) -> F64:
     """Per joint: translation lerp, rotation nlerp (the shorter way)."""
-    qa, qb = quaternions(a[:, :3, :3]), quaternions(b[:, :3, :3])
+    qa, qb = _quaternions(a[:, :3, :3]), _quaternions(b[:, :3, :3])
     sign = np.where((qa * qb).sum(axis=1) < 0.0, -1.0, 1.0)[:, None]
     q = (1.0 - t) * qa + t * sign * qb
     q /= np.sqrt((q * q).sum(axis=1))[:, None]
     out = np.tile(np.eye(4), (len(a), 1, 1))
-    out[:, :3, :3] = rotations(q)
+    out[:, :3, :3] = quaternions_to_matrices(q)
     out[:, :3, 3] = (1.0 - t) * a[:, :3, 3] + t * b[:, :3, 3]
     return out
 
 
-def quaternions(m: F64) -> F64:
-    """N×3×3 rotations as N×4 (w, x, y, z); the rotation part of a scaled matrix's columns normalised."""
-    m = m / np.sqrt((m * m).sum(axis=1))[:, None, :]
-    w = np.sqrt(np.maximum(0.0, 1.0 + m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2])) / 2.0
-    x = np.sqrt(np.maximum(0.0, 1.0 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2])) / 2.0
-    y = np.sqrt(np.maximum(0.0, 1.0 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2])) / 2.0
-    z = np.sqrt(np.maximum(0.0, 1.0 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2])) / 2.0
-    x = np.copysign(x, m[:, 2, 1] - m[:, 1, 2])
-    y = np.copysign(y, m[:, 0, 2] - m[:, 2, 0])
-    z = np.copysign(z, m[:, 1, 0] - m[:, 0, 1])
-    return np.stack([w, x, y, z], axis=1)
-
-
-def rotations(q: F64) -> F64:
-    """N×4 unit quaternions (w, x, y, z) as N×3×3."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
-        ],
-        axis=1,
-    )
+def _quaternions(m: F64) -> F64:
+    """N×3×3 rotations as N×4 (x, y, z, w); the rotation part of a scaled matrix's columns normalised."""
+    return matrices_to_quaternions(m / np.sqrt((m * m).sum(axis=1))[:, None, :])
 
 
 def products(a: F64, b: F64) -> F64:

@@ -29,7 +29,7 @@ from urllib.parse import unquote
 import numpy as np
 import numpy.typing as npt
 
-from simbot.transform import matmul
+from simbot.transform import axis_rotations, matmul
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
@@ -271,14 +271,8 @@ def _element_matrix(tag: str, values: F64) -> F64:
     elif tag == "scale" and len(values) == 3:
         out[:3, :3] = np.diag(values)
     elif tag == "rotate" and len(values) == 4:
-        out[:3, :3] = _axis_angle(values[:3], math.radians(float(values[3])))
+        out[:3, :3] = axis_rotations(values[:3], math.radians(float(values[3])))[0]
     return out
-
-
-def _axis_angle(axis: F64, angle: float) -> F64:
-    axis = axis / (float(np.sqrt((axis * axis).sum())) or 1.0)
-    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * matmul(k, k)
 
 
 # --- the skins

@@ -25,14 +25,18 @@ from pathlib import Path
 import numpy as np
 
 from simbot.description import load_model
-from simbot.description.footprints import Rectangle, collision_corners
-from simbot.description.model import Model, Param, Plugin, Sensor
+from simbot.description.drive_params import DiffDriveParams
+from simbot.description.errors import SystemConfigError
+from simbot.description.footprints import Rectangle, collision_boxes
+from simbot.description.lidar_params import LIDAR_TYPES, LidarParams
+from simbot.description.model import Model, Sensor
+from simbot.description.naming import plugin_named
+from simbot.description.plugin_params import param
 from simbot.gym.errors import EnvConfigError
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
 
-LIDAR_TYPES = ("gpu_lidar", "lidar", "ray", "gpu_ray")
 CAMERA_TYPES = ("camera",)
 CONTACT_TOPIC = "gym/contact"
 CONTACT_SENSOR = "gym_contact"
@@ -76,11 +80,20 @@ class RobotFacts:
 
     @staticmethod
     def read(path: Path) -> RobotFacts:
-        model = load_model(path)
-        drive = _plugin(model, "DiffDrive")
-        if drive is None:
+        """The robot's facts from its SDF, its plugins' and sensors' parameters read as the server
+        reads them; EnvConfigError naming the file for one the environments cannot use."""
+        try:
+            return RobotFacts._read(path, load_model(path))
+        except SystemConfigError as exc:
+            raise EnvConfigError(f"robot {path}: {exc}") from None
+
+    @staticmethod
+    def _read(path: Path, model: Model) -> RobotFacts:
+        plugin = plugin_named(model.plugins, "DiffDrive")
+        if plugin is None:
             raise EnvConfigError(f"robot {path}: no DiffDrive plugin; the environments drive a differential robot")
-        joint = _plugin(model, "DetachableJoint")
+        drive = DiffDriveParams.parse(plugin, model, model.name)
+        joint = plugin_named(model.plugins, "DetachableJoint")
         shapes = _collision_boxes(model)
         lowest = min(float(c[:, 2].min()) for _, c in shapes)
         top = max(float(c[:, 2].max()) for _, c in shapes)
@@ -94,9 +107,9 @@ class RobotFacts:
         return RobotFacts(
             source=path,
             limits=_drive_limits(model, drive),
-            cmd_topic=_text(drive, "topic") or f"model/{model.name}/cmd_vel",
-            odom_topic=_text(drive, "odom_topic") or f"model/{model.name}/odometry",
-            odom_rate=float(_text(drive, "odom_publish_frequency", "update_rate") or 50.0),
+            cmd_topic=drive.topic,
+            odom_topic=drive.odom_topic,
+            odom_rate=drive.odom_rate,
             cameras={s.name: _topic(s) for _, s in sensors if s.type in CAMERA_TYPES},
             lidars={s.name: _topic(s) for _, s in sensors if s.type in LIDAR_TYPES},
             lidar_reach=_lidar_reach(model),
@@ -109,35 +122,9 @@ class RobotFacts:
             rest_height=-lowest,
             top=top,
             bumpers=bumpers,
-            attach_topic=_text(joint, "attach_topic") if joint else None,
-            attach_state_topic=_text(joint, "output_topic") if joint else None,
+            attach_topic=param(joint, "attach_topic") if joint else None,
+            attach_state_topic=param(joint, "output_topic") if joint else None,
         )
-
-
-def _plugin(model: Model, kind: str) -> Plugin | None:
-    """The model's plugin of a Gazebo system (`gz::sim::systems::DiffDrive`, its library name, ...)."""
-    library = "-".join(part.lower() for part in _words(kind))
-    for plugin in model.plugins:
-        if plugin.name.split("::")[-1] == kind or library in plugin.filename.replace("_", "-").lower():
-            return plugin
-    return None
-
-
-def _words(name: str) -> list[str]:
-    """CamelCase → its words (DiffDrive → Diff, Drive)."""
-    words: list[str] = []
-    for char in name:
-        if char.isupper() or not words:
-            words.append(char)
-        else:
-            words[-1] += char
-    return words
-
-
-def _text(plugin: Plugin | None, *tags: str) -> str | None:
-    if plugin is None:
-        return None
-    return next((text.strip() for tag in tags if (text := plugin.get(tag)) and text.strip()), None)
 
 
 def _topic(sensor: Sensor) -> str:
@@ -145,18 +132,16 @@ def _topic(sensor: Sensor) -> str:
     return (sensor.topic or "").strip().strip("/") or sensor.name
 
 
-def _drive_limits(model: Model, drive: Plugin) -> DriveLimits:
+def _drive_limits(model: Model, drive: DiffDriveParams) -> DriveLimits:
     """DiffDrive's `max_linear_velocity` / `max_angular_velocity` (the smaller magnitude of max and
     min); where it states none, what the wheels allow: the wheel joints' `<velocity>` limit × radius,
     and that speed on both sides in opposite directions for turning."""
-    radius = float(_text(drive, "wheel_radius") or "nan")
-    separation = float(_text(drive, "wheel_separation") or "nan")
-    wheels = [model.joint(j) for j in drive.get_all("left_joint") + drive.get_all("right_joint")]
+    wheels = [model.joint(j) for j in drive.left + drive.right]
     wheel_speeds = [j.axis.velocity for j in wheels if j.axis is not None and j.axis.velocity is not None]
-    wheel = min(wheel_speeds) * radius if wheel_speeds and math.isfinite(radius) else None
-    linear = _stated(drive, "linear", ("max_velocity",)) or wheel
-    turn = 2 * wheel / separation if wheel is not None and math.isfinite(separation) else None
-    angular = _stated(drive, "angular", ()) or turn
+    wheel = min(wheel_speeds) * drive.radius if wheel_speeds else None
+    linear = drive.linear.magnitude or wheel
+    turn = 2 * wheel / drive.separation if wheel is not None else None
+    angular = drive.angular.magnitude or turn
     if linear is None or angular is None:
         raise EnvConfigError(
             f"robot {model.name}: its DiffDrive states no velocity limits and its wheel joints none either; "
@@ -165,21 +150,9 @@ def _drive_limits(model: Model, drive: Plugin) -> DriveLimits:
     return DriveLimits(float(linear), float(angular))
 
 
-def _stated(drive: Plugin, kind: str, legacy: tuple[str, ...]) -> float | None:
-    maximum = _text(drive, f"max_{kind}_velocity", *legacy)
-    minimum = _text(drive, f"min_{kind}_velocity")
-    values = [abs(float(v)) for v in (maximum, minimum) if v is not None]
-    return min(values) if values else None
-
-
 def _collision_boxes(model: Model) -> list[tuple[tuple[str, str], np.ndarray]]:
     """((link, collision), the corners of the box holding it in the model frame) for each sized collision."""
-    found = []
-    for link in model.links:
-        for collision in link.collisions:
-            corners = collision_corners(collision, link.pose.matrix())
-            if corners is not None:
-                found.append(((link.name, collision.name), corners))
+    found = [((link.name, collision.name), corners) for link, collision, corners in collision_boxes(model)]
     if not found:
         raise EnvConfigError(f"robot {model.name}: no collision of a known size; placement needs its shape")
     return found
@@ -195,14 +168,6 @@ def _by_link(shapes: list[tuple[tuple[str, str], np.ndarray]]) -> dict[tuple[str
     return {(link, first[link]): np.vstack(corners[link]) for link in first}
 
 
-def _param(params: tuple[Param, ...], *path: str) -> str | None:
-    """The text at a path of nested `<sensor>` children (`lidar`, `range`, `max`)."""
-    for param in params:
-        if param.tag == path[0]:
-            return param.text if len(path) == 1 else _param(param.children, *path[1:])
-    return None
-
-
 def _lidar_reach(model: Model) -> float:
     """The largest range a lidar can report plus its distance from the model's z axis."""
     reach = 0.0
@@ -210,9 +175,8 @@ def _lidar_reach(model: Model) -> float:
         for sensor in link.sensors:
             if sensor.type not in LIDAR_TYPES:
                 continue
-            text = _param(sensor.params, "lidar", "range", "max") or _param(sensor.params, "ray", "range", "max")
             where = matmul(link.pose.matrix(), sensor.pose.matrix())[:2, 3]
-            reach = max(reach, float(text or 0.0) + math.hypot(float(where[0]), float(where[1])))
+            reach = max(reach, LidarParams.from_sdf(sensor).range_max + math.hypot(float(where[0]), float(where[1])))
     return reach
 
 

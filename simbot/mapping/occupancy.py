@@ -26,12 +26,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import ActorModel, is_actor
 from simbot.description.model import Model, World
 from simbot.description.poses import Pose
 from simbot.mapping.raster import Layout, fill_discs, fill_polygons, fill_section, ordered, padded
 from simbot.mapping.shapes import Band, Pieces, add_collision
-from simbot.sim.kit.actor_paths import ScriptPath
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)

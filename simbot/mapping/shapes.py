@@ -31,7 +31,7 @@ import numpy.typing as npt
 
 from simbot.description import generated_meshes
 from simbot.description.errors import DescriptionError
-from simbot.description.footprints import convex_hull
+from simbot.description.footprints import BOX_SIGNS, box_corners, convex_hull
 from simbot.description.model import (
     Box,
     Capsule,
@@ -59,10 +59,10 @@ PRISM_SIDES = 64
 """Sides of the prism a tilted cylinder is cut as: its flats lie 0.12 % of the radius inside the circle."""
 UPRIGHT = 1e-9
 """How far from vertical (1 − |cos|) an axis may be and still count as upright."""
-BOX_CORNERS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
 BOX_EDGES = np.array(
-    [(i, j) for i in range(8) for j in range(i + 1, 8) if np.abs(BOX_CORNERS[i] - BOX_CORNERS[j]).sum() == 2]
+    [(i, j) for i in range(8) for j in range(i + 1, 8) if np.abs(BOX_SIGNS[i] - BOX_SIGNS[j]).sum() == 2]
 )
+"""The twelve edges of a box whose corners are `BOX_SIGNS`' (simbot.description.footprints.box_corners)."""
 SQUARE_CORNERS = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=np.float64)
 SQUARE_EDGES = np.array([(0, 1), (1, 2), (2, 3), (3, 0)])
 
@@ -111,7 +111,7 @@ def add_collision(pieces: Pieces, geometry: Geometry, frame: Floats, band: Band,
     low, high = band.cut()
     match geometry:
         case Box(size=size):
-            _convex(pieces, _placed(BOX_CORNERS * np.asarray(size) / 2, frame), BOX_EDGES, low, high)
+            _convex(pieces, box_corners(size, frame), BOX_EDGES, low, high)
         case Cylinder(radius=radius, length=length):
             _cylinder(pieces, radius, length, frame, low, high)
         case Sphere(radius=radius):

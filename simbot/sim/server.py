@@ -1,6 +1,7 @@
 """`simbot-server`: loads a world and the robot, runs its systems, serves it all on the bus.
 
-    simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--spawn X Y Z YAW] [--namespace NS]
+    simbot-server [--world NAME|PATH] [--add NAME|PATH ...] [--robot PATH|none] [--robots N] [--columns C] [--spawn X Y Z YAW]
+                  [--zone NAME:XMIN:XMAX] [--namespace NS]
                   [--mode realtime|fast|lockstep] [--physics dynamic|kinematic] [--seed N] [--randomise SEED[:PROFILE]] [--renderer auto|gl|tiny]
                   [--camera-size WxH] [--camera-rate HZ] [--render-workers N] [--render-threads N] [--listen E] [--connect E] [--zenoh-config F]
 
@@ -8,6 +9,10 @@
 puts the models and actors of another SDF file into the world as if its file held them: SDF has
 no way for one world to include another, so the warehouse's people (`--add warehouse_people`,
 worlds/additions/) live in a file of their own and the plain warehouse stays still for the tests.
+
+`--zone NAME:XMIN:XMAX` runs one zone of a fleet split by x (docs/fleets.md): of the `--robots N`
+fleet only the robots standing in XMIN ≤ x < XMAX, the world's own keys (world control, clock)
+under NAME/, each robot's keys as in one server (`tug_7/cmd_vel`), whichever zone holds it.
 
 `--randomise SEED[:PROFILE]` loads the world that SEED draws from a variation profile (the world's
 own `<world>.variation.toml` beside it when PROFILE is left out; simbot.variation): the sun, the
@@ -35,6 +40,7 @@ from simbot.arguments import number, whole
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, World, load_world
 from simbot.description.additions import addition_path, with_additions, world_path
+from simbot.description.fleet import DEFAULT_SPAWN, MAX_FLEET, Zone, fleet, in_zone, zone
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
@@ -45,6 +51,7 @@ from simbot.sim.loop.world import Placement, SimWorld, load_robot
 from simbot.sim.loop.world_control import WorldControl
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
+from simbot.sim.zone_keys import ZoneBus
 from simbot.transform import yaw_of
 from simbot.variation import Variations, profile_beside, read_profile, seed_option
 
@@ -53,9 +60,6 @@ log = logging.getLogger("simbot.server")
 EXIT_USAGE = 2
 ROBOT_NAME = "flexley_tug"
 """The robot's name in the running world, whatever its SDF calls it (SPEC §1)."""
-DEFAULT_SPAWN = (-2.5, 0.0, 0.1, 0.0)
-ROW_SPACING = 1.5
-"""Metres between the tugs of `--robots N` (a tug is 0.5 m wide; its side cameras and lidars see the next)."""
 NO_ROBOT = "none"
 """`--robot none`: the world alone."""
 
@@ -79,22 +83,24 @@ class ServerConfig:
     kinematic: bool = False
     """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic_stepper),
     as a world's `<physics type="kinematic">` asks."""
+    columns: int = 1
+    zone: Zone | None = None
+    """`--zone`: the band of x whose robots this server holds, and the prefix of the world's own keys."""
 
     def run_options(self) -> RunOptions:
         """What every system is told: lockstep follows the mode."""
         return RunOptions(self.mode is Mode.LOCKSTEP, self.overrides)
 
 
-def robot_places(spawn: tuple[float, float, float, float], robots: int) -> list[Placement]:
+def robot_places(
+    spawn: tuple[float, float, float, float], robots: int, columns: int = 1, band: Zone | None = None
+) -> list[Placement]:
     """Where the robots go: the one `flexley_tug` at `spawn`; with `--robots N`, `tug_1..tug_N` in a
-    row along y from `spawn`, ROW_SPACING apart, each under its own namespace."""
+    grid from `spawn` (simbot.description.fleet), each under its own namespace, those in `band` alone."""
     x, y, z, yaw = spawn
     if robots == 0:
         return [Placement(ROBOT_NAME, Pose((x, y, z), (0.0, 0.0, yaw)))]
-    return [
-        Placement(f"tug_{i}", Pose((x, y + (i - 1) * ROW_SPACING, z), (0.0, 0.0, yaw)), f"tug_{i}")
-        for i in range(1, robots + 1)
-    ]
+    return [Placement(spot.name, spot.pose, spot.name) for spot in in_zone(fleet(spawn, robots, columns), band)]
 
 
 def _variations(config: ServerConfig, world: World, robot: Model | None) -> Variations | None:
@@ -116,7 +122,7 @@ def build_world(config: ServerConfig, bus: SimBus) -> SimWorld:
     sim_world = SimWorld(
         variant.world if variant else world,
         variant.robot if variant else robot,
-        robot_places(config.spawn, config.robots),
+        robot_places(config.spawn, config.robots, config.columns, config.zone),
         bus,
         config.seed,
         config.run_options(),
@@ -131,7 +137,8 @@ class Server:
     """A running world (`SimWorld`), its loop and world control, all on one bus node."""
 
     def __init__(self, config: ServerConfig, node: Node) -> None:
-        self.world = build_world(config, SimBus(node))
+        zone = config.zone.name if config.zone else ""
+        self.world = build_world(config, ZoneBus(node, zone=zone) if zone else SimBus(node))
         self.physics, self.bus, self.sim = self.world.physics, self.world.bus, self.world.sim
         self.control = WorldControl(node, self.world.description.name, self.sim, self.world.bus, self.world)
 
@@ -183,9 +190,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--robots",
-        type=whole(1, MAX_ROBOTS),
+        type=whole(1, MAX_FLEET),
         metavar="N",
-        help="N robots tug_1..tug_N in a row from --spawn along y, each in the namespace of its name (tug_2/cmd_vel, tug_2/base_link)",
+        help="N robots tug_1..tug_N in a row from --spawn along y (--columns: a grid), each in the namespace of its name (tug_2/cmd_vel, tug_2/base_link)",
+    )
+    parser.add_argument(
+        "--columns",
+        type=whole(1),
+        default=1,
+        metavar="C",
+        help="--robots N in C columns along x, 5 m apart, filled row by row (default 1)",
+    )
+    parser.add_argument(
+        "--zone", type=zone, metavar="NAME:XMIN:XMAX", help="one zone of a fleet split by x (docs/fleets.md)"
     )
     parser.add_argument(
         "--mode",
@@ -250,9 +267,6 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
-MAX_ROBOTS = 100
-
-
 def parse_config(argv: Sequence[str]) -> ServerConfig:
     """The configuration of a server started with `argv` (what a learning environment runs in its
     own process, from the command line it would give a server)."""
@@ -294,6 +308,8 @@ def _config(args: argparse.Namespace) -> ServerConfig:
         additions,
         randomise,
         args.physics == KINEMATIC,
+        args.columns,
+        args.zone,
     )
 
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import functools
 import logging
-from dataclasses import replace
+import math
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,8 @@ ROUTE_HALF_WIDTH = 0.6
 """Metres either side of a person's route kept clear: a shoulder (0.25 m) and a step aside."""
 TOP = 3.0
 """Metres: whatever reaches below this (a trolley's deck, a rack's lowest shelf) is in the way."""
+PIECE = 1.0
+"""Metres: the longest piece a long obstacle is tested as (`_split`)."""
 LABEL = Plugin("gz::sim::systems::Label", "gz-sim-label-system")
 PREFIX = "clutter_"
 """A clutter model's name: `clutter_<n>`, n from 0 in the order placed."""
@@ -62,14 +65,87 @@ def place_clutter(world: World, clutter: Clutter, rng: np.random.Generator) -> t
 
 
 def _obstacles(world: World, clutter: Clutter) -> list[Obstacle]:
-    found = Places.of_world(world, Rectangle(0, 0, 0, 0), TOP, 0.0, clutter.area).obstacles
-    for i, (xmin, ymin, xmax, ymax) in enumerate(clutter.keep_clear):
-        corners = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]], dtype=np.float64)
-        found.append(Obstacle.of(f"keep_clear[{i}]", corners))
+    found = [obstacle for model in world.models for obstacle in _shadows(_Shaped.of(world, model), clutter.area)]
+    found += _kept_clear(clutter.keep_clear)
     for model in world.models:
         if isinstance(model, ActorModel):
-            found += _routes(model)
+            found += [piece for route in _routes(model) for piece in _split(route)]
     return found
+
+
+@functools.lru_cache(maxsize=64)
+def _kept_clear(rectangles: tuple[tuple[float, float, float, float], ...]) -> list[Obstacle]:
+    """The profile's `keep_clear` rectangles as obstacles (in pieces: `_split`)."""
+    found = []
+    for i, (xmin, ymin, xmax, ymax) in enumerate(rectangles):
+        corners = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]], dtype=np.float64)
+        found += _split(Obstacle.of(f"keep_clear[{i}]", corners))
+    return found
+
+
+def _split(obstacle: Obstacle) -> list[Obstacle]:
+    """A long rectangle (an aisle kept clear, a person's route, a wall) as pieces `PIECE` long at
+    most, of its name: the same floor covered (a place touches the rectangle where it touches a
+    piece), while the quick circle test around each piece spares most of the exact tests."""
+    polygon = obstacle.polygon
+    if len(polygon) != 4 or obstacle.radius <= PIECE:
+        return [obstacle]
+    if np.hypot(*(polygon[1] - polygon[0])) < np.hypot(*(polygon[2] - polygon[1])):
+        polygon = np.roll(polygon, -1, axis=0)  # the long edges first and third
+    a, b, c, d = polygon
+    count = int(np.ceil(np.hypot(*(b - a)) / PIECE))
+    cuts = [(a + (b - a) * (i / count), d + (c - d) * (i / count)) for i in range(count + 1)]
+    return [
+        Obstacle.of(obstacle.name, np.array([near, cuts[i + 1][0], cuts[i + 1][1], far]))
+        for i, (near, far) in enumerate(cuts[:-1])
+    ]
+
+
+@dataclass(frozen=True)
+class _Shaped:
+    """A model in its world, known by what its shadows are made of: its pose and its links' collisions."""
+
+    key: tuple[object, ...]
+    alone: World = field(compare=False)
+    """Its world with it alone."""
+
+    @staticmethod
+    def of(world: World, model: Model) -> _Shaped:
+        key = (model.name, model.pose, tuple((link.name, link.pose, link.collisions) for link in model.links))
+        return _Shaped(key, replace(world, models=(model,)))
+
+
+@functools.lru_cache(maxsize=1024)
+def _shadows(shaped: _Shaped, area: tuple[float, float, float, float]) -> list[Obstacle]:
+    """The model's obstacles as the world starts (`Places.of_world`), those that cannot decide a draw
+    left out (`_pruned`), long ones in pieces (`_split`); worked out once for each pose and
+    collisions of it: a variant that only restyles or keeps a model finds them again."""
+    kept = _pruned(Places.of_world(shaped.alone, Rectangle(0, 0, 0, 0), TOP, 0.0, area).obstacles)
+    return [piece for obstacle in kept for piece in _split(obstacle)]
+
+
+def _pruned(obstacles: list[Obstacle]) -> list[Obstacle]:
+    """The obstacles without those that cannot decide a draw: one whose shadow lies within another's
+    (a rack's shelves within its frame; a pose that touches it touches the other). The same free
+    places, fewer tests."""
+    kept: list[Obstacle] = []
+    for i, obstacle in enumerate(obstacles):
+        if not any(j != i and _within(obstacle, other) and (j < i or not _within(other, obstacle))
+                   for j, other in enumerate(obstacles)):  # fmt: skip
+            kept.append(obstacle)
+    return kept
+
+
+def _within(inner: Obstacle, outer: Obstacle) -> bool:
+    """Whether `inner`'s shadow lies in `outer`'s (convex, counter-clockwise), its edges included."""
+    if math.hypot(inner.centre[0] - outer.centre[0], inner.centre[1] - outer.centre[1]) > outer.radius:
+        return False
+    edges = np.roll(outer.polygon, -1, axis=0) - outer.polygon
+    for point in inner.polygon:
+        offsets = point - outer.polygon
+        if (edges[:, 0] * offsets[:, 1] - edges[:, 1] * offsets[:, 0]).min() < 0.0:
+            return False
+    return True
 
 
 def _routes(actor: ActorModel) -> list[Obstacle]:

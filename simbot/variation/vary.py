@@ -19,10 +19,12 @@ cameras), so adding clutter to a profile leaves the sun of every seed as it was.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -118,7 +120,7 @@ def _textured(world: World, profile: Profile, rng: np.random.Generator) -> World
         material = visual.material
         if material is None or material.albedo_map is None:
             return visual
-        kind = kind_of.get(material.albedo_map.resolve())
+        kind = kind_of.get(_resolved(material.albedo_map))
         if kind is None:
             return visual
         maps = profile.kinds[kind]
@@ -126,6 +128,12 @@ def _textured(world: World, profile: Profile, rng: np.random.Generator) -> World
         return replace(visual, material=_tinted(replace(material, albedo_map=chosen), tints[kind]))
 
     return replace(world, models=tuple(_each_visual(model, retexture) for model in world.models))
+
+
+@functools.lru_cache(maxsize=4096)
+def _resolved(path: Path) -> Path:
+    """A texture's path as the profile's kinds name it, resolved once (each draw asks for every surface)."""
+    return path.resolve()
 
 
 def _tinted(material: Material, tint: np.ndarray) -> Material:

@@ -1,6 +1,7 @@
 """What the drive and joint systems share (DiffDrive, AckermannSteering, MecanumDrive,
-VelocityControl, OdometryPublisher, the joint controllers): command checks, parameters, velocity
-limits, wheel encoders, planar dead reckoning and the odometry/tf output with Gazebo's defaults.
+VelocityControl, OdometryPublisher, the joint controllers): command checks, parameters, wheel
+encoders, planar dead reckoning and the odometry/tf output with Gazebo's defaults. Their velocity
+limits, which the gym reads too, are simbot.description.drive_params.
 
 One owner for each piece, so that a fix to the limits or the odometry message reaches every drive.
 """
@@ -12,12 +13,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from simbot.bus import messages
+from simbot.bus import Publisher, messages
 from simbot.description.model import Model, Plugin
-from simbot.sim.kit.plugin_params import bool_param, number_param, param
+from simbot.description.naming import scoped_key
+from simbot.description.plugin_params import bool_param, number_param, param
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.naming import scoped_key
 from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.physics import WorldReader
 
@@ -31,44 +32,6 @@ TWIST_COVARIANCE = (1e-3, 1e-3, 1e6, 1e6, 1e6, 1e-2)
 Vec3 = tuple[float, float, float]
 UNLIMITED_EFFORT = 1e16
 """N·m or N for a joint whose SDF states no effort limit: Gazebo's velocity command is exact there."""
-
-
-@dataclass(frozen=True)
-class Limits:
-    """Bounds on commanded velocity and its change; None where the SDF sets none."""
-
-    min_value: float | None = None
-    max_value: float | None = None
-    min_rate: float | None = None
-    max_rate: float | None = None
-
-    def clamp(self, value: float) -> float:
-        low = -math.inf if self.min_value is None else self.min_value
-        high = math.inf if self.max_value is None else self.max_value
-        return min(max(value, low), high)
-
-    def ramp(self, current: float, target: float, dt: float) -> float:
-        """`target`, reached no faster than the acceleration limits allow."""
-        up = math.inf if self.max_rate is None else self.max_rate * dt
-        down = -math.inf if self.min_rate is None else self.min_rate * dt
-        return current + min(max(target - current, down), up)
-
-
-def limits(plugin: Plugin, kind: str | None, legacy: str | None = None) -> Limits:
-    """`min_/max_<kind>_velocity` and `_acceleration` (`min_velocity`, ... where `kind` is None, as
-    AckermannSteering and MecanumDrive name them); `legacy` an older spelling of the maxima.
-    A maximum acceleration alone bounds deceleration likewise."""
-    infix = f"{kind}_" if kind else ""
-    legacy_velocity = (f"max_{legacy}velocity",) if legacy is not None else ()
-    legacy_acceleration = (f"max_{legacy}acceleration",) if legacy is not None else ()
-    max_rate = number_param(plugin, f"max_{infix}acceleration", *legacy_acceleration, positive=True)
-    min_rate = number_param(plugin, f"min_{infix}acceleration")
-    return Limits(
-        number_param(plugin, f"min_{infix}velocity"),
-        number_param(plugin, f"max_{infix}velocity", *legacy_velocity),
-        -max_rate if min_rate is None and max_rate is not None else min_rate,
-        max_rate,
-    )
 
 
 def positive(plugin: Plugin, tag: str, default: float) -> float:
@@ -209,8 +172,15 @@ class OdometryOutput:
         self._tf = bus.publisher(tf_topic, messages.TFMessage) if tf_topic is not None else None
         self.frame_id, self.child_frame_id = bus.frame(frame_id), bus.frame(child_frame_id)
 
+    @property
+    def watched(self) -> bool:
+        """Whether anyone subscribes to the odometry or its transform."""
+        return self._odom.has_subscribers or (self._tf is not None and self._tf.has_subscribers)
+
     def put_planar(self, now_ns: int, pose: PlanarPose, linear: tuple[float, float], turn_rate: float) -> None:
         """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown)."""
+        if not self.watched:
+            return
         self.put(
             now_ns,
             ((pose.x, pose.y, 0.0), pose.quaternion),
@@ -226,17 +196,22 @@ class OdometryOutput:
         twist: tuple[tuple[float, float, float], tuple[float, float, float]],
         pose_covariance: list[float],
         twist_covariance: list[float],
-    ) -> messages.Odometry:
-        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`; returns what it sent."""
+        also: Publisher | None = None,
+    ) -> None:
+        """The pose in `frame_id` and the twist in `child_frame_id`, stamped `now_ns`, also on `also`
+        (a second key of the same message). Built only for a key someone subscribes to: a fleet's
+        odometry is read for a few robots."""
         xyz, quat = pose
-        odometry = messages.odometry(
-            now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
-        )
-        self._odom.put(odometry)
-        if self._tf is not None:
+        keys = [key for key in (self._odom, also) if key is not None and key.has_subscribers]
+        if keys:
+            odometry = messages.odometry(
+                now_ns, self.frame_id, self.child_frame_id, xyz, quat, *twist, pose_covariance, twist_covariance
+            )
+            for key in keys:
+                key.put(odometry)
+        if self._tf is not None and self._tf.has_subscribers:
             transform = messages.transform_stamped(now_ns, self.frame_id, self.child_frame_id, xyz, quat)
             self._tf.put(messages.tf_message([transform]))
-        return odometry
 
 
 def diagonal(values: tuple[float, ...]) -> list[float]:

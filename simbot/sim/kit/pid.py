@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from simbot.description.model import Plugin
-from simbot.sim.kit.plugin_params import number_param
+from simbot.description.plugin_params import number_param
 
 
 @dataclass(frozen=True)

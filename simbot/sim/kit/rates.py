@@ -60,11 +60,25 @@ class RateMeter:
         self.stamps.clear()
 
 
-class Sampled:
+class Paced:
+    """A system that works at its own period (`every`) after the physics step and not between:
+    the loop calls its `post_update` only from `next_due_ns` on (`Periodic`), so a fleet's hundred
+    tf publishers at 30 Hz cost nothing in the 200 Hz steps between their samples."""
+
+    every: Every
+
+    @property
+    def next_due_ns(self) -> int:
+        """Sim time from which `every.due` says True."""
+        return self.every.next_ns
+
+
+class Sampled(Paced):
     """What every sensor shares: its name, its rate, the rate it achieved, and forgetting on reset.
 
-    A sensor system derives from it, calls `due(info)` each step and `published(stamp_ns)` for
-    each message; world state's `sensors` reports what it achieved.
+    A sensor system derives from it, calls `due(info)` each step it is called and `published(stamp_ns)`
+    for each message; world state's `sensors` reports what it achieved. Its `post_update` does
+    nothing but when due (`Paced`).
     """
 
     def __init__(self, name: str, rate_hz: float) -> None:
@@ -76,11 +90,6 @@ class Sampled:
     def due(self, info: UpdateInfo) -> bool:
         self._now_ns = info.sim_time_ns
         return self.every.due(info.sim_time_ns)
-
-    @property
-    def next_due_ns(self) -> int:
-        """Sim time from which `due` says True: a scheduler can skip asking until then."""
-        return self.every.next_ns
 
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)

@@ -4,7 +4,8 @@ A sensor that renders implements `RenderedSensor`; the world's rendering system
 (simbot/sim/systems/camera_rendering.py) finds such sensors among the systems of each model that enters
 the world, schedules them, and tells them how rendering goes through their `status`. A system
 that says what cameras see of a model's visuals (Label, Thermal) implements `Annotating`: the
-rendering system hands its annotation to the render workers with the model's bodies.
+rendering system hands its annotation to the render workers with the model's bodies; `covered`
+says which visuals it covers.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 from simbot.description.poses import Pose
-from simbot.sim.loop.system import UpdateInfo
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.render.publishing import Publication
 from simbot.sim.render.specs import Annotation, CameraSpec, Frame
 
@@ -72,3 +73,12 @@ class Annotating(Protocol):
     """A system that labels a model's visuals or gives them a temperature."""
 
     annotation: Annotation
+
+
+def covered(ctx: SystemContext, system: str) -> tuple[str | None, str | None]:
+    """What an `Annotating` system covers: (link, visual) of a plugin in a `<visual>`; (None, None)
+    for one on a model: all its visuals."""
+    ctx.require_model(system)
+    if ctx.visual is None or ctx.link is None:
+        return None, None
+    return ctx.link.name, ctx.visual.name

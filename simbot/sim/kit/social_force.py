@@ -33,44 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from simbot.description.crowd_params import Crowd
+
 Floats = npt.NDArray[np.float64]
 
 RESTING_SPEED = 0.05
 """m/s: below this a person keeps its heading (a standing person does not spin with the jitter)."""
-
-
-@dataclass(frozen=True)
-class Crowd:
-    """The model's parameters (the SDF elements of the same names; see simbot.sim.systems.crowd)."""
-
-    desired_speed: float = 1.34
-    relaxation_time: float = 0.5
-    radius: float = 0.3
-    max_speed_factor: float = 1.3
-    people_strength: float = 2.1
-    people_range: float = 0.3
-    anisotropy: float = 0.5
-    look_ahead: float = 2.0
-    obstacle_strength: float = 10.0
-    obstacle_range: float = 0.2
-    obstacle_cutoff: float = 0.5
-    robot_strength: float = 2.1
-    robot_range: float = 0.4
-    noise: float = 0.05
-    turn_rate: float = math.pi
-    waypoint_tolerance: float = 0.3
-    update_rate: float = 50.0
-
-    @property
-    def reach(self) -> float:
-        """Metres beyond which a person's or a robot's repulsion is under 10⁻⁴ of its strength: what is
-        farther is left out."""
-        return 2 * self.radius + 9.3 * max(self.people_range, self.robot_range)
-
-    @property
-    def obstacle_reach(self) -> float:
-        """Metres from a person's centre beyond which an obstacle exerts nothing (or under 10⁻⁴ of its strength)."""
-        return self.radius + min(self.obstacle_cutoff, 9.3 * self.obstacle_range)
 
 
 @dataclass(frozen=True)

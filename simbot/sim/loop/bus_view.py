@@ -119,8 +119,12 @@ class SimBus:
         return prefixed_frame(frame, self.namespace)
 
     def publisher(self, topic: str, msgtype: type[Any], *, latched: bool = False) -> Publisher:
-        """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start."""
-        publisher = self.node.publisher(self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace)
+        """A publisher of `msgtype` (a `messages` class) on `topic`, on the graph from the start,
+        that encodes and sends nothing while no subscriber matches it (its system can ask
+        `has_subscribers` before it builds a message)."""
+        publisher = self.node.publisher(
+            self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace, watched_only=True
+        )
         self._declared.append(publisher)
         return publisher
 

@@ -6,19 +6,18 @@ keyed by the SDF sensor type (`gpu_lidar`, `ray`, `camera`, `imu`, ...).
 Two more groups hold the systems that need no `<plugin>`: `simbot.world_systems`, which every
 world gets, and `simbot.robot_systems`, which every described model gets.
 
-Gazebo names one system several ways: `gz::sim::systems::DiffDrive`, `ignition::gazebo::systems::
-DiffDrive`, and the library files `gz-sim-diff-drive-system`, `libignition-gazebo6-diff-drive-
-system.so`. All reduce to one canonical name (`DiffDrive`), which is the entry point's name. simbot
-registers its own systems in its pyproject.toml the same way a third party would in theirs.
+Gazebo names one system several ways, which all reduce to one canonical name (`DiffDrive`,
+simbot.description.naming.canonical_name): the entry point's name. simbot registers its own systems
+in its pyproject.toml the same way a third party would in theirs.
 """
 
 from __future__ import annotations
 
 import logging
-import re
 from functools import cache
 
 from simbot.description.model import Plugin, Sensor
+from simbot.description.naming import canonical_name
 from simbot.plugins import load_group
 from simbot.sim.loop.system import SystemFactory
 
@@ -30,19 +29,6 @@ WORLD_GROUP = "simbot.world_systems"
 """Systems every world gets without a `<plugin>` (the clock, ground-truth poses, camera rendering)."""
 ROBOT_GROUP = "simbot.robot_systems"
 """Systems every described model gets (the robot, a namespaced model): its description and tf."""
-_LIBRARY = re.compile(
-    r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$"
-)
-
-
-def canonical_name(plugin: Plugin) -> str:
-    """`DiffDrive` for every spelling Gazebo accepts; other names unchanged."""
-    if "::" in plugin.name:
-        return plugin.name.rsplit("::", 1)[1]
-    match = _LIBRARY.match(plugin.filename.rsplit("/", 1)[-1])
-    if match:
-        return "".join(part.capitalize() for part in match["name"].split("-"))
-    return plugin.name or plugin.filename
 
 
 @cache

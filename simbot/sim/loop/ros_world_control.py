@@ -30,7 +30,9 @@ class Resetting(Protocol):
 class RosWorldControl:
     """The three ROS 2 services of one world."""
 
-    def __init__(self, node: Node, world: str, sim: Simulation, models: Resetting, drops: Drops) -> None:
+    def __init__(self, node: Node, base: str, sim: Simulation, models: Resetting, drops: Drops) -> None:
+        """`base`: the world's key, `world/<name>` (under a zone's name in a zone server)."""
+        self.node = node
         self.sim = sim
         self.models = models
         self.drops = drops
@@ -40,7 +42,7 @@ class RosWorldControl:
             ("step", "std_srvs/srv/Trigger", self._step),
         )
         self._services = [
-            (node.ros_service(f"world/{world}/{name}", typename), handler) for name, typename, handler in handlers
+            (node.ros_service(f"{base}/{name}", typename), handler) for name, typename, handler in handlers
         ]
 
     def poll(self) -> None:
@@ -77,6 +79,7 @@ class RosWorldControl:
             reached = f"sim time {self.sim.clock.now_ns / 1e9:.3f} s, iteration {self.sim.clock.iterations}"
             request.reply(_response(request, success=True, message=reached))
 
+        self.node.refresh_subscribers()
         self.sim.request_steps(1, done)
 
 

@@ -24,10 +24,10 @@ from typing import NoReturn, cast
 
 from simbot.bus import Node
 from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
+from simbot.description.naming import scoped_key, scoped_rng
+from simbot.description.plugin_params import plugin_priority
 from simbot.description.urdf_writer import joint_trees
-from simbot.sim.kit.plugin_params import plugin_priority
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.naming import scoped_key, scoped_rng
 from simbot.sim.loop.registry import builtin, lookup, sensor_lookup
 from simbot.sim.loop.simulation import Scheduled, Simulation
 from simbot.sim.loop.system import RunOptions, SystemConfigError, SystemContext, SystemFactory, priority

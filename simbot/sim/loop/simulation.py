@@ -8,6 +8,7 @@ schedules; what happens in a step is the systems' and the physics module's busin
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
@@ -16,7 +17,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 
-from simbot.sim.loop.system import Closable, PostUpdate, PreUpdate, Resettable, System, UpdateInfo
+from simbot.sim.loop.system import (
+    BatchedPostUpdate,
+    Closable,
+    Periodic,
+    PostUpdate,
+    PreUpdate,
+    Resettable,
+    System,
+    UpdateInfo,
+)
 from simbot.sim.physics import Physics
 
 log = logging.getLogger(__name__)
@@ -125,7 +135,8 @@ class Simulation:
     paused: bool = False
     rtf: RealTimeFactor = field(default_factory=RealTimeFactor)
     _pre: list[PreUpdate] = field(init=False)
-    _post: list[PostUpdate] = field(init=False)
+    _post: list[tuple[Callable[[UpdateInfo], None], Periodic | None]] = field(init=False)
+    """Each post-update call, and what says when it is next due (None: every step)."""
     _steps: deque[StepRequest] = field(default_factory=deque)
     _pacer: Pacer = field(default_factory=Pacer)
 
@@ -139,10 +150,22 @@ class Simulation:
         return [entry.system for entry in sorted(self.scheduled, key=lambda entry: entry.priority)]
 
     def _order(self) -> None:
-        """The per-phase lists."""
-        ordered = self.systems
-        self._pre = [s for s in ordered if isinstance(s, PreUpdate)]
-        self._post = [s for s in ordered if isinstance(s, PostUpdate)]
+        """The per-phase lists; a batched class's instances of one priority run as one call, in
+        the place of the first of them."""
+        ordered = sorted(self.scheduled, key=lambda entry: entry.priority)
+        self._pre = [entry.system for entry in ordered if isinstance(entry.system, PreUpdate)]
+        self._post = []
+        batches: dict[tuple[type, int], list[System]] = {}
+        for entry in ordered:
+            system = entry.system
+            if isinstance(system, BatchedPostUpdate):
+                batch = (type(system), entry.priority)
+                if batch not in batches:
+                    batches[batch] = []
+                    self._post.append((functools.partial(type(system).post_update_all, batches[batch]), None))
+                batches[batch].append(system)
+            elif isinstance(system, PostUpdate):
+                self._post.append((system.post_update, system if isinstance(system, Periodic) else None))
 
     def add_systems(self, systems: list[Scheduled]) -> None:
         """Systems join the loop (a created model's between steps: world control calls it from `poll`)."""
@@ -163,8 +186,10 @@ class Simulation:
             before.pre_update(info)
         self.physics.step()
         with self.physics.reading():
-            for after in self._post:
-                after.post_update(info)
+            now_ns = info.sim_time_ns
+            for after, paced in self._post:
+                if paced is None or now_ns >= paced.next_due_ns:
+                    after(info)
 
     def request_steps(self, count: int, done: Callable[[], None]) -> None:
         """`count` more steps, then `done()`; these run even when paused or in lockstep."""

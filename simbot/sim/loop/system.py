@@ -10,6 +10,9 @@ has a `name`, and implements only the phases it needs, each a small Protocol giv
 - `post_update(info)`: after the step; read state, publish at its own rate. The physics is
   read-only here (`PhysicsReadOnly` if a system tries to change it), as Gazebo's PostUpdate
   sees a const entity-component manager: every system reads the same, finished step.
+- `post_update_all(systems, info)`, a classmethod, in place of `post_update`: the class steps
+  all its instances of one priority at once (`BatchedPostUpdate`). A fleet of a hundred tugs has
+  a hundred IMUs; one call does their frame queries, rotations and noise as arrays.
 - `reset(info)`: the world was reset; forget what was integrated.
 - `model_added(event)`, `model_removed(event)`: a model entered the world (at start, or created
   through world control) or is about to leave it, with its bodies and its systems
@@ -27,29 +30,24 @@ and the built-in groups every world or described model gets (`simbot.sim.loop.re
 same context, a sensor's with its link and sensor filled in. A `<plugin>` inside a `<visual>` (or
 on a nested model, which simbot flattens: it goes to the nested model's visuals) runs only where its
 class says `runs_on_visuals = True` (Label, Thermal), with its link and visual filled in. Each
-gets its own random stream from the seed and its scoped name (`simbot.sim.loop.naming.scoped_rng`),
+gets its own random stream from the seed and its scoped name (`simbot.description.naming.scoped_rng`),
 started again at each reset. Bus callbacks only queue (`simbot.sim.loop.bus_view.Input`); systems act in the loop, so everything a system does happens at a
 definite sim time.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from simbot.description.errors import SystemConfigError
 from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
+from simbot.description.naming import model_topic, scoped_key
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.naming import model_topic, scoped_key
 from simbot.sim.physics.protocols import WorldAccess
-
-
-class SystemConfigError(ValueError):
-    """A system's SDF parameters are unusable; the message names the plugin and the parameter. The
-    world leaves that system out with the message as one error line, and runs (simbot/sim/loop/world.py)."""
-
 
 DEFAULT_PRIORITY = 0
 """A system's place in each phase when neither its class nor its SDF says otherwise (Gazebo's default)."""
@@ -85,6 +83,25 @@ class PreUpdate(Protocol):
 @runtime_checkable
 class PostUpdate(Protocol):
     def post_update(self, info: UpdateInfo) -> None: ...
+
+
+@runtime_checkable
+class BatchedPostUpdate(Protocol):
+    """A post-update system whose class steps all its instances of one priority in one call, where
+    the first of them would have run: each instance must come out as if stepped alone (its own
+    rate, random stream and outputs), only cheaper together."""
+
+    @classmethod
+    def post_update_all(cls, systems: Sequence[Any], info: UpdateInfo) -> None: ...
+
+
+@runtime_checkable
+class Periodic(Protocol):
+    """A post-update system that does nothing before `next_due_ns` (its next sample, in sim time):
+    the loop does not call it until then (`simbot.sim.kit.rates.Paced`)."""
+
+    @property
+    def next_due_ns(self) -> int: ...
 
 
 @runtime_checkable

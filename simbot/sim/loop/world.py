@@ -26,6 +26,7 @@ import numpy as np
 
 from simbot.description import DescriptionError, load_description
 from simbot.description.model import Model, World
+from simbot.description.naming import scoped_key
 from simbot.description.poses import Pose
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.registry import ROBOT_GROUP, WORLD_GROUP
@@ -33,7 +34,8 @@ from simbot.sim.loop.sdf_systems import LeftOut, Wanted, builtins, plugins_of, s
 from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
 from simbot.sim.loop.system import ModelEvent, ModelObserver, RunOptions, System, SystemConfigError
 from simbot.sim.loop.world_control import CreateRequest
-from simbot.sim.physics import Physics
+from simbot.sim.loop.world_edit import NotInPlace, Retunable, WorldEdit, WorldFollower, plan_edit, retuned
+from simbot.sim.physics import Physics, pose_to_transform
 from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
 from simbot.variation import Variant, Variations
 
@@ -136,6 +138,8 @@ class SimWorld:
         self._world_streams: list[RandomStream] = []
         self._left_out: list[LeftOut] = []
         self._placements = placements
+        self.robot = robot
+        """The robot's description as loaded (a seeded reset's variant's: its cameras' noise drawn)."""
         self.variations = variations
         self.variant: Variant | None = None
         """The variant loaded by the last seeded reset (or given at start); None: the world as its file says."""
@@ -220,10 +224,15 @@ class SimWorld:
             raise
         placed.systems = systems
 
-    def _tell_added(self, placed: Placed) -> None:
+    def _tell_added(self, placed: Placed, observers: list[ModelObserver] | None = None) -> None:
         event = placed.event()
-        for observer in self.observers:
+        for observer in self.observers if observers is None else observers:
             observer.model_added(event)
+
+    def _tell_removed(self, placed: Placed, observers: list[ModelObserver] | None = None) -> None:
+        event = placed.event()
+        for observer in self.observers if observers is None else observers:
+            observer.model_removed(event)
 
     def create(self, request: CreateRequest) -> str:
         """World control's create (Gazebo's EntityFactory), between steps: loads the requested model
@@ -257,31 +266,48 @@ class SimWorld:
 
     def remove(self, name: str) -> None:
         """Takes a model, its systems and its keys out of the world; ValueError naming the field if unknown."""
-        placed = self.models.get(name)
-        if placed is None:
+        if name not in self.models:
             raise ValueError(f"name: no model named {name!r} in the world (models: {', '.join(self.models)})")
-        systems = [entry.system for entry in placed.systems]
+        self._take_out([name])
+        log.info("removed %s", name)
+
+    def _take_out(self, names: list[str], observers: list[ModelObserver] | None = None) -> None:
+        """Models out: their systems out of the loop (at once) and closed, the observers told,
+        their keys and bodies gone."""
+        leaving = [self.models[name] for name in names]
+        systems = [entry.system for placed in leaving for entry in placed.systems]
         self.sim.remove_systems(systems)
         Simulation.close_all(systems)
-        event = placed.event()
-        for observer in self.observers:
-            observer.model_removed(event)
-        placed.bus.close()
-        self.physics.remove_model(name)
-        del self.models[name]
-        log.info("removed %s", name)
+        for placed in leaving:
+            self._tell_removed(placed, observers)
+            placed.bus.close()
+            self.physics.remove_model(placed.name)
+            del self.models[placed.name]
 
     def reset(self, seed: int | None = None) -> None:
         """Gazebo's reset: the world as it started, so models created since leave it, and every
         system's random stream starts again where it started (what follows a reset is the same
-        whatever came before it: how many steps, how many resets). With a seed, the
-        variant it draws from the world's variation profile (simbot.variation) instead: every model and
-        system is taken out and the variant loaded in their place, as a server started with
-        `--randomise SEED` loads it. ValueError naming the field, with the world as it was, when the
-        world has no profile or the profile cannot be drawn from."""
+        whatever came before it: how many steps, how many resets). With a seed, the variant it draws
+        from the world's variation profile (simbot.variation) instead, as a server started with
+        `--randomise SEED` has it: applied in place where it can be (`world_edit`: the models it
+        changes restyled, moved, replaced, added or removed, the lighting changed, the render pool
+        kept running), else loaded anew (every model and system out, the variant's in), with a log
+        line saying why. ValueError naming the field, with the world as it was, when the world has
+        no profile or the profile cannot be drawn from."""
         if seed is not None:
-            self._rebuild(self._draw(seed))
+            variant = self._draw(seed)
+            try:
+                self._edit(
+                    variant, plan_edit(self.description, self.robot, self._described(variant.world), variant.robot)
+                )
+            except NotInPlace as why:
+                log.info("seed %d cannot be applied in place (%s): the world is loaded anew", seed, why)
+                self._rebuild(variant)
             return
+        self._restart()
+
+    def _restart(self) -> None:
+        """Models created since the start out, every random stream from where it started, time to zero."""
         for placed in [p for p in self.models.values() if p.created]:
             self.remove(placed.name)
         for stream in [*self._world_streams, *(s for p in self.models.values() for s in p.streams)]:
@@ -298,6 +324,79 @@ class SimWorld:
         except DescriptionError as exc:
             raise ValueError(f"reset.seed: {exc}") from None
 
+    def _edit(self, variant: Variant, edit: WorldEdit) -> None:
+        """`variant` applied in place (`world_edit`): the world as it started, the models that change
+        out of the observers' view (removed ones out of the physics too), restyled and moved in the
+        physics, the new ones placed; the start saved; then systems built and observers told, each
+        model in the variant's order. A failure on the way loads the world anew."""
+        for created in [p for p in self.models.values() if p.created]:
+            self.remove(created.name)
+        self.physics.reset()  # every body where the world started
+        observers = self.observers
+        try:
+            for change in edit.models:
+                if change.restyled:
+                    self._tell_removed(self.models[change.name], observers)
+            rebuilt = [self.models[c.name] for c in edit.models if c.restyled and not c.retuned]
+            self._drop_systems(rebuilt)
+            self._take_out([c.name for c in edit.models if c.old is not None and not c.restyled], observers)
+            for change in edit.models:
+                if change.restyled and change.old is not None and change.new is not None:
+                    self._restyle(self.models[change.name], change.old, change.new, change.moved, change.retuned)
+            if self.robot is not None and edit.robot is not None:
+                for robot in [self.models[p.name] for p in self._placements if p.name in self.models]:
+                    self._restyle(robot, self.robot, edit.robot, moved=False, retune=True)
+            new = [self._place(c.new, c.name) for c in edit.models if c.new is not None and not c.restyled]
+            self.description = self.physics.world = self._described(variant.world)
+            self.robot = edit.robot
+            self.physics.save_initial_state()
+            for entry in self._world_systems:
+                if isinstance(entry.system, WorldFollower):
+                    entry.system.world_changed(self.description)
+            for placed in [*new, *rebuilt]:
+                self._build(placed)
+            self.sim.add_systems([entry for placed in [*new, *rebuilt] for entry in placed.systems])
+            order = {model.name: i for i, model in enumerate(self.description.models)}
+            self.models = dict(sorted(self.models.items(), key=lambda item: order.get(item[0], len(order))))
+            changed = {change.name for change in edit.models if change.new is not None}
+            for name in [name for name in self.models if name in changed]:
+                self._tell_added(self.models[name], observers)
+        except Exception as exc:  # noqa: BLE001 - whatever stopped it, the world is loaded anew: never half edited
+            raise NotInPlace(exc if isinstance(exc, NotInPlace) else f"the edit failed: {exc}") from exc
+        self.variant = variant
+        self._restart()
+        log.info(
+            "world %s drawn from seed %d in place: %d models changed, %d clutter models",
+            variant.world.name,
+            variant.seed,
+            len(edit.models),
+            len(variant.clutter),
+        )
+
+    def _drop_systems(self, models: list[Placed]) -> None:
+        """The models' own systems out of the loop and closed, to be built anew (`_build`)."""
+        systems = [entry.system for placed in models for entry in placed.systems]
+        self.sim.remove_systems(systems)
+        Simulation.close_all(systems)
+        for placed in models:
+            placed.systems, placed.sensors, placed.left_out, placed.streams = [], {}, [], []
+
+    def _restyle(self, placed: Placed, old: Model, model: Model, moved: bool, retune: bool) -> None:
+        """A model's description replaced where its body stays: the physics keeps the body (moved
+        where its pose changed); where its systems stay (`retune`), each sensor whose parameters
+        changed takes them."""
+        self.physics.restyle(placed.name, model)
+        if moved:
+            for body in placed.bodies:
+                self.physics.set_model_pose(body, pose_to_transform(model.pose))
+        for link, name, sensor in retuned(old, model) if retune else ():
+            system = placed.sensors.get("/".join(map(scoped_key, (placed.name, link, name))))
+            if not isinstance(system, Retunable) or not system.retune(sensor):
+                raise NotInPlace(f"sensor {placed.name}/{link}/{name} cannot take its new parameters in place")
+
+    def _described(self, world: World) -> World:
+        return kinematic(world) if world.physics.type == KINEMATIC else world
+
     def _rebuild(self, variant: Variant) -> None:
         """Every model and system out, `variant`'s in, time at zero."""
         for name in list(self.models):
@@ -307,7 +406,8 @@ class SimWorld:
         Simulation.close_all(systems)
         self._world_systems, self._world_streams, self._left_out = [], [], []
         world = variant.world
-        self.description = self.physics.world = kinematic(world) if world.physics.type == KINEMATIC else world
+        self.description = self.physics.world = self._described(world)
+        self.robot = variant.robot
         self._load(variant.robot, self._placements)
         self.variant = variant
         self.sim.reset()

@@ -100,6 +100,7 @@ class WorldControl:
         self.sim = sim
         self.models = models
         self.bus = bus
+        self._node = node
         self.drops = bus.drops
         handlers = (
             ("control", self._control),
@@ -109,10 +110,10 @@ class WorldControl:
             ("remove", self._remove),
         )
         self._handlers: dict[str, tuple[Any, Handler]] = {
-            name: (node.queryable(f"world/{world}/{name}"), handler) for name, handler in handlers
+            name: (node.queryable(bus.topic(f"world/{world}/{name}")), handler) for name, handler in handlers
         }
-        self._keys = {name: node.key(f"world/{world}/{name}") for name in self._handlers}
-        self.ros = RosWorldControl(node, world, sim, models, bus.drops)
+        self._keys = {name: node.key(bus.topic(f"world/{world}/{name}")) for name in self._handlers}
+        self.ros = RosWorldControl(node, bus.topic(f"world/{world}"), sim, models, bus.drops)
 
     def poll(self) -> None:
         """Handles every request that arrived since the last call."""
@@ -144,6 +145,7 @@ class WorldControl:
             self.models.reset(seed)
         if pause is not None:
             self.sim.set_paused(pause)
+        self._node.refresh_subscribers()
         self.sim.request_steps(steps, lambda: request.reply(self._time(ok=True)))
 
     def _set_pose(self, request: Request, body: dict[str, Any]) -> None:

@@ -91,6 +91,13 @@ class Physics(Commands):
         self._heightfields[name] = loaded.heightfields
         return loaded.body
 
+    def restyle(self, name: str, model: Model) -> None:
+        """`model` described anew where the physics simulates nothing of what changed (its looks, an
+        actor's script, its sensors' parameters): its bodies stay as loaded, with the URDF they were
+        loaded from; `model_of` gives the new description (a seeded reset edits the world in place)."""
+        for tree in joint_trees(model):
+            self.body(name + tree.name.removeprefix(model.name)).model = tree
+
     @changes_world
     def remove_model(self, name: str) -> list[str]:
         """Takes `name` out of the world with its further joint trees (`name::<root>`), its wheels'
@@ -118,7 +125,10 @@ class Physics(Commands):
             self.read_only = False
 
     def save_initial_state(self) -> None:
-        """Remembers the world as built, for `reset`."""
+        """Remembers the world as built, for `reset`, in place of what it remembered (a seeded reset
+        saves each variant it applies)."""
+        if self._saved_state is not None:
+            pb.removeState(self._saved_state, physicsClientId=self.client)
         self._saved_state = pb.saveState(physicsClientId=self.client)
         self._saved_bodies = tuple(self.bodies)
 

@@ -4,8 +4,8 @@ system depends on these calls and not on the `Physics` class (a test may hand it
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Protocol
+from collections.abc import Mapping, Sequence
+from typing import NamedTuple, Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -15,6 +15,22 @@ from simbot.description.model import Model
 from simbot.description.poses import IDENTITY, Pose
 from simbot.sim.physics.contacts import ContactPoint
 from simbot.transform import Transform, Vec3
+
+Frame = tuple[str, str, Pose]
+"""A frame fixed to a link: (model, link, pose in the SDF link frame), where a sensor is."""
+
+
+class FrameMotions(NamedTuple):
+    """Many frames' `frame_motion` as rows, in the world frame."""
+
+    positions: npt.NDArray[np.float64]
+    """N×3."""
+    orientations: npt.NDArray[np.float64]
+    """N×4, xyzw."""
+    linear: npt.NDArray[np.float64]
+    """N×3: the velocity of each frame's origin."""
+    angular: npt.NDArray[np.float64]
+    """N×3."""
 
 
 class WorldReader(Protocol):
@@ -44,6 +60,8 @@ class WorldReader(Protocol):
     def frame_pose(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> Transform: ...
 
     def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]: ...
+
+    def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions: ...
 
     def joint_states(self, model: str, joints: list[str]) -> list[tuple[float, float, float]]: ...
 

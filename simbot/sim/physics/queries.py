@@ -3,6 +3,8 @@ The `Physics` class's read half (`WorldReader`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import numpy.typing as npt
 
@@ -14,6 +16,7 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.bullet_transforms import compose, pose_to_transform, vec3
 from simbot.sim.physics.contacts import ContactPoint, contact_point
+from simbot.sim.physics.protocols import Frame, FrameMotions
 from simbot.sim.physics.rays import Rays
 from simbot.transform import Transform, Vec3, matmul
 
@@ -114,6 +117,31 @@ class Queries:
             linear[2] + wx * ry - wy * rx,
         )  # v + ω × r
         return pose, velocity, (float(wx), float(wy), float(wz))
+
+    def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions:
+        """`frame_motion` of many frames at once (a fleet's IMUs): each pose composed as there (the
+        same bits), the velocities of all frames' origins found as arrays."""
+        rows = []
+        for model, link, pose_in_link in frames:
+            body = self.body(model)
+            index = body.link_index(link)
+            if index == -1:
+                com, orn = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
+                velocity, rate = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+                origin = pb.multiplyTransforms(com, orn, *body.com_to_root, physicsClientId=self.client)
+            else:
+                state = pb.getLinkState(
+                    body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
+                )
+                com, velocity, rate, origin = state[0], state[6], state[7], state[4:6]
+            offset = self._offset(body, link, pose_in_link)
+            position, orientation = pb.multiplyTransforms(*origin, *offset, physicsClientId=self.client)
+            rows.append((*position, *orientation, *com, *velocity, *rate))
+        table = np.array(rows, dtype=float).reshape(-1, 16)  # pose 7, centre of mass 3, v 3, ω 3
+        spin = table[:, 13:]
+        (wx, wy, wz), (rx, ry, rz) = spin.T, (table[:, :3] - table[:, 7:10]).T
+        velocities = table[:, 10:13] + np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1)
+        return FrameMotions(table[:, :3], table[:, 3:7], velocities, spin)  # v + ω × r
 
     def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
         """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from operator import itemgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -71,4 +72,6 @@ class Rays:
                 physicsClientId=self.client,
             )
         ]
-        return np.array([hit[2] if hit[0] >= 0 else np.nan for hit in hits], dtype=float)
+        fractions = np.fromiter(map(itemgetter(2), hits), dtype=float, count=len(hits))
+        hit = np.fromiter(map(itemgetter(0), hits), dtype=np.int64, count=len(hits)) >= 0
+        return np.where(hit, fractions, np.nan)

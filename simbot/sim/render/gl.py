@@ -29,15 +29,16 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-from simbot.sim.render import culling
+from simbot.sim.render import culling, textures
 from simbot.sim.render import gl_shaders as shaders
+from simbot.sim.render.gl_parts import Part, Rows, stacked, vertex_rows
 from simbot.sim.render.gl_shadow import ShadowMap
 from simbot.sim.render.kinds import Array, Raw
 from simbot.sim.render.outputs import LUMA
@@ -51,15 +52,11 @@ from simbot.transform import Transform, matmul
 log = logging.getLogger(__name__)
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
-ROW = "3f 3f 2f 1u 1f"
-"""A vertex: position, normal, texture coordinates (float32), its visual's packed label (uint32,
-`label_bits.py`) and temperature (float32, K; below zero: none): 40 bytes."""
 SHADED_ROW, DEPTH_ROW, ANNOTATION_ROW = "3f 3f 2f 8x", "3f 28x", "3f 20x 1u 1f"
 """What each program reads of a vertex."""
 ALBEDO_UNIT, SHADOW_STATIC_UNIT, SHADOW_MOVING_UNIT, NORMAL_UNIT = 0, 1, 2, 3
 
-Rows = npt.NDArray[np.float32]
-_Drawn = tuple["_Part", bytes]
+_Drawn = tuple[Part, bytes]
 """A part with its model matrix (GLSL bytes)."""
 
 
@@ -68,39 +65,6 @@ class _Seen(NamedTuple):
 
     opaque: list[_Drawn]
     translucent: list[_Drawn]
-
-
-@dataclass
-class _Part:
-    """A vertex buffer drawn with one transform and one surface: a batch of the static world, or
-    one surface of a moving link."""
-
-    buffer: Any
-    vao: Any
-    depth_vao: Any
-    """For the depth-only program: the sun's shadow maps."""
-    annotation_vao: Any
-    """For the annotation program: labels and temperatures."""
-    body: str | None
-    """None for the static world (identity transform)."""
-    link: int
-    surface: Surface
-    texture: Any | None
-    normal_map: Any | None
-    program: shaders.Program
-    material: shaders.Material
-    """Its surface's uniforms, packed once."""
-    centre: npt.NDArray[np.float64]
-    """Its bounding sphere's centre, in its own frame (the world's, or its link's), and radius (`culling.py`)."""
-    radius: float
-    skin: Skinned | None = None
-    """A skinned part: its vertices are posed anew for each pose (`skinning.py`) ..."""
-    rows: Rows | None = None
-    """... into these rows, then its buffer."""
-
-    def release(self) -> None:
-        for item in (self.vao, self.depth_vao, self.annotation_vao, self.buffer):
-            item.release()
 
 
 @dataclass
@@ -143,19 +107,15 @@ class GlRenderer:
             log.warning("the world has %d lights; the renderer shades the first %d", len(light.sources), MAX_LIGHTS)
         self.programs: dict[shaders.Kind, shaders.Program] = {}
         """The camera programs, one a kind of surface, compiled when a piece of the kind first comes."""
-        caster = light.shadow_caster
         self.depth_program: Any = self.ctx.program(
             vertex_shader=shaders.DEPTH_VERTEX, fragment_shader=shaders.DEPTH_FRAGMENT
-        )
-        self.shadow = (
-            None if caster is None else ShadowMap(self.ctx, self.depth_program, light.sources[caster].direction)
         )
         self.annotation_program: Any = self.ctx.program(
             vertex_shader=shaders.ANNOTATION_VERTEX, fragment_shader=shaders.ANNOTATION_FRAGMENT
         )
-        self.annotation_program["ambient_temperature"].value = light.ambient_temperature  # type: ignore[union-attr]
-        self.annotation_program["temperature_gradient"].value = light.temperature_gradient  # type: ignore[union-attr]
-        self.parts: list[_Part] = []
+        self.shadow: ShadowMap | None = None
+        self._light_up(light)
+        self.parts: list[Part] = []
         """The static world first, then each moving link's surfaces, in the order the bodies came."""
         self._static: dict[str, list[tuple[Surface, Rows]]] = {}
         """Each static body's pieces in the world frame: what the world's buffers are baked from."""
@@ -171,6 +131,18 @@ class GlRenderer:
         for index, spec in cameras.items():
             self.add_camera(index, spec)
 
+    def _light_up(self, light: Light) -> None:
+        """The world's lighting: the sun's shadow map along its direction, the atmosphere's temperatures."""
+        self.light = light
+        caster = light.shadow_caster
+        if self.shadow is not None:
+            self.shadow.release()
+        self.shadow = (
+            None if caster is None else ShadowMap(self.ctx, self.depth_program, light.sources[caster].direction)
+        )
+        self.annotation_program["ambient_temperature"].value = light.ambient_temperature
+        self.annotation_program["temperature_gradient"].value = light.temperature_gradient
+
     def _program(self, kind: shaders.Kind) -> shaders.Program:
         if kind not in self.programs:
             self.programs[kind] = shaders.Program(self.ctx, self.light, kind, _SAMPLERS)
@@ -179,26 +151,42 @@ class GlRenderer:
 
     # --- the scene
 
-    def add_body(self, name: str) -> None:
-        """Draw a body the scene has just loaded."""
-        body = self.scene.bodies[name]
-        self._load(body)
-        if body.static:
-            self._bake()
-            return
-        self._posed = -1
-        if self.shadow is not None:
-            self._fit_shadow()  # the sun's view takes in where it came
-
-    def remove_body(self, name: str) -> None:
-        """Stop drawing a body, before the scene drops it."""
+    def edit(self, removed: Collection[str], added: Collection[str], light: Light | None, order: Sequence[str]) -> None:
+        """The scene has dropped `removed` and loaded `added` (`pipe.EditScene`): their parts go and
+        come, the lighting changes, and the static world is baked again once, where it changed,
+        every body in `order` (so that an edited world batches as a fresh one does)."""
+        rebake = [name for name in removed if self._static.pop(name, None) is not None] != []
         for part in self.parts:
-            if part.body == name:
+            if part.body in removed:
                 part.release()
-        self.parts = [part for part in self.parts if part.body != name]
+        self.parts = [part for part in self.parts if part.body not in removed]
+        if light is not None and light != self.light:
+            self._relight(light)
+            rebake = True
+        for name in added:
+            self._load(self.scene.bodies[name])
+            rebake = rebake or self.scene.bodies[name].static
+        rank = {name: i for i, name in enumerate(order)}
+        self._static = dict(sorted(self._static.items(), key=lambda item: rank.get(item[0], len(rank))))
+        self.parts.sort(key=lambda part: -1 if part.body is None else rank.get(part.body, len(rank)))
         self._posed = -1
-        if self._static.pop(name, None) is not None:
+        if rebake:
             self._bake()
+        elif self.shadow is not None:
+            self._fit_shadow()  # the sun's view takes in the moving bodies where they are
+
+    def _relight(self, light: Light) -> None:
+        """Other lights: the programs are written for the lights (their values are constants in
+        them), so each part is bound to its kind's program anew."""
+        for program in self.programs.values():
+            program.release()
+        self.programs = {}
+        self._light_up(light)
+        for part in self.parts:
+            part.vao.release()
+            part.program = self._program(part.program.kind)
+            part.vao = self._shaded(part.program, part.buffer)
+            part.material = part.program.material(part.surface)
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.targets[index] = self._target(spec)
@@ -211,15 +199,17 @@ class GlRenderer:
             self._texture(piece.surface.normal_map)
         if body.static:
             frames = self.scene.link_matrices(body.name)
-            self._static[body.name] = [(p.surface, _rows(p, frames[p.link])) for p in pieces]
+            self._static[body.name] = [(p.surface, vertex_rows(p, frames[p.link])) for p in pieces]
             return
         identity = np.eye(4)
         for piece in pieces:
             if piece.skin is not None and len(piece.positions):
-                self.parts.append(self._part(_rows(piece, identity), body.name, piece.link, piece.surface, piece.skin))
+                self.parts.append(
+                    self._part(vertex_rows(piece, identity), body.name, piece.link, piece.surface, piece.skin)
+                )
         pieces = [piece for piece in pieces if piece.skin is None]
         for link, surface in dict.fromkeys((p.link, p.surface) for p in pieces):
-            data = _stack([_rows(p, identity) for p in pieces if p.link == link and p.surface == surface])
+            data = stacked([vertex_rows(p, identity) for p in pieces if p.link == link and p.surface == surface])
             if len(data):
                 self.parts.append(self._part(data, body.name, link, surface))
 
@@ -235,7 +225,7 @@ class GlRenderer:
             for surface, rows in pieces:
                 if len(rows):
                     batches.setdefault((surface, culling.cell_of(rows[:, :3])), []).append(rows)
-        static = [self._part(_stack(rows), None, -1, surface) for (surface, _), rows in batches.items()]
+        static = [self._part(stacked(rows), None, -1, surface) for (surface, _), rows in batches.items()]
         self.parts = [part for part in static if part.vao.vertices] + moving
         self._posed = -1
         if self.shadow is not None:
@@ -255,20 +245,18 @@ class GlRenderer:
         for body in {p.body for p in self.parts if p.body is not None}:
             yield from self.scene.link_matrices(body).values()
 
-    def _part(self, data: Rows, body: str | None, link: int, surface: Surface, skin: Skinned | None = None) -> _Part:
+    def _part(self, data: Rows, body: str | None, link: int, surface: Surface, skin: Skinned | None = None) -> Part:
         buffer = self.ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
         texture = self._textures.get(surface.albedo_map) if surface.albedo_map else None
         normal_map = self._textures.get(surface.normal_map) if surface.normal_map else None
         program = self._program(shaders.Kind.of(surface, texture is not None, normal_map is not None))
-        attributes = [(buffer, SHADED_ROW, "in_position", "in_normal", "in_uv")]
-        # attributes the kind does not read (a world with no light reads no normal) are skipped
-        vao = self.ctx.vertex_array(program.program, attributes, skip_errors=True)
+        vao = self._shaded(program, buffer)
         depth_vao = self.ctx.vertex_array(self.depth_program, [(buffer, DEPTH_ROW, "in_position")])
         annotated = [(buffer, ANNOTATION_ROW, "in_position", "in_label", "in_temperature")]
         annotation_vao = self.ctx.vertex_array(self.annotation_program, annotated)
         centre, radius = culling.sphere(data[:, :3])
         material = program.material(surface)
-        return _Part(
+        return Part(
             buffer,
             vao,
             depth_vao,
@@ -286,22 +274,23 @@ class GlRenderer:
             data if skin is not None else None,
         )
 
+    def _shaded(self, program: shaders.Program, buffer: Any) -> Any:
+        """The camera program's view of a part's vertices; attributes its kind does not read (a
+        world with no light reads no normal) are skipped."""
+        attributes = [(buffer, SHADED_ROW, "in_position", "in_normal", "in_uv")]
+        return self.ctx.vertex_array(program.program, attributes, skip_errors=True)
+
     def _texture(self, path: str | None) -> None:
         """Reads and uploads an image the first time it is named; None (the colour is used) where it cannot be read."""
         if path is None or path in self._textures:
             return
-        import cv2
         import moderngl
 
-        # OpenCV would write a line of its own for a missing file
-        image = cv2.imread(path, cv2.IMREAD_COLOR) if os.path.isfile(path) else None
-        if image is None:
+        texture = textures.upload(self.ctx, path, self.device)  # mipmapped once, kept on disk
+        if texture is None:
             log.warning("texture %s cannot be read; its surfaces show their colour", path)
             self._textures[path] = None
             return
-        rgb = np.ascontiguousarray(image[::-1, :, ::-1])  # GL's first row is the image's bottom one
-        texture = self.ctx.texture((rgb.shape[1], rgb.shape[0]), 3, rgb.tobytes(), alignment=1)
-        texture.build_mipmaps()
         # the nearest texel of the nearest level: bilinear cost a tenth more a frame on llvmpipe,
         # trilinear half as much again; a 4 mm texel is about a pixel at 1 m, so little shows
         texture.filter = (moderngl.NEAREST_MIPMAP_NEAREST, moderngl.NEAREST)
@@ -406,7 +395,7 @@ class GlRenderer:
             fbo.depth_mask = True
             self.ctx.disable(moderngl.BLEND)
 
-    def _draw_part(self, part: _Part, transform: bytes) -> None:
+    def _draw_part(self, part: Part, transform: bytes) -> None:
         if part.texture is not None:
             part.texture.use(ALBEDO_UNIT)
         if part.normal_map is not None:
@@ -473,22 +462,3 @@ _SAMPLERS = {
     "normal_map": NORMAL_UNIT,
 }
 """Texture units of the programs' samplers, fixed for their life."""
-
-
-def _stack(arrays: list[Rows]) -> Rows:
-    """Vertex rows one after the other; no rows for no arrays."""
-    return np.concatenate(arrays) if arrays else np.empty((0, 10), dtype=np.float32)
-
-
-def _rows(piece: Piece, link_to_world: Matrix) -> Rows:
-    """Interleaved rows of the piece (`ROW`), transformed by `link_to_world`; the label's uint32
-    bits ride in a float32 column (copied, never computed on)."""
-    rotation = link_to_world[:3, :3]
-    positions = matmul(piece.positions, rotation.T) + link_to_world[:3, 3]
-    normals = matmul(piece.normals, rotation.T)
-    count = len(piece.positions)
-    label = np.full((count, 1), piece.label, dtype=np.uint32).view(np.float32)
-    temperature = np.full((count, 1), -1.0 if np.isnan(piece.temperature) else piece.temperature, dtype=np.float32)
-    return np.hstack(
-        [positions.astype(np.float32), normals.astype(np.float32), piece.uvs.astype(np.float32), label, temperature]
-    )

@@ -16,7 +16,6 @@ import hashlib
 import logging
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -26,6 +25,7 @@ from urllib.parse import unquote
 import numpy as np
 import numpy.typing as npt
 
+from simbot.sim.render import textures
 from simbot.sim.render.surfaces import RGB, Surface
 from simbot.transform import inverse3, matmul
 
@@ -164,7 +164,7 @@ def _rgb(values: Any) -> RGB:
 
 def texture_cache() -> Path:
     """Where a mesh's embedded or decoded textures are written as files."""
-    return Path(tempfile.gettempdir()) / "simbot-textures"
+    return textures.cache_dir() / "mesh-textures"
 
 
 def texture_file(image: Any) -> str:
@@ -187,7 +187,7 @@ def readable_image(path: str) -> bool:
     import cv2
 
     reason = "is missing" if not os.path.isfile(path) else None
-    if reason is None and cv2.imread(path, cv2.IMREAD_UNCHANGED) is None:
+    if reason is None and not textures.known(path) and cv2.imread(path, cv2.IMREAD_UNCHANGED) is None:
         reason = "is not an image OpenCV can decode"
     if reason:
         log.warning("texture %s %s; its material's colour is used", path, reason)

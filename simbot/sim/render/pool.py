@@ -1,17 +1,19 @@
 """The pool of render worker processes, so that rendering never slows the physics.
 
-- `RenderPool` starts worker processes (multiprocessing "spawn": the server has Zenoh threads,
-  and forking a threaded process is unsafe). Each worker has its own PyBullet DIRECT client and
-  loads the same scene as the server (the URDF texts the server loaded, at their start poses),
-  and one renderer (`worker.py`). Cameras are dealt to the workers round-robin; a worker renders
-  its cameras' requests in order.
-- The world may change while the pool runs: `add_body` and `remove_body` go to every worker,
-  `add_camera` to the worker with the fewest cameras (the camera takes the next index; the
-  others keep theirs). A worker takes its messages in order, so a change reaches its scene
-  before any request sent after it, and a set of requests sent together sees one scene. They
-  return at once: a worker loads the body while the caller goes on, and one that cannot load it
-  fails the next `collect`. (A worker busy with a frame reads the change when that frame is
-  done, so sending a URDF text larger than a pipe holds waits for that frame.)
+- `RenderPool` starts worker processes, forked from a fork server that has done their imports
+  once (`starter.py`; the server itself, with Zenoh's threads, is never forked). Each worker has
+  its own PyBullet DIRECT client and loads the same scene as the server (the URDF texts the
+  server loaded, at their start poses), and one renderer (`worker.py`). Cameras are dealt to the
+  workers round-robin; a worker renders its cameras' requests in order.
+- The world may change while the pool runs, and the pool runs on: `edit` (bodies out, bodies in,
+  a body replaced, the lighting; `add_body` and `remove_body` are edits of one body) goes to
+  every worker, which applies it whole and rebuilds what it batches once; `add_camera` goes to
+  the worker with the fewest cameras (the camera takes the next index; the others keep theirs);
+  `update_camera` changes a camera's noise. A worker takes its messages in order, so a change
+  reaches its scene before any request sent after it, and a set of requests sent together sees
+  one scene. They return at once: a worker applies the edit while the caller goes on, and a body
+  that cannot be loaded fails the next `collect`. (A worker busy with a frame reads the change
+  when that frame is done, so sending a URDF text larger than a pipe holds waits for that frame.)
 - Workers run at nice 10, so on a busy machine the physics wins the CPU and frames come late
   rather than the simulation slowing down.
 - A request carries the camera's world pose and the poses and joint positions of the bodies that
@@ -33,46 +35,46 @@ yet seen.
 
 A worker that dies (a crash, a kill) breaks the pool rather than hanging it: collect() and
 requests for its cameras raise RuntimeError naming the worker and its cameras; close() still works.
+One that dies while it applies an edit (one sent, not yet answered) is started again on the
+scene as edited, with a warning: the frames it owed are dropped (`dropped`, the caller counts
+them skipped), and the pool goes on.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import multiprocessing
 import os
 import time
-from collections.abc import Collection, Mapping, Sequence
-from dataclasses import dataclass
-from multiprocessing.connection import Connection, wait
-from multiprocessing.process import BaseProcess
+from collections.abc import Collection, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from multiprocessing.connection import wait
 from multiprocessing.shared_memory import SharedMemory
 from types import MappingProxyType, TracebackType
 
+from simbot.sim.render import pool_workers, starter
 from simbot.sim.render.pipe import (
-    AddBody,
     AddCamera,
+    EditScene,
     FrameDone,
     Ready,
-    RemoveBody,
     RenderFailed,
     RenderRequest,
     SceneChange,
+    SceneEdited,
     SceneFailed,
-    StartError,
-    Stop,
+    UpdateCamera,
 )
+from simbot.sim.render.pool_workers import Worker
 from simbot.sim.render.publishing import Bus, Publication
 from simbot.sim.render.specs import BodyState, CameraSpec, Frame, Light, SceneBody
-from simbot.sim.render.worker import RENDERERS, CameraBuffers, WorkerPlan, worker_main
+from simbot.sim.render.worker import RENDERERS, CameraBuffers, WorkerPlan
 from simbot.transform import Transform
 
 log = logging.getLogger(__name__)
 
 START_TIMEOUT_S = 60.0
 """How long a worker may take to load the scene (the warehouse's meshes take a few seconds)."""
-STOP_GRACE_S = 0.5
-"""How long close() lets a worker finish its current frame before terminating it."""
 
 
 @dataclass(frozen=True)
@@ -102,16 +104,6 @@ def plan_pool(
     return PoolPlan(workers, asked_threads or max(1, (usable - 1) // workers))
 
 
-@dataclass
-class _Worker:
-    index: int
-    process: BaseProcess
-    conn: Connection
-    cameras: list[int]
-    death: str | None = None
-    """Why it is gone, once it is."""
-
-
 class RenderPool:
     """Renders camera frames in worker processes; see the module docstring."""
 
@@ -138,22 +130,29 @@ class RenderPool:
         _check_config(bodies, cameras, workers, renderer)
         self.cameras = tuple(cameras)
         self._bus = bus
+        self._renderer, self._gl_threads, self._light = renderer, gl_threads, light or Light()
+        self._start_timeout = start_timeout
         self._publications = [*publications, *[None] * (len(self.cameras) - len(publications))]
         self._bodies: Mapping[str, SceneBody] = MappingProxyType({body.name: body for body in bodies})
-        """Replaced, never changed, as bodies come and go: a frame keeps the scene it was requested in."""
+        """In the scene's order; replaced, never changed, as bodies come and go: a frame keeps the scene it was requested in."""
         self._requested: dict[int, tuple[Transform, Mapping[str, BodyState], Mapping[str, SceneBody]]] = {}
         self._closed = False
-        self._workers: list[_Worker] = []
+        self._workers: list[Worker] = []
         self._outstanding: dict[int, int] = {}  # camera -> stamp, until its frame is handed over
         self._finished: list[Frame] = []  # received, not yet handed over
         self._failures: list[str] = []
+        self._dropped: list[int] = []
         self._shms = [SharedMemory(create=True, size=spec.nbytes) for spec in self.cameras]
         self._buffers = [CameraBuffers(spec, shm) for spec, shm in zip(self.cameras, self._shms, strict=True)]
         n = min(workers, len(self.cameras))
         self._worker_of = [i % n for i in range(len(self.cameras))] if n else []
         try:
-            self._start(bodies, n, renderer, light or Light(), gl_threads)
-            ready = self._await_ready(start_timeout)
+            for index in range(n):
+                mine = [i for i, w in enumerate(self._worker_of) if w == index]
+                self._workers.append(Worker(index, *pool_workers.launch(index, self._plan(mine)), mine))
+            ready = pool_workers.await_ready(
+                self._workers, start_timeout, {w.index: self._camera_names(w) for w in self._workers}
+            )
         except BaseException:
             self.close()
             raise
@@ -171,26 +170,53 @@ class RenderPool:
         """The worker processes' ids, one per worker (for monitoring)."""
         return tuple(w.process.pid for w in self._workers)
 
+    def exited(self, worker: int) -> bool:
+        """Whether worker `worker` has ended, as its handle tells (its parent may be the fork server)."""
+        return not self._workers[worker].process.is_alive()
+
     @property
     def body_names(self) -> frozenset[str]:
         """The bodies the workers' scenes hold (once they have read the changes sent)."""
         return frozenset(self._bodies)
 
+    def edit(
+        self,
+        removed: Iterable[str] = (),
+        added: Iterable[SceneBody] = (),
+        light: Light | None = None,
+        order: Sequence[str] | None = None,
+    ) -> None:
+        """Every worker's scene takes the edit whole before any later request (`pipe.EditScene`):
+        the bodies `removed` out, then those `added` in (a name in both: the body replaced), the
+        lighting where given, the bodies in `order` (default: as they were, the new ones after)."""
+        self._check_open()
+        removed, added = tuple(removed), tuple(added)
+        unknown = [name for name in removed if name not in self._bodies]
+        if unknown:
+            raise ValueError(f"no body {unknown[0]!r} in the scene")
+        bodies = {name: body for name, body in self._bodies.items() if name not in removed}
+        clash = [body.name for body in added if body.name in bodies]
+        if clash:
+            raise ValueError(f"body {clash[0]!r} is in the scene already")
+        bodies |= {body.name: body for body in added}
+        order = tuple(bodies) if order is None else tuple(order)
+        if sorted(order) != sorted(bodies):
+            raise ValueError(f"order {list(order)} does not name the scene's bodies {sorted(bodies)}")
+        edit = EditScene(removed, added, None if light == self._light else light, order)
+        self._bodies = MappingProxyType({name: bodies[name] for name in order})
+        self._light = light or self._light
+        for worker in self._workers:
+            if worker.death is None:
+                worker.edits += 1
+        self._broadcast(edit)
+
     def add_body(self, body: SceneBody) -> None:
         """Every worker's scene loads `body` before any later request; see the module docstring."""
-        self._check_open()
-        if body.name in self._bodies:
-            raise ValueError(f"body {body.name!r} is in the scene already")
-        self._broadcast(AddBody(body))
-        self._bodies = MappingProxyType({**self._bodies, body.name: body})
+        self.edit(added=(body,))
 
     def remove_body(self, name: str) -> None:
         """Every worker's scene drops body `name` before any later request."""
-        self._check_open()
-        if name not in self._bodies:
-            raise ValueError(f"no body {name!r} in the scene")
-        self._broadcast(RemoveBody(name))
-        self._bodies = MappingProxyType({n: b for n, b in self._bodies.items() if n != name})
+        self.edit(removed=(name,))
 
     def add_camera(self, spec: CameraSpec, publication: Publication | None = None) -> int:
         """A camera for the running pool, on the worker with the fewest cameras; its index (the next one)."""
@@ -208,6 +234,17 @@ class RenderPool:
         self._publications.append(publication)
         self._send(worker, AddCamera(index, spec, shm.name, publication))
         return index
+
+    def update_camera(self, camera: int, spec: CameraSpec) -> None:
+        """Camera `camera` renders as `spec` says from its next request: its noise and its seed may
+        change (its noise starts again from the seed), nothing else. ValueError otherwise."""
+        self._check_open()
+        old = self._spec(camera)
+        if replace(spec, noise_stddev=old.noise_stddev, seed=old.seed) != old:
+            raise ValueError(f"camera {camera} {old.name!r}: only its noise may change in a running pool")
+        self.cameras = (*self.cameras[:camera], spec, *self.cameras[camera + 1 :])
+        self._buffers[camera].spec = spec
+        self._send(self._workers[self._worker_of[camera]], UpdateCamera(camera, spec))
 
     def request(
         self,
@@ -243,13 +280,13 @@ class RenderPool:
         being skipped forever in silence."""
         if camera not in self._outstanding:
             return False
-        worker = self._workers[self._worker_of[camera]]
-        return worker.death is None and worker.process.is_alive()
+        return self._workers[self._worker_of[camera]].alive
 
     def collect(self, wait_for: int | None = None, timeout: float | None = None) -> list[Frame]:
         """The frames finished since the last call, in the order they finished, without blocking.
         With `wait_for=i`, first waits (up to `timeout` s, TimeoutError after) for camera i's
-        outstanding frame. Raises RuntimeError when a worker has died or a render failed."""
+        outstanding frame (none where it was dropped). Raises RuntimeError when a worker has died
+        or a render failed."""
         self._check_open()
         for worker in self._workers:
             self._drain(worker)
@@ -257,13 +294,19 @@ class RenderPool:
             self._wait(wait_for, timeout)
         return self._hand_over()
 
+    def dropped(self) -> list[int]:
+        """The cameras whose requested frames were dropped since the last call (a worker that died
+        during an edit and was started again): the caller counts them skipped."""
+        dropped, self._dropped = self._dropped, []
+        return dropped
+
     def close(self) -> None:
         """Stop the workers (terminating one that does not finish its frame promptly) and free the
         shared memory. Idempotent."""
         if self._closed:
             return
         self._closed = True
-        _stop_workers(self._workers)
+        pool_workers.stop(self._workers)
         for buffers in self._buffers:
             buffers.release()
         self._finished.clear()
@@ -279,53 +322,18 @@ class RenderPool:
 
     # --- starting
 
-    def _start(self, bodies: Sequence[SceneBody], n: int, renderer: str, light: Light, gl_threads: int | None) -> None:
-        ctx = multiprocessing.get_context("spawn")
-        for index in range(n):
-            mine = [i for i, w in enumerate(self._worker_of) if w == index]
-            jobs = {i: (self.cameras[i], self._shms[i].name, self._publications[i]) for i in mine}
-            parent_end, child_end = ctx.Pipe()
-            process = ctx.Process(
-                target=worker_main,
-                args=(child_end, WorkerPlan(tuple(bodies), jobs, renderer, light, gl_threads, self._bus)),
-                name=f"simbot-render-{index}",
-                daemon=True,
-            )
-            process.start()
-            child_end.close()  # so that the worker's death reads as EOF here
-            self._workers.append(_Worker(index, process, parent_end, mine))
-
-    def _await_ready(self, timeout: float) -> list[Ready]:
-        """Every worker's ready message; a clear error when one fails, dies or takes too long."""
-        deadline = time.monotonic() + timeout
-        ready: dict[int, Ready] = {}
-        while len(ready) < len(self._workers):
-            waiting = [w for w in self._workers if w.index not in ready]
-            left = deadline - time.monotonic()
-            if left <= 0:
-                names = ", ".join(self._camera_names(w) for w in waiting)
-                raise RuntimeError(f"render workers did not load the scene within {timeout:.0f} s (cameras {names})")
-            wait([h for w in waiting for h in (w.conn, w.process.sentinel)], left)
-            for worker in waiting:
-                message = self._poll_start(worker)
-                if message is not None:
-                    ready[worker.index] = message
-        return [ready[w.index] for w in self._workers]
-
-    def _poll_start(self, worker: _Worker) -> Ready | None:
-        try:
-            if not worker.conn.poll():
-                if worker.process.is_alive():
-                    return None
-                raise EOFError
-            message = worker.conn.recv()
-        except (EOFError, OSError):
-            self._mark_dead(worker)
-            raise RuntimeError(f"render {worker.death} while loading the scene") from None
-        if isinstance(message, StartError):
-            raise RuntimeError(f"render worker {worker.index} failed to start: {message.reason}")
-        assert isinstance(message, Ready), message  # a worker's first message is one of the two
-        return message
+    def _plan(self, cameras: list[int]) -> WorkerPlan:
+        """What a worker of these cameras loads: the scene as it is now, the cameras as they are now."""
+        jobs = {i: (self.cameras[i], self._shms[i].name, self._publications[i]) for i in cameras}
+        return WorkerPlan(
+            tuple(self._bodies.values()),
+            jobs,
+            self._renderer,
+            self._light,
+            self._gl_threads,
+            self._bus,
+            starter.environment(),
+        )
 
     def _summarise(self, ready: list[Ready]) -> None:
         reasons = [r.fallback_reason for r in ready if r.fallback_reason]
@@ -333,9 +341,30 @@ class RenderPool:
         self.fallback_reason = reasons[0] if reasons else None
         self.device = ready[0].device if ready else "none"
 
+    def _restart(self, worker: Worker) -> bool:
+        """A worker that died during an edit, started again on the scene as edited; the frames it
+        owed are dropped. False where it does not start (it stays dead)."""
+        why = pool_workers.death(worker, self._camera_names(worker))
+        owed = [camera for camera in worker.cameras if camera in self._outstanding]
+        worker.conn.close()
+        try:
+            worker.process, worker.conn = pool_workers.launch(worker.index, self._plan(worker.cameras))
+            worker.edits = 0
+            pool_workers.await_ready([worker], self._start_timeout, {worker.index: self._camera_names(worker)})
+        except RuntimeError as exc:
+            log.error("%s during a scene edit, and did not start again: %s", why, exc)
+            return False
+        for camera in owed:
+            del self._outstanding[camera]
+            self._requested.pop(camera, None)
+        self._finished = [frame for frame in self._finished if frame.camera not in owed]
+        self._dropped += owed
+        log.warning("%s during a scene edit; started again (pid %s), frames dropped: %s", why, worker.process.pid, owed)
+        return True
+
     # --- receiving
 
-    def _drain(self, worker: _Worker) -> None:
+    def _drain(self, worker: Worker) -> None:
         """Take every message the worker has sent; notice its death."""
         if worker.death is not None:
             return
@@ -346,9 +375,9 @@ class RenderPool:
         except (EOFError, OSError):
             exited = True
         if exited:
-            self._mark_dead(worker)
+            self._lost(worker)
 
-    def _receive(self, worker: _Worker, message: FrameDone | RenderFailed | SceneFailed) -> None:
+    def _receive(self, worker: Worker, message: FrameDone | RenderFailed | SceneEdited | SceneFailed) -> None:
         match message:
             case FrameDone(camera, stamp, render_s):
                 pose, states, bodies = self._requested.pop(camera)
@@ -358,11 +387,14 @@ class RenderPool:
                 del self._outstanding[camera]
                 self._requested.pop(camera, None)
                 self._failures.append(f"camera {camera} {self.cameras[camera].name!r} at {stamp} ns: {reason}")
+            case SceneEdited(failures):
+                worker.edits -= 1
+                self._failures += [f"render worker {worker.index}: {failure}" for failure in failures]
             case SceneFailed(reason):
                 self._failures.append(f"render worker {worker.index}: {reason}")
 
     def _wait(self, camera: int, timeout: float | None) -> None:
-        """Block until camera's frame (or its failure) has arrived."""
+        """Block until camera's frame (or its failure, or its drop) has arrived."""
         worker = self._workers[self._worker_of[camera]]
         deadline = None if timeout is None else time.monotonic() + timeout
         while camera in self._outstanding and not any(f.camera == camera for f in self._finished):
@@ -395,32 +427,33 @@ class RenderPool:
                 with contextlib.suppress(RuntimeError):
                     self._send(worker, message)
 
-    def _send(self, worker: _Worker, message: RenderRequest | SceneChange) -> None:
-        """RuntimeError naming the worker and its cameras when it is gone."""
+    def _send(self, worker: Worker, message: RenderRequest | SceneChange) -> None:
+        """RuntimeError naming the worker and its cameras when it is gone (one started again after
+        dying during an edit has the scene as edited, and takes the message)."""
         try:
             worker.conn.send(message)
         except OSError:
-            self._mark_dead(worker)
-            raise RuntimeError(worker.death) from None
+            if not self._lost(worker):
+                raise RuntimeError(worker.death) from None
+            if isinstance(message, RenderRequest):  # its plan held the scene and cameras as they are now
+                worker.conn.send(message)
 
-    def _mark_dead(self, worker: _Worker) -> None:
+    def _lost(self, worker: Worker) -> bool:
+        """A worker found gone: started again where it died during an edit (True), else marked dead."""
         if worker.death is not None:
-            return
-        worker.process.join(1.0)
-        code = worker.process.exitcode
-        how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-        worker.death = (
-            f"render worker {worker.index} (pid {worker.process.pid}) died ({how}); "
-            f"its cameras: {self._camera_names(worker)}"
-        )
+            return False
+        if worker.edits > 0 and not self._closed and self._restart(worker):
+            return True
+        worker.death = pool_workers.death(worker, self._camera_names(worker))
         log.error("%s", worker.death)  # also raised to the caller; logged here in case it swallows that
+        return False
 
     def _spec(self, camera: int) -> CameraSpec:
         if not 0 <= camera < len(self.cameras):
             raise IndexError(f"camera {camera}: the pool has cameras 0..{len(self.cameras) - 1}")
         return self.cameras[camera]
 
-    def _camera_names(self, worker: _Worker) -> str:
+    def _camera_names(self, worker: Worker) -> str:
         return ", ".join(self.cameras[i].name for i in worker.cameras)
 
     def _check_open(self) -> None:
@@ -436,29 +469,6 @@ def _check_config(bodies: Sequence[SceneBody], cameras: Sequence[CameraSpec], wo
     names = [body.name for body in bodies]
     if len(set(names)) != len(names):
         raise ValueError(f"body names must be unique: {names}")
-
-
-def _stop_workers(workers: Sequence[_Worker]) -> None:
-    """Ask politely, give a frame's time, then terminate, then kill: every worker at each stage
-    together, so that stopping takes the same time however many workers there are."""
-    for worker in workers:
-        with contextlib.suppress(OSError):  # a dead worker's pipe: it is stopped already
-            worker.conn.send(Stop())
-    _join_all(workers, STOP_GRACE_S)
-    for stage, seconds in ((BaseProcess.terminate, 1.0), (BaseProcess.kill, None)):
-        alive = [worker for worker in workers if worker.process.is_alive()]
-        for worker in alive:
-            stage(worker.process)
-        _join_all(alive, seconds)
-    for worker in workers:
-        worker.conn.close()
-
-
-def _join_all(workers: Sequence[_Worker], seconds: float | None) -> None:
-    """Waits for the workers to end, `seconds` for all of them together (None: as long as it takes)."""
-    deadline = None if seconds is None else time.monotonic() + seconds
-    for worker in workers:
-        worker.process.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
 
 
 def _free(shm: SharedMemory) -> None:

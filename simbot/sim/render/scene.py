@@ -59,6 +59,36 @@ class BulletScene:
         self.movable[body.name] = self._one_dof_joints(body_id)
         self._changed()
 
+    def edit(self, removed: Sequence[str], added: Sequence[SceneBody]) -> list[str]:
+        """The bodies `removed` out and `added` in (`pipe.EditScene`); what failed, one line each (a
+        body that does not load is left out, the rest applied). A body replaced by one of the same
+        URDF keeps its PyBullet body: its description changed, not its links. Every body is then as
+        a fresh load has it (at its start pose, its joints at zero), whatever was drawn before: what
+        a renderer works out from the scene as loaded (the sun's view) is the same as a fresh one's."""
+        replacing = {body.name: body for body in added}
+        kept = set()
+        for name in removed:
+            body = replacing.get(name)
+            if body is not None and name in self.bodies and body.urdf == self.bodies[name].urdf:
+                self.bodies[name] = body
+                kept.add(name)
+            elif name in self.ids:
+                self.remove(name)
+        failures = []
+        for body in added:
+            if body.name in kept:
+                continue
+            try:
+                self.add(body)
+            except Exception as exc:  # noqa: BLE001 - reported to the pool, the rest of the edit goes on
+                failures.append(f"add_body {body.name!r}: {type(exc).__name__}: {exc}")
+        for name, body in self.bodies.items():
+            self._place(name, body.base)
+            for j, _ in self.movable[name]:
+                self.pb.resetJointState(self.ids[name], j, 0.0, physicsClientId=self.client)
+        self._changed()
+        return failures
+
     def remove(self, name: str) -> None:
         """Takes the body out of the scene (a renderer that caches it drops it first)."""
         self.pb.removeBody(self.ids.pop(name), physicsClientId=self.client)

@@ -9,6 +9,7 @@ maps them flat)."""
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
@@ -30,9 +31,19 @@ Tessellated = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArra
 """Positions, normals, texture coordinates."""
 
 
+@functools.lru_cache(maxsize=4096)
 def primitive(geometry: int, dims: tuple[float, ...]) -> Tessellated | None:
     """A primitive centred on its origin, sized as PyBullet reports a visual shape (box: full size; sphere: radius; cylinder and capsule: length, radius);
-    None for a mesh or an unknown type."""
+    None for a mesh or an unknown type. Made once for each shape and size (a world repeats them,
+    an edit re-reads them); its arrays are read-only."""
+    made = _made(geometry, dims)
+    if made is not None:
+        for array in made:
+            array.flags.writeable = False
+    return made
+
+
+def _made(geometry: int, dims: tuple[float, ...]) -> Tessellated | None:
     if geometry == GEOM_BOX:
         return box(np.asarray(dims[:3]) / 2.0)
     if geometry == GEOM_SPHERE:

@@ -19,7 +19,7 @@ and geometry without a temperature shows the atmosphere's at z = 0 (OpenGL: at i
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -55,7 +55,7 @@ class TinyRenderer:
         for index, spec in cameras.items():
             self.add_camera(index, spec)
         for name in scene.ids:
-            self.add_body(name)
+            self._hide_legs(name)
 
     def add_camera(self, index: int, spec: CameraSpec) -> None:
         self.cameras[index] = spec
@@ -63,15 +63,21 @@ class TinyRenderer:
             projection_matrix(spec.render_vfov_deg, spec.width / spec.height, spec.near, spec.far)
         )
 
-    def add_body(self, name: str) -> None:
+    def edit(self, removed: Collection[str], added: Collection[str], light: Light | None, order: Sequence[str]) -> None:
+        """PyBullet draws the scene's bodies as they are (in the order it holds them), the new ones
+        but for their leg capsules; the new lighting where there is one."""
+        for name in added:
+            self._hide_legs(name)
+        if light is not None:
+            self.light = light
+            self.lighting = tiny_lighting(light)
+
+    def _hide_legs(self, name: str) -> None:
         """PyBullet draws the body as it is, but for its leg capsules (see the module docstring)."""
         pb, body = self.scene.pb, self.scene.ids[name]
         for link, index in link_indices(self.scene, name).items():
             if is_leg_link(link):
                 pb.changeVisualShape(body, index, rgbaColor=[1.0, 1.0, 1.0, 0.0], physicsClientId=self.scene.client)
-
-    def remove_body(self, name: str) -> None:
-        """Nothing to do: PyBullet draws the scene's bodies as they are."""
 
     def render(self, camera: int, pose: Transform, drawn: Mapping[Raw, Array]) -> None:
         spec = self.cameras[camera]

@@ -11,6 +11,7 @@ file, and the rest is drawn: a texture keeps its visual's colour, a mesh file is
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from collections.abc import Mapping
@@ -136,7 +137,7 @@ def _mesh_parts(mesh: Mesh) -> list[tuple[Tessellated, Surface | None]]:
     """The mesh file's submeshes, scaled as the visual says, each with its own material."""
     if mesh.path is None:
         return []
-    parts = submeshes(str(mesh.path.resolve()))
+    parts = submeshes(_resolved(mesh.path))
     return [((*scaled(p.positions, p.normals, mesh.scale), p.uvs), p.surface) for p in parts]
 
 
@@ -178,8 +179,14 @@ def _image(path: Path | None) -> str | None:
     """The texture's absolute path where it decodes (a warning names it where not)."""
     if path is None:
         return None
-    found = str(path.resolve())
+    found = _resolved(path)
     return found if readable_image(found) else None
+
+
+@functools.lru_cache(maxsize=4096)
+def _resolved(path: Path) -> str:
+    """Resolved once: every surface that names the texture asks."""
+    return str(path.resolve())
 
 
 def _rgb(values: tuple[float, ...]) -> RGB:

@@ -4,7 +4,6 @@ in `wide_lens.py`."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterator, Mapping
 
 import cv2
@@ -14,7 +13,7 @@ from simbot.sim.render.kinds import Array, Finish, Optics, OutputKind, Raw
 from simbot.sim.render.outputs import add_noise, luminance
 from simbot.sim.render.specs import CameraSpec
 from simbot.sim.render.wide_lens import FACES, OPTICAL_IN_CAMERA, Plan, WideLens, plan
-from simbot.transform import Matrix, Transform, matmul, quaternion_to_matrix
+from simbot.transform import Transform, matmul, matrix_to_quaternion, quaternion_to_matrix
 
 
 def _plan_of(spec: Optics) -> tuple[WideLens, Plan]:
@@ -95,22 +94,4 @@ def views(
     body = quaternion_to_matrix(pose.orientation)
     for slot, index in enumerate(drawn_plan.faces):
         rotation = matmul(matmul(matmul(body, OPTICAL_IN_CAMERA), FACES[index]), OPTICAL_IN_CAMERA.T)
-        yield Transform(pose.position, _quaternion(rotation)), {"color": faces[slot]}
-
-
-def _quaternion(m: Matrix) -> tuple[float, float, float, float]:
-    """x, y, z, w of a rotation matrix (Shepperd's method: the largest of the four first)."""
-    trace = float(np.trace(m))
-    candidates = [trace, m[0, 0], m[1, 1], m[2, 2]]
-    largest = int(np.argmax(candidates))
-    if largest == 0:
-        s = 2.0 * math.sqrt(1.0 + trace)
-        q = ((m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4.0)
-    else:
-        i = largest - 1
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        v = [0.0, 0.0, 0.0]
-        v[i], v[j], v[k] = s / 4.0, (m[j, i] + m[i, j]) / s, (m[k, i] + m[i, k]) / s
-        q = (v[0], v[1], v[2], (m[k, j] - m[j, k]) / s)
-    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        yield Transform(pose.position, matrix_to_quaternion(rotation)), {"color": faces[slot]}

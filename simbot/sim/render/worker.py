@@ -3,12 +3,13 @@
 The worker loads the scene (`BulletScene`), opens the renderer it was asked for (`gl`, `tiny`, or
 `auto`: gl when an EGL context opens, else tiny with the reason), reports ready, then takes the
 pool's messages (typed: `pipe.py`) in order until told to stop or the server is gone: render
-requests, and the changes of a world that runs (a body added or removed, a camera added), each
-before any request sent after it. Each frame is drawn straight into the camera's shared memory
+requests, and the changes of a world that runs (an edit: bodies out and in, the lighting; a camera
+added, or its noise changed), each before any request sent after it; an edit is answered when
+applied (`SceneEdited`). Each frame is drawn straight into the camera's shared memory
 and finished there (each output kind's finishing step, `kinds.py`); only a small message goes
 back. A camera the server gave a publication has its frame published from here
-(`publishing.py`) before the frame is reported done. A change that fails is reported
-(`SceneFailed`) and the worker goes on.
+(`publishing.py`) before the frame is reported done. A change that fails is reported (with the
+edit's answer, or `SceneFailed`) and the worker goes on.
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ import signal
 import sys
 import time
 import traceback
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
 from typing import Protocol
@@ -28,21 +29,23 @@ import numpy as np
 
 from simbot.sim.render.kinds import Array, Finish, Raw
 from simbot.sim.render.pipe import (
-    AddBody,
     AddCamera,
+    EditScene,
     FrameDone,
     Ready,
-    RemoveBody,
     RenderFailed,
     RenderRequest,
     SceneChange,
+    SceneEdited,
     SceneFailed,
     StartError,
     Stop,
+    UpdateCamera,
 )
 from simbot.sim.render.publishing import Bus, FramePublisher, Publication
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.specs import BodyState, CameraSpec, Light, SceneBody
+from simbot.sim.render.starter import take_environment
 from simbot.sim.render.wide_angle import views
 from simbot.transform import Transform
 
@@ -59,12 +62,8 @@ class Renderer(Protocol):
 
     def add_camera(self, index: int, spec: CameraSpec) -> None: ...
 
-    def add_body(self, name: str) -> None:
-        """After the scene has loaded it."""
-        ...
-
-    def remove_body(self, name: str) -> None:
-        """Before the scene drops it."""
+    def edit(self, removed: Collection[str], added: Collection[str], light: Light | None, order: Sequence[str]) -> None:
+        """After the scene has dropped `removed` and loaded `added` (`pipe.EditScene`)."""
         ...
 
     def close(self) -> None: ...
@@ -83,6 +82,9 @@ class WorkerPlan:
     """LP_NUM_THREADS for Mesa's llvmpipe (None: Mesa's default, one per core)."""
     bus: Bus | None = None
     """Where the worker publishes; None: it publishes nothing (every frame goes back to the server)."""
+    environ: dict[str, str] = field(default_factory=dict)
+    """The server's environment, which the worker takes before anything else (`starter.py`: a
+    forked worker has its fork server's); empty: the worker keeps its own."""
 
 
 class CameraBuffers:
@@ -115,6 +117,8 @@ class _Camera:
 
 def worker_main(conn: Connection, plan: WorkerPlan) -> None:
     """A render worker: load the scene, report ready, render requests until told to stop."""
+    if plan.environ:
+        take_environment(plan.environ)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the server's to handle; it closes the pool
     os.nice(10)
     _silence_stdio()
@@ -164,8 +168,12 @@ def open_renderer(
 
 
 def _camera(index: int, spec: CameraSpec, shm_name: str) -> _Camera:
-    finishes = [(kind.name, step) for kind in spec.kinds if kind.finisher and (step := kind.finisher(spec))]
-    return _Camera(index, CameraBuffers(spec, SharedMemory(name=shm_name)), finishes)
+    return _Camera(index, CameraBuffers(spec, SharedMemory(name=shm_name)), _finishes(spec))
+
+
+def _finishes(spec: CameraSpec) -> list[tuple[str, Finish]]:
+    """Each output's finishing step, made anew (a noisy output's generator starts from the camera's seed)."""
+    return [(kind.name, step) for kind in spec.kinds if kind.finisher and (step := kind.finisher(spec))]
 
 
 @dataclass
@@ -195,15 +203,20 @@ class _Held:
     def change(self, change: SceneChange) -> None:
         """A change of the world that runs, each before any request sent after it."""
         match change:
-            case AddBody(body):
-                self.scene.add(body)
-                self.renderer.add_body(body.name)
-            case RemoveBody(name):
-                self.renderer.remove_body(name)
-                self.scene.remove(name)
             case AddCamera(index, spec, shm_name, publication):
                 self.take_camera(index, spec, shm_name, publication)
                 self.renderer.add_camera(index, spec.rendered)
+            case UpdateCamera(index, spec):
+                camera = self.cameras[index]
+                camera.buffers.spec = spec
+                camera.finishes = _finishes(spec)
+
+    def edit(self, edit: EditScene) -> SceneEdited:
+        """The world's edit applied whole (`pipe.EditScene`); what failed of it is reported, the rest stays applied."""
+        failures = self.scene.edit(edit.removed, edit.added)
+        loaded = [body.name for body in edit.added if body.name in self.scene.ids]
+        self.renderer.edit(set(edit.removed), loaded, edit.light, edit.order)
+        return SceneEdited(tuple(failures))
 
 
 def _serve(conn: Connection, held: _Held) -> None:
@@ -212,6 +225,9 @@ def _serve(conn: Connection, held: _Held) -> None:
         while not isinstance(message := conn.recv(), Stop):
             if isinstance(message, RenderRequest):
                 conn.send(_render_request(held, message))
+                continue
+            if isinstance(message, EditScene):
+                conn.send(_edited(held, message))
                 continue
             try:
                 held.change(message)
@@ -230,6 +246,13 @@ def _render_request(held: _Held, request: RenderRequest) -> FrameDone | RenderFa
     except Exception as exc:
         return RenderFailed(request.camera, request.stamp_ns, f"{type(exc).__name__}: {exc}")
     return FrameDone(request.camera, request.stamp_ns, time.perf_counter() - start)
+
+
+def _edited(held: _Held, edit: EditScene) -> SceneEdited:
+    try:
+        return held.edit(edit)
+    except Exception as exc:  # noqa: BLE001 - reported to the pool; the worker goes on
+        return SceneEdited((f"{edit}: {_reason(exc)}",))
 
 
 def _reason(exc: Exception) -> str:

@@ -34,23 +34,22 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from simbot.description.drive_params import Limits, limits
 from simbot.description.model import Model, Plugin
+from simbot.description.plugin_params import bool_param
 from simbot.sim.kit.drive import (
     DeadReckoning,
     Encoders,
-    Limits,
     OdometryOutput,
     check_float,
     check_twist,
     command_topic,
     joint_effort,
-    limits,
     positive,
     refuse_actuators,
     require_joints,
     warn_unsupported,
 )
-from simbot.sim.kit.plugin_params import bool_param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 STRAIGHT = 0.001

@@ -4,7 +4,7 @@ A world system (built in, no `<plugin>`): every world gets it, and it takes each
 the world (at start, or created through world control) from the model events. An actor is a
 kinematic body of the physics (simbot.description.actor_scripts: its skin, its ray-visible proxy, its
 links), which this system puts, before every physics step, where the script puts it at the step's
-sim time (simbot.sim.kit.actor_paths): the actor's frame (its SDF `<pose>`, the trajectory's origin,
+sim time (simbot.description.actor_paths): the actor's frame (its SDF `<pose>`, the trajectory's origin,
 as gz-sim's actor Pose component) composed with the trajectory's pose. The motion is a function of
 sim time alone, so lockstep runs repeat exactly, and every sensor after the step (lidar rays on
 the proxy, cameras drawing the skin, ground truth on `model/<name>/pose`) sees the actor there.
@@ -43,15 +43,18 @@ own instant, and a camera at 30 Hz draws the skin and legs as they were up to 10
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from simbot.description.actor_legs import GAIT_SAMPLES, ActorRig
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import BODY, ActorModel, SkinnedMesh
-from simbot.description.skeleton_poses import load_rig
-from simbot.sim.kit.actor_paths import ActorDriver, ScriptPath
+from simbot.description.skeleton_poses import ClipFile, load_rig
+from simbot.sim.kit.actor_driver import ActorDriver
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
@@ -87,13 +90,8 @@ class _Gait:
         skin = next((v.geometry for v in model.link(BODY).visuals if isinstance(v.geometry, SkinnedMesh)), None)
         if skin is None or skin.path is None or not skin.animations:  # none, or drawn in its bind pose
             return None
-        rig = ActorRig.of(load_rig(skin.path, skin.animations), skin.scale[0])
-        tables = []
-        for index, clip in enumerate(rig.rig.clips):
-            rows = [rig.positions(index, clip.duration * k / GAIT_SAMPLES) for k in range(GAIT_SAMPLES + 1)]
-            tables.append(np.array([list(row.values()) for row in rows]))
-        names = tuple(rig.positions(0, 0.0))
-        return _Gait(rig, names, tuple(tables), {a.name: i for i, a in enumerate(model.animations)})
+        rig, names, tables = _tabled(skin.path, skin.animations, skin.scale[0])
+        return _Gait(rig, names, tables, {a.name: i for i, a in enumerate(model.animations)})
 
     def walked(self, x: float, y: float) -> None:
         if self.last is not None:
@@ -112,6 +110,20 @@ class _Gait:
         out = dict(zip(self.names, row.tolist(), strict=True))
         out[self.names[0]] = time
         return out
+
+
+@functools.lru_cache(maxsize=64)
+def _tabled(
+    skin: Path, clips: tuple[ClipFile, ...], scale: float
+) -> tuple[ActorRig, tuple[str, ...], tuple[np.ndarray, ...]]:
+    """A skin's legs tabled over each clip, once for each skin, clips and scale (read only): an
+    actor that enters again (a seeded reset's people) finds its table made."""
+    rig = ActorRig.of(load_rig(skin, clips), scale)
+    tables = []
+    for index, clip in enumerate(rig.rig.clips):
+        rows = [rig.positions(index, clip.duration * k / GAIT_SAMPLES) for k in range(GAIT_SAMPLES + 1)]
+        tables.append(np.array([list(row.values()) for row in rows]))
+    return rig, tuple(rig.positions(0, 0.0)), tuple(tables)
 
 
 @dataclass

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Atmosphere, Sensor
-from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.description.sensor_params import Noise, SdfElement
+from simbot.sim.kit.sensors import FramedSensor
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 EARTH_RADIUS = 6356766.0

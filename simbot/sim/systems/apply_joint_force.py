@@ -11,8 +11,8 @@ the joint's one axis, as Gazebo applies `JointForceCmd[0]`; a reset returns it t
 
 from __future__ import annotations
 
+from simbot.description.naming import scoped_key
 from simbot.sim.kit.drive import check_float, require_joints
-from simbot.sim.loop.naming import scoped_key
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 

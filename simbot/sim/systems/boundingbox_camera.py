@@ -28,7 +28,7 @@ from simbot.bus import messages
 from simbot.bus.messages import Box2D, Box3D
 from simbot.description.model import Sensor
 from simbot.description.poses import Pose
-from simbot.sim.kit.sensor_params import SdfElement
+from simbot.description.sensor_params import SdfElement
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.system import SystemContext
 from simbot.sim.physics import pose_to_transform

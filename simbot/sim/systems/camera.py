@@ -46,18 +46,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from simbot.bus import Publisher, messages
 from simbot.bus.frames import optical_frame, with_frame_prefix
 from simbot.description.model import Sensor
+from simbot.description.naming import sensor_frame, sensor_rate
+from simbot.description.sensor_params import Noise, SdfElement
 from simbot.sim.kit.camera_save import frame_saver
 from simbot.sim.kit.rates import Sampled
 from simbot.sim.kit.rendered_sensor import RenderStatus
-from simbot.sim.kit.sensor_params import Noise, SdfElement
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.naming import sensor_frame, sensor_rate
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.render import CameraSpec, Frame
 from simbot.sim.render.lens import Distortion
@@ -120,6 +120,15 @@ def _distortion(lens: SdfElement) -> Distortion:
     k1, k2, k3, p1, p2 = (lens.number(tag, 0.0) for tag in ("k1", "k2", "k3", "p1", "p2"))
     cx, cy = lens.numbers("center", (0.5, 0.5))
     return Distortion(k1, k2, k3, p1, p2, (cx, cy))
+
+
+def _without_noise(sensor: Sensor) -> Sensor:
+    """The sensor but for its camera's `<noise>`."""
+    params = tuple(
+        replace(p, children=tuple(c for c in p.children if c.tag != "noise")) if p.tag == "camera" else p
+        for p in sensor.params
+    )
+    return replace(sensor, params=params)
 
 
 def camera_info_key(image_key: str) -> str:
@@ -200,6 +209,7 @@ class Camera(Sampled):
             wide=wide,
         )
         super().__init__(sensor.name, ctx.override("camera.rate") or sensor_rate(sensor, DEFAULT_RATE_HZ))
+        self.sensor = sensor
         self.where = (model, link.name, sensor.pose)
         self.frame_id = optical_frame(sensor_frame(sensor))
         topic = ctx.sensor_topic(self.kind)
@@ -217,6 +227,20 @@ class Camera(Sampled):
         self.skipped = 0
         self.saver = frame_saver(sensor, topic, self.spec)
         """Gazebo's `<save>`: every frame also written to a dataset folder (simbot/sim/kit/camera_save.py)."""
+
+    def retune(self, sensor: Sensor) -> bool:
+        """Its `<sensor>` as a seeded reset draws it, in place (simbot.sim.loop.world_edit): only the
+        camera's `<noise>` may differ; the spec takes its deviation, and the render pool the spec.
+        False, and nothing changed, for any other difference."""
+        if _without_noise(sensor) != _without_noise(self.sensor):
+            return False
+        color = any(product.output == "color" for product in self.products)
+        try:
+            noise = CameraParams.from_sdf(sensor, color, self.widest).noise_stddev
+        except SystemConfigError:
+            return False
+        self.spec, self.sensor = replace(self.spec, noise_stddev=noise), sensor
+        return True
 
     def wide_lens(self, sensor: Sensor) -> WideLens | None:
         """The wide-angle lens it sees through (`wide_angle_camera.py`); None: a pinhole camera."""

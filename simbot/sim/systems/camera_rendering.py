@@ -22,15 +22,20 @@ Scheduling, after each physics step:
   the frames of all cameras due then are published, so after `multi_step` every frame up to
   that time is out.
 
-Models created and removed at run time (world control `create`, `remove`): the pool loads the
-world as it is when it starts. What changes after that snapshot (bodies added or removed, in
-order, and cameras added) is sent to the pool before the next set of requests, and at once when
-the pool runs; a worker reads its messages in order, so every camera of a set draws the same
-scene, and the first set requested after a create draws the created bodies (lockstep stays exact
-and deterministic: the same calls send the same messages in the same order). A camera of a
-created model takes the next index and renders like the others; a removed model's bodies leave
-the scenes, and its cameras stop (their slots stay empty, so the others keep their places).
-When the last camera leaves, the pool closes; a camera created later starts a fresh one.
+Models created and removed at run time (world control `create`, `remove`), and a seeded reset
+applied in place (simbot.sim.loop.world_edit: models restyled, moved, replaced, added, removed;
+the lighting changed, `world_changed`): the pool loads the world as it is when it starts, and runs
+on. What changes after that snapshot (bodies added, removed, replaced; the lighting; cameras
+added, a camera's noise changed) is sent to the pool as one edit before the next set of
+requests, the bodies in the order a world loaded afresh holds them (`_order`: the workers batch
+in it, so an edited world draws as a fresh one does); a worker reads its messages in order, so
+every camera of a set draws the same scene, and the first set requested after a change draws it
+(lockstep stays exact and deterministic: the same calls send the same messages in the same
+order). A camera of a created model takes the next index and renders like the others; a removed
+model's bodies leave the scenes, and its cameras stop (their slots stay empty, so the others keep
+their places); a camera whose model was restyled in place keeps its index. When the last camera
+has left, the pool closes; a camera created later starts a fresh one. On every reset the frames
+still being drawn are dropped and each camera's noise starts again from its seed.
 
 The images leave from the workers (simbot/sim/render/publishing.py): each joins the bus as a
 client of the server and publishes the frames of the cameras that give it a publication, on the
@@ -51,13 +56,24 @@ from __future__ import annotations
 import logging
 import sys
 import threading
+from collections.abc import Iterable, Sequence
 
 from simbot.bus.options import helper_options
 from simbot.description.model import SdfLight, World
 from simbot.sim.kit.rendered_sensor import Annotating, RenderedSensor, RenderStatus
+from simbot.sim.kit.scene_bodies import scene_body
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
-from simbot.sim.render import Annotation, BodyState, Light, LightSource, RenderPool, SceneBody, plan_pool
-from simbot.sim.render.bodies import scene_body
+from simbot.sim.render import (
+    Annotation,
+    BodyState,
+    Frame,
+    Light,
+    LightSource,
+    RenderPool,
+    SceneBody,
+    plan_pool,
+    starter,
+)
 from simbot.sim.render.label_bits import MAX_INSTANCE
 from simbot.sim.render.publishing import Bus
 from simbot.transform import matmul
@@ -119,7 +135,12 @@ class Rendering:
         self.renderer_asked: str = ctx.override("rendering.renderer") or "auto"
         self.workers: int | None = ctx.override("rendering.workers")
         self.threads: int | None = ctx.override("rendering.threads")
+        self.world = ctx.world
         self.light = world_light(ctx.world)
+        self._relit = False
+        """The lighting changed since the pool last heard of it."""
+        self._respec = False
+        """A reset came: every noisy camera's spec goes to the pool again, its noise to start again from its seed."""
         node = ctx.bus.node
         if self.lockstep and node.hosts_helpers:
             node.answering(BARRIER)
@@ -135,7 +156,8 @@ class Rendering:
         self._gone: set[int] = set()
         """Cameras of removed models, by index."""
         self._changes: list[SceneBody | str] = []
-        """Since the pool's snapshot of the world, not yet sent to it: bodies added (a SceneBody) and removed (a name)."""
+        """Since the pool's snapshot of the world, not yet sent to it, in order: bodies added (a
+        SceneBody) and removed (a name); a name removed and added again is the body replaced."""
         self._annotations: dict[str, tuple[Annotation, ...]] = {}
         """Each body's labels and temperatures (`Annotating` systems of its model), in the order they came."""
         self._instances: dict[str, int] = {}
@@ -152,14 +174,24 @@ class Rendering:
             self._changes += [self._scene_body(body) for body in event.bodies]
         for camera in event.systems:
             if isinstance(camera, RenderedSensor):
-                camera.status = self.status
-                self.cameras.append(camera)
-                self._next_due_ns = 0
-        self._sync()
+                self._take(camera)
+
+    def _take(self, camera: RenderedSensor) -> None:
+        """A camera to render: one back with its model (the model's description edited in place,
+        its systems kept) keeps its index; a new one takes the next."""
+        if not self.cameras:
+            starter.warm_up()  # the fork server's imports overlap the rest of the world's loading
+        camera.status = self.status
+        back = next((i for i in self._gone if self.cameras[i] is camera), None)
+        if back is not None:
+            self._gone.discard(back)
+        else:
+            self.cameras.append(camera)
+        self._next_due_ns = 0
 
     def model_removed(self, event: ModelEvent) -> None:
         """Its cameras stop, its bodies leave the scenes (before the physics removes them)."""
-        name, bodies = event.name, event.bodies
+        bodies = event.bodies
         for body in bodies:
             self._annotations.pop(body, None)
             self._instances.pop(body, None)
@@ -170,10 +202,16 @@ class Rendering:
         if self._following:
             self._changes += bodies
         if self.pool is not None and len(self._gone) == len(self.cameras):
-            log.info("the last camera left with model %s: the render workers stop", name)
+            log.info("the last camera left with model %s: the render workers stop", event.name)
             self._stop_pool()
-        else:
-            self._sync()
+
+    def world_changed(self, world: World) -> None:
+        """The world's description was edited in place (a seeded reset): its lighting goes to the
+        workers with the next set of frames, and its models' order is the scene's."""
+        self.world = world
+        light = world_light(world)
+        if light != self.light:
+            self.light, self._relit = light, True
 
     @property
     def _following(self) -> bool:
@@ -186,18 +224,24 @@ class Rendering:
         self.cameras, self._gone, self._changes, self._starting = [], set(), [], None
 
     def _sync(self) -> None:
-        """Sends a running pool what changed since its snapshot of the world, in order."""
+        """Sends a running pool what changed since its snapshot of the world, as one edit: the
+        bodies out and in, the lighting, the scene's order; then the cameras added and changed."""
         if self.pool is None:
             return
-        changes, self._changes = self._changes, []
+        pool, changes, self._changes = self.pool, self._changes, []
+        removed, added = _net(changes, pool.body_names)
         try:
-            for change in changes:
-                if isinstance(change, SceneBody):
-                    self.pool.add_body(change)
-                else:
-                    self.pool.remove_body(change)
-            for camera in self.cameras[len(self.pool.cameras) :]:
-                self.pool.add_camera(camera.spec, camera.publication)
+            if removed or added or self._relit:
+                kept = (pool.body_names - set(removed)) | set(added)
+                pool.edit(removed, added.values(), self.light if self._relit else None, self._order(kept))
+            self._relit = False
+            for camera in self.cameras[len(pool.cameras) :]:
+                pool.add_camera(camera.spec, camera.publication)
+            for index, camera in enumerate(self.cameras):
+                noisy = self._respec and camera.spec.noise_stddev > 0.0  # its noise starts again from its seed
+                if index not in self._gone and (noisy or camera.spec != pool.cameras[index]):
+                    pool.update_camera(index, camera.spec)
+            self._respec = False
         except RuntimeError as exc:
             self.fail(str(exc))
 
@@ -208,6 +252,14 @@ class Rendering:
             self._annotations[body] = annotations
             self._instances[body] = self._counted % MAX_INSTANCE + 1
             self._counted += 1
+
+    def _order(self, bodies: Iterable[str]) -> list[str]:
+        """The bodies in the order a world loaded afresh holds them: the world's models as its
+        description lists them, then the rest (the robots, models created since) as the physics
+        took them. The workers batch in it, so an edited world draws as a fresh one."""
+        models = {model.name: i for i, model in enumerate(self.world.models)}
+        loaded = {name: i for i, name in enumerate(self.physics.body_names())}
+        return sorted(bodies, key=lambda body: (models.get(body.split("::")[0], len(models)), loaded.get(body, 0)))
 
     def _scene_body(self, name: str) -> SceneBody:
         """A body as the physics loaded it, where it is now, with its annotations."""
@@ -246,7 +298,7 @@ class Rendering:
         if self.status.failure is not None:
             return False
         if self._starting is None:  # the snapshot of the world: what changes after it goes to `_changes`
-            bodies = [self._scene_body(name) for name in self.physics.body_names()]
+            bodies = [self._scene_body(name) for name in self._order(self.physics.body_names())]
             cameras = list(self.cameras)
             self._starting = threading.Thread(
                 target=self._start, args=(bodies, cameras), name="render-pool-start", daemon=True
@@ -300,20 +352,27 @@ class Rendering:
             self.fail(str(exc))
 
     def _deliver(self) -> None:
-        """Publishes the frames that are done; in lockstep, first waits for every outstanding one."""
+        """Publishes the frames that are done; in lockstep, first waits for every outstanding one.
+        A frame dropped (its worker died during an edit) counts as skipped."""
+        frames = self._collect(self.lockstep)
         if self.pool is None:
-            return
-        try:
-            waits = [i for i in range(len(self.cameras)) if i not in self._gone] if self.lockstep else [None]
-            frames = [
-                frame for camera in waits for frame in self.pool.collect(wait_for=camera, timeout=LOCKSTEP_TIMEOUT_S)
-            ]
-        except (RuntimeError, TimeoutError) as exc:
-            self.fail(str(exc))
             return
         for frame in frames:
             if frame.camera not in self._gone:
                 self.cameras[frame.camera].publish(frame)
+        for index in self.pool.dropped():
+            self.cameras[index].skipped += 1
+
+    def _collect(self, wait: bool) -> list[Frame]:
+        """The frames done; waiting first for every outstanding one where asked. A broken pool fails."""
+        if self.pool is None:
+            return []
+        try:
+            waits = [i for i in range(len(self.cameras)) if i not in self._gone] if wait else [None]
+            return [frame for i in waits for frame in self.pool.collect(wait_for=i, timeout=LOCKSTEP_TIMEOUT_S)]
+        except (RuntimeError, TimeoutError) as exc:
+            self.fail(str(exc))
+            return []
 
     def fail(self, reason: str) -> None:
         """A broken pool stops the cameras, not the simulation."""
@@ -323,9 +382,14 @@ class Rendering:
         self.close()
 
     def reset(self, info: UpdateInfo) -> None:
-        """The world was reset: waiting ticks belong to the old timeline."""
+        """The world was reset: waiting ticks belong to the old timeline, and so do frames still
+        being drawn: they are waited for and dropped (a worker that publishes its frames has put
+        them out before the reset is done: none of the old world comes after it); each camera's
+        noise starts again from its seed."""
         self._waiting.clear()
         self._next_due_ns = 0
+        self._collect(wait=True)
+        self._respec = True
 
     def close(self) -> None:
         if self._starting is not None:
@@ -334,3 +398,18 @@ class Rendering:
             self.pool.close()
             self.pool = None
             self.status.renderer = None
+
+
+def _net(changes: Sequence[SceneBody | str], held: frozenset[str]) -> tuple[list[str], dict[str, SceneBody]]:
+    """Changes in order as one edit of a scene that holds `held`: the names it drops (a body added
+    and removed meanwhile never reaches it), and the bodies it takes in (a name in both: replaced)."""
+    removed: list[str] = []
+    added: dict[str, SceneBody] = {}
+    for change in changes:
+        if isinstance(change, SceneBody):
+            added[change.name] = change
+            continue
+        added.pop(change, None)
+        if change in held and change not in removed:
+            removed.append(change)
+    return removed, added

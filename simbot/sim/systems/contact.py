@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 from simbot.bus import messages
 from simbot.description.model import Link, Sensor
+from simbot.description.naming import sensor_frame, sensor_rate
+from simbot.description.sensor_params import SdfElement
 from simbot.sim.kit.rates import Sampled
-from simbot.sim.kit.sensor_params import SdfElement
-from simbot.sim.loop.naming import sensor_frame, sensor_rate
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics import ContactPoint, WorldReader
 

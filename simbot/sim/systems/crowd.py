@@ -58,15 +58,16 @@ actor moves its route with it (its start where it was put); `reset` takes it bac
 from __future__ import annotations
 
 import math
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 
+from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import PROXY_HEIGHT, ActorModel, Script, is_actor
-from simbot.description.footprints import collision_corners
-from simbot.description.model import Model, Plugin
-from simbot.sim.kit.actor_paths import ScriptPath
-from simbot.sim.kit.plugin_params import bool_param, number_param
+from simbot.description.crowd_params import read_crowd
+from simbot.description.footprints import collision_boxes, reaches_into
+from simbot.description.model import Model
+from simbot.description.plugin_params import bool_param
 from simbot.sim.kit.social_force import (
     Boxes,
     Crowd,
@@ -81,10 +82,10 @@ from simbot.sim.kit.social_force import (
     steered,
     turned,
 )
+from simbot.sim.kit.waypoints import waypoints
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
 from simbot.sim.physics.protocols import WorldAccess
-from simbot.sim.systems.trajectory_follower import waypoints
 from simbot.transform import Transform
 
 MOVED_TOLERANCE = 1e-4
@@ -98,52 +99,6 @@ CLOSING_SPEED = 5.0
 """m/s at which a robot and a person may close in on each other at most (the tug's top speed and a
 run, with room): a robot farther than the radius and this for one update period is looked at only
 at the next update, a nearer one at every step."""
-FALLBACK_SPEED = 1.34
-"""m/s: v0 where neither the plugin nor a moving script gives one (Helbing & Molnár 1995)."""
-RANGES: dict[str, tuple[float, bool, float]] = {
-    "desired_speed": (0.0, False, math.inf),
-    "relaxation_time": (0.0, False, math.inf),
-    "radius": (0.0, False, math.inf),
-    "max_speed_factor": (1.0, True, math.inf),
-    "people_strength": (0.0, True, math.inf),
-    "people_range": (0.0, False, math.inf),
-    "anisotropy": (0.0, True, 1.0),
-    "look_ahead": (0.0, True, math.inf),
-    "obstacle_strength": (0.0, True, math.inf),
-    "obstacle_range": (0.0, False, math.inf),
-    "obstacle_cutoff": (0.0, False, math.inf),
-    "robot_strength": (0.0, True, math.inf),
-    "robot_range": (0.0, False, math.inf),
-    "noise": (0.0, True, math.inf),
-    "turn_rate": (0.0, False, math.inf),
-    "waypoint_tolerance": (0.0, False, math.inf),
-    "update_rate": (0.0, False, math.inf),
-}
-"""Each parameter's lower bound, whether the bound itself is allowed, and its upper bound (allowed)."""
-
-
-def read_crowd(plugin: Plugin, actor: str, script_speed: float | None) -> Crowd:
-    """The plugin's parameters over the defaults; SystemConfigError naming the actor and the element
-    for one that is not a number or out of range."""
-    defaults = replace(Crowd(), desired_speed=script_speed or FALLBACK_SPEED)
-    values: dict[str, float] = {}
-    for item in fields(Crowd):
-        default = getattr(defaults, item.name)
-        try:
-            value = number_param(plugin, item.name, default=default)
-        except SystemConfigError as exc:
-            raise SystemConfigError(f"actor {actor!r}: {exc}; it walks its script") from None
-        assert value is not None
-        low, inclusive, high = RANGES[item.name]
-        if not (value >= low if inclusive else value > low) or value > high:
-            rule = f"{'at least' if inclusive else 'more than'} {low:g}" + (
-                f" and at most {high:g}" if high < math.inf else ""
-            )
-            raise SystemConfigError(
-                f"{plugin.name}: actor {actor!r}: <{item.name}> must be {rule}, got {value:g}; it walks its script"
-            )
-        values[item.name] = value
-    return Crowd(**values)
 
 
 def script_route(script: Script, frame: Transform) -> tuple[list[tuple[float, float]], float | None]:
@@ -158,19 +113,17 @@ def shadows(model: Model, low: float, high: float) -> Boxes:
     """The rectangles holding the shadows of the model's collisions that reach from `low` to `high`
     (heights in the model's frame), in the model's frame."""
     rectangles = []
-    for link in model.links:
-        for collision in link.collisions:
-            corners = collision_corners(collision, link.pose.matrix())
-            if corners is None or corners[:, 2].max() <= low or corners[:, 2].min() >= high:
-                continue
-            along, across = corners[4] - corners[0], corners[2] - corners[0]
-            if abs(along[2]) < 1e-9 and abs(across[2]) < 1e-9:  # upright: its own rectangle
-                centre = corners.mean(axis=0)
-                yaw = math.atan2(along[1], along[0])
-                rectangles.append((centre[0], centre[1], yaw, np.hypot(*along[:2]) / 2, np.hypot(*across[:2]) / 2))
-            else:  # tilted (a wheel): the axis-aligned box holding it
-                (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
-                rectangles.append(((x0 + x1) / 2, (y0 + y1) / 2, 0.0, (x1 - x0) / 2, (y1 - y0) / 2))
+    for _, _, corners in collision_boxes(model):
+        if not reaches_into(corners, low, high):
+            continue
+        along, across = corners[4] - corners[0], corners[2] - corners[0]
+        if abs(along[2]) < 1e-9 and abs(across[2]) < 1e-9:  # upright: its own rectangle
+            centre = corners.mean(axis=0)
+            yaw = math.atan2(along[1], along[0])
+            rectangles.append((centre[0], centre[1], yaw, np.hypot(*along[:2]) / 2, np.hypot(*across[:2]) / 2))
+        else:  # tilted (a wheel): the axis-aligned box holding it
+            (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
+            rectangles.append(((x0 + x1) / 2, (y0 + y1) / 2, 0.0, (x1 - x0) / 2, (y1 - y0) / 2))
     return Boxes.of(rectangles)
 
 
@@ -257,8 +210,7 @@ class _World:
 def _height(model: Model, frame: Transform) -> tuple[float, float]:
     """The world heights a person takes up: from its soles (the lowest point of its collisions, the
     proxy's or the legs' of an animated skin, as they stand in the SDF; else its frame) up PROXY_HEIGHT."""
-    corners = [collision_corners(c, link.pose.matrix()) for link in model.links for c in link.collisions]
-    lowest = [float(k[:, 2].min()) for k in corners if k is not None]
+    lowest = [float(corners[:, 2].min()) for _, _, corners in collision_boxes(model)]
     feet = frame.position[2] + (min(lowest) if lowest else 0.0)
     return feet + STEP_HEIGHT, feet + PROXY_HEIGHT
 
@@ -268,7 +220,7 @@ class SocialForce:
 
     name = "SocialForce"
     drives_actor = True
-    """Moves its actor in place of the script (simbot.sim.kit.actor_paths.ActorDriver)."""
+    """Moves its actor in place of the script (simbot.sim.kit.actor_driver.ActorDriver)."""
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -18,8 +18,8 @@ from __future__ import annotations
 import logging
 
 from simbot.bus import messages
-from simbot.sim.kit.plugin_params import param
-from simbot.sim.loop.naming import model_topic
+from simbot.description.naming import model_topic
+from simbot.description.plugin_params import param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)

@@ -29,57 +29,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from simbot.description.model import Model, Plugin
-from simbot.sim.kit.drive import Limits, OdometryOutput, PlanarPose, check_twist, joint_effort, limits
-from simbot.sim.kit.plugin_params import bool_param, number_param, param
-from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import model_topic, scoped_key
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
-
-
-@dataclass(frozen=True)
-class DiffDriveParams:
-    left: tuple[str, ...]
-    right: tuple[str, ...]
-    separation: float
-    radius: float
-    topic: str
-    odom_topic: str
-    tf_topic: str
-    frame_id: str
-    child_frame_id: str
-    odom_rate: float
-    publish_tf: bool
-    linear: Limits
-    angular: Limits
-
-    @staticmethod
-    def parse(plugin: Plugin, model: Model, name: str) -> DiffDriveParams:
-        """The plugin's parameters; `name` is the model's name in the running world, which Gazebo's
-        default keys and frames carry."""
-        left, right = tuple(plugin.get_all("left_joint")), tuple(plugin.get_all("right_joint"))
-        if not left or not right:
-            raise SystemConfigError(f"{plugin.name}: needs at least one <left_joint> and one <right_joint>")
-        for joint in left + right:
-            if joint not in {j.name for j in model.joints}:
-                raise SystemConfigError(f"{plugin.name}: model {model.name!r} has no joint {joint!r}")
-        separation = number_param(plugin, "wheel_separation", positive=True)
-        radius = number_param(plugin, "wheel_radius", positive=True)
-        if separation is None or radius is None:
-            raise SystemConfigError(f"{plugin.name}: <wheel_separation> and <wheel_radius> are required")
-        frame = scoped_key(name)
-        return DiffDriveParams(
-            left, right, separation, radius,
-            topic=param(plugin, "topic") or model_topic(name, "cmd_vel"),
-            odom_topic=param(plugin, "odom_topic") or model_topic(name, "odometry"),
-            tf_topic=param(plugin, "tf_topic") or model_topic(name, "tf"),
-            frame_id=param(plugin, "frame_id", "odometry_frame") or f"{frame}/odom",
-            child_frame_id=param(plugin, "child_frame_id", "base_frame") or f"{frame}/{model.canonical_link}",
-            odom_rate=number_param(plugin, "odom_publish_frequency", "update_rate", default=50.0, positive=True) or 50.0,
-            publish_tf=bool_param(plugin, "publish_tf", "broadcast_TF", default=True),
-            linear=limits(plugin, "linear", ""),
-            angular=limits(plugin, "angular"),
-        )  # fmt: skip
+from simbot.description.drive_params import DiffDriveParams
+from simbot.sim.kit.drive import OdometryOutput, PlanarPose, check_twist, joint_effort
+from simbot.sim.kit.rates import Every, Paced
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 
 @dataclass
@@ -102,7 +55,7 @@ class Odometry:
         return distance, turn
 
 
-class DiffDrive:
+class DiffDrive(Paced):
     """Drives both wheels of each side at v ∓ ω·separation/2 over the radius; publishes odometry."""
 
     name = "DiffDrive"
@@ -118,7 +71,7 @@ class DiffDrive:
         self._output = OdometryOutput(
             ctx.bus, self.params.odom_topic, tf_topic, self.params.frame_id, self.params.child_frame_id
         )
-        self._every = Every.hz(self.params.odom_rate)
+        self.every = Every.hz(self.params.odom_rate)
         self._target = self._current = (0.0, 0.0)
         self._applied: tuple[float, float] | None = None  # None: the first step holds the wheels still
         self._odom = Odometry()
@@ -130,7 +83,10 @@ class DiffDrive:
         return (self._output.frame_id, self._output.child_frame_id)
 
     def pre_update(self, info: UpdateInfo) -> None:
-        for msg in self._commands.drain():
+        commands = self._commands.drain()
+        if not commands and self._current == self._target == self._applied:
+            return  # at its command and applied: nothing to ramp (most of a fleet, most steps)
+        for msg in commands:
             self._target = (self.params.linear.clamp(msg.linear.x), self.params.angular.clamp(msg.angular.z))
         dt = self._physics.step_size
         v = self.params.linear.ramp(self._current[0], self._target[0], dt)
@@ -149,23 +105,27 @@ class DiffDrive:
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
-        if not self._every.due(now_ns):
+        if not self.every.due(now_ns):
             return
-        distance, turn = self._odom.update(
-            self._side(self.params.left), self._side(self.params.right), self.params.radius, self.params.separation
-        )
+        left, right = self._sides()
+        distance, turn = self._odom.update(left, right, self.params.radius, self.params.separation)
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
         speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
         self._output.put_planar(now_ns, self._odom.pose, (speed, 0.0), rate)
 
-    def _side(self, joints: tuple[str, ...]) -> float:
-        states = self._physics.joint_states(self._name, list(joints))
-        return sum(s[0] for s in states) / len(states)
+    def _sides(self) -> tuple[float, float]:
+        """The mean wheel angle of each side, both sides' joints read in one query."""
+        left, right = self.params.left, self.params.right
+        states = self._physics.joint_states(self._name, [*left, *right])
+        return (
+            sum(s[0] for s in states[: len(left)]) / len(left),
+            sum(s[0] for s in states[len(left) :]) / len(right),
+        )
 
     def reset(self, info: UpdateInfo) -> None:
         self._target = self._current = (0.0, 0.0)
         self._drive(0.0, 0.0)
         self._odom = Odometry()
-        self._every.restart()
+        self.every.restart()
         self._last_ns = info.sim_time_ns

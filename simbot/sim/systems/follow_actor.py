@@ -27,7 +27,7 @@ import logging
 import math
 
 from simbot.description.actor_scripts import is_actor
-from simbot.sim.kit.plugin_params import number_param, param
+from simbot.description.plugin_params import number_param, param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
 from simbot.transform import Transform
@@ -44,7 +44,7 @@ class FollowActor:
 
     name = "FollowActor"
     drives_actor = True
-    """Moves its actor in place of the script (simbot.sim.kit.actor_paths.ActorDriver)."""
+    """Moves its actor in place of the script (simbot.sim.kit.actor_driver.ActorDriver)."""
 
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None

@@ -29,7 +29,8 @@ import numpy as np
 from simbot.bus import messages
 from simbot.description.model import Joint, Model, Sensor
 from simbot.description.poses import Pose
-from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.description.sensor_params import Noise, SdfElement
+from simbot.sim.kit.sensors import FramedSensor
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import rotate_into
 

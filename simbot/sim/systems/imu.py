@@ -20,6 +20,7 @@ SDF parameters (under `<imu>`; `ImuParams`):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,11 +28,12 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
+from simbot.description.naming import sensor_frame, sensor_rate
+from simbot.description.sensor_params import Noise, SdfElement
 from simbot.sim.kit.rates import Sampled
-from simbot.sim.kit.sensor_params import ChannelNoise, Noise, SdfElement
-from simbot.sim.loop.naming import sensor_frame, sensor_rate
+from simbot.sim.kit.sensors import ChannelNoise
 from simbot.sim.loop.system import SystemContext, UpdateInfo
-from simbot.transform import rotate_into
+from simbot.transform import rotate_many
 
 Axes = tuple[Noise, Noise, Noise]
 """What each axis applies (no noise: Noise())."""
@@ -57,8 +59,18 @@ class ImuParams:
         )
 
 
+NOISE_ROWS = 256
+"""White-noise draws taken from an IMU's random stream at a time, a row (gyro x y z, accel x y z)
+per sample: the same numbers, in the same order, as six drawn each sample, for a sixth of the calls."""
+
+
 class Imu(Sampled):
-    """sensor_msgs/Imu at the sensor's rate in its frame, stamped with the sim time of the sample."""
+    """sensor_msgs/Imu at the sensor's rate in its frame, stamped with the sim time of the sample.
+
+    The loop steps a world's IMUs together (`post_update_all`): one query of every frame, and the
+    rotations and noise as arrays. Each keeps its own rate, stream and state; an IMU no one
+    subscribes to still samples and draws its noise (what it publishes later does not depend on
+    who listened before) but builds no message."""
 
     def __init__(self, ctx: SystemContext) -> None:
         model, link, sensor = ctx.require_sensor()
@@ -67,30 +79,70 @@ class Imu(Sampled):
         self._physics = ctx.physics
         self._where = (model, link.name, sensor.pose)
         self._gravity = np.asarray(ctx.world.gravity, dtype=float)
+        self._rng = ctx.rng
         self._gyro = ChannelNoise(spec.angular_velocity_noise, ctx.rng)
         self._accel = ChannelNoise(spec.linear_acceleration_noise, ctx.rng)
         self._covariances = (np.zeros(9), self._gyro.covariance(), self._accel.covariance())
+        self._noise_terms = self._terms()
         self._frame = ctx.bus.frame(sensor_frame(sensor))
-        self._last: tuple[int, npt.NDArray[np.float64]] | None = None
+        self._last_ns: int | None = None
+        self._last_linear = np.zeros(3)
+        self._white = np.empty((0, 6))
         self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 
     def post_update(self, info: UpdateInfo) -> None:
-        now_ns = info.sim_time_ns
-        if not self.due(info):
+        type(self).post_update_all([self], info)
+
+    @classmethod
+    def post_update_all(cls, imus: Sequence[Imu], info: UpdateInfo) -> None:
+        """Every IMU due now samples; those someone subscribes to publish."""
+        due = [imu for imu in imus if imu.due(info)]
+        if not due:
             return
-        (_, quat), linear_xyz, angular_xyz = self._physics.frame_motion(*self._where)
-        linear = np.array(linear_xyz)
-        acceleration = np.zeros(3)
-        if self._last is not None and now_ns > self._last[0]:
-            acceleration = (linear - self._last[1]) / ((now_ns - self._last[0]) / 1e9)
-        self._last = (now_ns, linear)
-        gyro = self._gyro(rotate_into(quat, angular_xyz))
-        accel = self._accel(rotate_into(quat, acceleration - self._gravity))
-        self._pub.put(messages.imu(now_ns, self._frame, quat, gyro, accel, self._covariances))
-        self.published(now_ns)
+        now_ns = info.sim_time_ns
+        motions = due[0]._physics.frame_motions([imu._where for imu in due])
+        acceleration = Imu._accelerations(due, now_ns, motions.linear)
+        count = len(due)
+        # gyro and accelerometer turned into each frame in one call: rows 0..N-1 and N..2N-1
+        turns = np.concatenate([motions.orientations, motions.orientations])
+        sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - due[0]._gravity]), into=True)
+        terms = np.array([imu._noise_terms for imu in due])  # mean, bias, stddev of the six channels
+        white = np.array([imu._white_row() for imu in due])
+        true = np.hstack([sensed[:count], sensed[count:]])
+        measured = true + terms[:, :6] + terms[:, 6:12] + white * terms[:, 12:]  # ChannelNoise's sum, in its order
+        for row, imu in enumerate(due):
+            if imu._pub.has_subscribers:
+                quat = motions.orientations[row]
+                imu._pub.put(
+                    messages.imu(now_ns, imu._frame, quat, measured[row, :3], measured[row, 3:], imu._covariances)
+                )
+            imu.published(now_ns)
+
+    @staticmethod
+    def _accelerations(imus: Sequence[Imu], now_ns: int, linear: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Each IMU's mean acceleration since its last sample (zero for the first), and this one kept."""
+        last = np.array([imu._last_linear for imu in imus])
+        seconds = np.array([(now_ns - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu in imus])
+        for imu, velocity in zip(imus, linear):
+            imu._last_ns, imu._last_linear = now_ns, velocity
+        return np.where(np.isfinite(seconds)[:, None], (linear - last) / seconds[:, None], 0.0)
+
+    def _white_row(self) -> npt.NDArray[np.float64]:
+        """The six channels' white draws for one sample."""
+        if not len(self._white):
+            self._white = self._rng.normal(0.0, 1.0, (NOISE_ROWS, 6))
+        white, self._white = self._white[0], self._white[1:]
+        return white
 
     def reset(self, info: UpdateInfo) -> None:
         super().reset(info)
-        self._last = None
+        self._last_ns = None
+        self._white = np.empty((0, 6))
         self._gyro.draw_bias()
         self._accel.draw_bias()
+        self._noise_terms = self._terms()
+
+    def _terms(self) -> npt.NDArray[np.float64]:
+        """The six channels' mean, bias (drawn at start and each reset) and stddev, end to end."""
+        gyro, accel = self._gyro, self._accel
+        return np.concatenate([gyro.mean, accel.mean, gyro.bias, accel.bias, gyro.stddev, accel.stddev])

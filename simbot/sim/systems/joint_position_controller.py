@@ -19,10 +19,10 @@ as in Gazebo: the joint is driven at the velocity that closes the error in one s
 
 from __future__ import annotations
 
+from simbot.description.plugin_params import bool_param, number_param, param
+from simbot.sim.kit.joints import CommandedJoints
 from simbot.sim.kit.pid import Pid, PidGains
-from simbot.sim.kit.plugin_params import bool_param, number_param, param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
-from simbot.sim.systems.joint_controller import CommandedJoints
 
 
 class JointPositionController:

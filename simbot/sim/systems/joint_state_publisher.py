@@ -10,17 +10,14 @@
 from __future__ import annotations
 
 from simbot.bus import messages
-from simbot.sim.kit.plugin_params import number_param, param
-from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import scoped_key
+from simbot.description.naming import scoped_key
+from simbot.description.plugin_params import number_param, param
+from simbot.sim.kit.joints import JOINT_STATE_RATE_HZ, MOVABLE
+from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
-MOVABLE = ("revolute", "continuous", "prismatic")
-DEFAULT_RATE_HZ = 30.0
-"""The joint-state rate (SPEC §1), at which the robot state publisher also sends the movable joints' tf."""
 
-
-class JointStatePublisher:
+class JointStatePublisher(Paced):
     """Publishes sensor_msgs/JointState at its rate, stamped with sim time."""
 
     name = "JointStatePublisher"
@@ -37,13 +34,13 @@ class JointStatePublisher:
         self._physics = ctx.physics
         default = f"world/{scoped_key(ctx.world.name)}/{ctx.model_topic('joint_state')}"
         self._pub = ctx.bus.publisher(param(ctx.plugin, "topic") or default, messages.JointState)
-        self._every = Every.hz(
-            number_param(ctx.plugin, "update_rate", default=DEFAULT_RATE_HZ, positive=True) or DEFAULT_RATE_HZ
+        self.every = Every.hz(
+            number_param(ctx.plugin, "update_rate", default=JOINT_STATE_RATE_HZ, positive=True) or JOINT_STATE_RATE_HZ
         )
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
-        if not self._every.due(now_ns):
+        if not self.every.due(now_ns) or not self._pub.has_subscribers:
             return
         states = self._physics.joint_states(self._name, self._joints)
         self._pub.put(
@@ -53,4 +50,4 @@ class JointStatePublisher:
         )
 
     def reset(self, info: UpdateInfo) -> None:
-        self._every.restart()
+        self.every.restart()

@@ -16,7 +16,8 @@ SDF parameters:
 
 from __future__ import annotations
 
-from simbot.sim.kit.plugin_params import param
+from simbot.description.plugin_params import param
+from simbot.sim.kit.rendered_sensor import covered
 from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.render import Annotation
 
@@ -31,14 +32,6 @@ class Label:
 
     def __init__(self, ctx: SystemContext) -> None:
         self.annotation = Annotation(*covered(ctx, "Label"), label=_label(ctx))
-
-
-def covered(ctx: SystemContext, system: str) -> tuple[str | None, str | None]:
-    """(link, visual) of a plugin in a `<visual>`; (None, None) for one on a model: all its visuals."""
-    ctx.require_model(system)
-    if ctx.visual is None or ctx.link is None:
-        return None, None
-    return ctx.link.name, ctx.visual.name
 
 
 def _label(ctx: SystemContext) -> int:

@@ -19,7 +19,7 @@ bytes a point, in the sensor frame; NaN coordinates where a ray returned nothing
 (simbot models no retro-reflectance). The cloud is built only while someone subscribes to it;
 the rays and their noise are the same either way, so a subscriber never changes the scan.
 
-SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
+SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`, simbot/description/lidar_params.py):
 
 | element | default | meaning |
 | --- | --- | --- |
@@ -34,63 +34,19 @@ SDF parameters (under `<lidar>`, or `<ray>` in SDF before 1.7; `LidarParams`):
 
 from __future__ import annotations
 
-import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.bus import messages
-from simbot.description.model import Sensor
+from simbot.description.lidar_params import LidarParams
+from simbot.description.naming import sensor_frame, sensor_rate
+from simbot.description.sensor_params import Noise
 from simbot.sim.kit.rates import Sampled
-from simbot.sim.kit.sensor_params import Noise, SdfElement
-from simbot.sim.loop.naming import sensor_frame, sensor_rate
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.transform import matmul, quaternion_to_matrix
-
-
-@dataclass(frozen=True)
-class ScanAxis:
-    samples: int = 1
-    min_angle: float = 0.0
-    max_angle: float = 0.0
-
-    @staticmethod
-    def from_sdf(element: SdfElement) -> ScanAxis:
-        return ScanAxis(
-            element.integer("samples", 1), element.number("min_angle", 0.0), element.number("max_angle", 0.0)
-        )
-
-
-@dataclass(frozen=True)
-class LidarParams:
-    """A lidar's SDF parameters (the table in the module docstring)."""
-
-    horizontal: ScanAxis
-    vertical: ScanAxis
-    range_min: float
-    range_max: float
-    range_resolution: float = 0.0
-    noise: Noise = Noise()
-
-    @staticmethod
-    def from_sdf(sensor: Sensor) -> LidarParams:
-        root = SdfElement.of(sensor)
-        element = root.child("lidar") or root.child("ray")
-        if element is None:
-            raise SystemConfigError(f"sensor {sensor.name}: type {sensor.type!r} needs a <lidar> or <ray> element")
-        scan = element.require("scan")
-        ranges = element.require("range")
-        params = LidarParams(
-            horizontal=ScanAxis.from_sdf(scan.require("horizontal")),
-            vertical=ScanAxis.from_sdf(scan.child_or_empty("vertical")),
-            range_min=ranges.required_number("min"),
-            range_max=ranges.required_number("max"),
-            range_resolution=ranges.number("resolution", 0.0),
-            noise=(element.noise() or Noise()).applied,
-        )
-        _check(sensor.name, params)
-        return params
 
 
 @dataclass(frozen=True)
@@ -121,19 +77,6 @@ def ray_fan(spec: LidarParams) -> Fan:
     return Fan(directions, max(v.samples, 1), scan_row, increment)
 
 
-def _check(name: str, spec: LidarParams) -> None:
-    if spec.horizontal.samples < 1:
-        raise SystemConfigError(
-            f"sensor {name}: <horizontal><samples> must be at least 1, got {spec.horizontal.samples}"
-        )
-    if not 0 <= spec.range_min < spec.range_max or not math.isfinite(spec.range_max):
-        raise SystemConfigError(
-            f"sensor {name}: <range> needs 0 ≤ min < max, got min {spec.range_min} max {spec.range_max}"
-        )
-    if spec.vertical.samples < 1:
-        raise SystemConfigError(f"sensor {name}: <vertical><samples> must be at least 1, got {spec.vertical.samples}")
-
-
 class Lidar(Sampled):
     """sensor_msgs/LaserScan, and the cloud on `/points`, at the sensor's rate, stamped with the sim
     time the rays were cast."""
@@ -143,7 +86,7 @@ class Lidar(Sampled):
         self.params = LidarParams.from_sdf(sensor)
         rate = sensor_rate(sensor, 1.0 / ctx.physics.step_size)
         super().__init__(sensor.name, rate)
-        self._model, self._link, self._pose = model, link.name, sensor.pose
+        self._where = (model, link.name, sensor.pose)
         self._physics = ctx.physics
         self._physics.blind_rays_to(model)
         self._rng = ctx.rng
@@ -157,14 +100,34 @@ class Lidar(Sampled):
         self._points = ctx.bus.publisher(f"{topic}/points", messages.PointCloud2)
 
     def post_update(self, info: UpdateInfo) -> None:
-        now_ns = info.sim_time_ns
-        if not self.due(info):
-            return
+        type(self).post_update_all([self], info)
+
+    @classmethod
+    def post_update_all(cls, lidars: Sequence[Lidar], info: UpdateInfo) -> None:
+        """Every lidar due now scans. Those someone subscribes to cast their rays, their frames read
+        in one query; the others only draw their noise, so that what a subscriber gets does not
+        depend on who listened before. (One ray call for all lidars was measured slower than one
+        each: docs/speed.md, "A fleet".)"""
+        watched = []
+        for lidar in lidars:
+            if not lidar.due(info):
+                continue
+            lidar.published(info.sim_time_ns)
+            if lidar._pub.has_subscribers or lidar._points.has_subscribers:
+                watched.append(lidar)
+            else:
+                _noise(lidar.params.noise, lidar._rng, (lidar._fan.directions[..., 0].size,))
+        if watched:
+            frames = watched[0]._physics.frame_motions([lidar._where for lidar in watched])
+            for lidar, position, quat in zip(watched, frames.positions, frames.orientations):
+                lidar._publish(info.sim_time_ns, lidar._scan_from(position, quat))
+
+    def _publish(self, now_ns: int, ranges: npt.NDArray[np.float64]) -> None:
         spec, fan = self.params, self._fan
-        ranges = self.scan()
+        scan_ranges = ranges[fan.scan_row]
         self._pub.put(
             messages.laser_scan(
-                now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), ranges[fan.scan_row]
+                now_ns, self._frame, self._angles, self._times, (spec.range_min, spec.range_max), scan_ranges
             )
         )
         if self._points.has_subscribers:
@@ -172,17 +135,18 @@ class Lidar(Sampled):
             self._points.put(
                 messages.lidar_points(now_ns, self._frame, returned[:, :, None] * fan.directions[: fan.cloud_rows])
             )
-        self.published(now_ns)
 
     def scan(self) -> npt.NDArray[np.float64]:
         """The ranges the lidar reads now, a row per ray row of the fan: true distances, noise,
         quantisation, +inf for no return."""
+        return self._scan_from(*self._physics.frame_pose(*self._where))
+
+    def _scan_from(self, position: npt.ArrayLike, quat: Sequence[float]) -> npt.NDArray[np.float64]:
         spec = self.params
-        position, quat = self._physics.frame_pose(self._model, self._link, self._pose)
         directions = matmul(self._fan.directions.reshape(-1, 3), quaternion_to_matrix(quat).T)
-        origin = np.asarray(position)
+        origin = np.asarray(position, dtype=float)
         fractions = self._physics.cast_rays(
-            origin + directions * spec.range_min, origin + directions * spec.range_max, blind_to=self._model
+            origin + directions * spec.range_min, origin + directions * spec.range_max, blind_to=self._where[0]
         )
         ranges = spec.range_min + fractions * (spec.range_max - spec.range_min)
         return self._measured(ranges).reshape(self._fan.directions.shape[:2])

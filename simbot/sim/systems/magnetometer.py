@@ -23,7 +23,8 @@ import numpy as np
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.description.sensor_params import Noise, SdfElement
+from simbot.sim.kit.sensors import FramedSensor
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.transform import rotate_into
 

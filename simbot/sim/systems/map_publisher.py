@@ -9,7 +9,7 @@ under the scans.
 
 | parameter | value | what |
 | --- | --- | --- |
-| height | 0.26 m (`LIDAR_HEIGHT`) | where the lidars' beams sweep |
+| height | 0.355 m above the floor (`LIDAR_HEIGHT`) | where the lidars' beams sweep: 0.26 m above base_footprint, which rests 0.0955 m up |
 | resolution | 0.05 m (`RESOLUTION`) | Nav2's usual |
 | extent | the static models' (`simbot.mapping.occupancy`) | the warehouse: ±10 m |
 | people | no | they move; `simbot map --people` draws them at time 0 |
@@ -20,7 +20,7 @@ cut once, when it enters (the models there at start at their description's poses
 `simbot map`'s, cell for cell; a created one where the physics put it); a step in which static
 models came or went re-fills the grid once, from the cut pieces (the warehouse: about 5 ms of CPU),
 and never in another step; the message is encoded and put on the scene's sender thread, at once
-in lockstep (simbot.sim.systems.scene_publisher.LatestSender).
+in lockstep (simbot.sim.kit.latest_sender.LatestSender).
 """
 
 from __future__ import annotations
@@ -33,9 +33,9 @@ from simbot.description.model import World
 from simbot.description.poses import Pose
 from simbot.mapping.occupancy import LIDAR_HEIGHT, RESOLUTION, OccupancyGrid, model_pieces, rasterise
 from simbot.mapping.shapes import Band, Pieces
+from simbot.sim.kit.latest_sender import LatestSender
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader
-from simbot.sim.systems.scene_publisher import LatestSender
 
 MAP_TOPIC = "map"
 MAP_FRAME = "map"
@@ -77,6 +77,10 @@ class MapPublisher:
             if described is not None:
                 return described.pose
         return Pose.from_transform(self._physics.model_pose(body))
+
+    def world_changed(self, world: World) -> None:
+        """A seeded reset edited the world in place: the models' described poses are the variant's."""
+        self._world = world
 
     def model_removed(self, event: ModelEvent) -> None:
         for body in event.bodies:

@@ -27,16 +27,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from simbot.description.drive_params import Limits, limits
 from simbot.description.model import Model, Plugin
 from simbot.sim.kit.drive import (
     DeadReckoning,
     Encoders,
-    Limits,
     OdometryOutput,
     check_twist,
     command_topic,
     joint_effort,
-    limits,
     positive,
     require_joints,
     warn_unsupported,

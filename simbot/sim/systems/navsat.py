@@ -34,7 +34,8 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor, SphericalCoordinates
-from simbot.sim.kit.sensor_params import FramedSensor, Noise, SdfElement
+from simbot.description.sensor_params import Noise, SdfElement
+from simbot.sim.kit.sensors import FramedSensor
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.transform import matmul
 

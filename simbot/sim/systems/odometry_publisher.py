@@ -27,17 +27,17 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.bus import messages
+from simbot.description.naming import scoped_key
+from simbot.description.plugin_params import number_param, param
 from simbot.description.poses import Pose
 from simbot.sim.kit.drive import OdometryOutput, diagonal, vector_param
-from simbot.sim.kit.plugin_params import number_param, param
-from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import scoped_key
+from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose, pose_to_transform
 from simbot.transform import Transform, rotate_into, yaw_of
 
 
-class OdometryPublisher:
+class OdometryPublisher(Paced):
     """Publishes the model's ground-truth odometry at its rate."""
 
     name = "OdometryPublisher"
@@ -64,12 +64,12 @@ class OdometryPublisher:
         covariance_topic = param(plugin, "odom_covariance_topic") or ctx.model_topic("odometry_with_covariance")
         self._covariance_pub = ctx.bus.publisher(covariance_topic, messages.Odometry)
         rate = number_param(plugin, "odom_publish_frequency", default=50.0, positive=True) or 50.0
-        self._every = Every.hz(rate)
+        self.every = Every.hz(rate)
         self._physics = ctx.physics
         self._rng = ctx.rng
 
     def post_update(self, info: UpdateInfo) -> None:
-        if not self._every.due(info.sim_time_ns):
+        if not self.every.due(info.sim_time_ns):
             return
         (xyz, quat), linear, angular = self._motion()
         if self._dimensions == 2:
@@ -83,8 +83,9 @@ class OdometryPublisher:
         covariance = diagonal((self._noise**2,) * 6)
         twist_xyz = (float(twist[0]), float(twist[1]), float(twist[2]))
         rates = (float(twist[3]), float(twist[4]), float(twist[5]))
-        odometry = self._output.put(info.sim_time_ns, (xyz, quat), (twist_xyz, rates), covariance, covariance)
-        self._covariance_pub.put(odometry)
+        self._output.put(
+            info.sim_time_ns, (xyz, quat), (twist_xyz, rates), covariance, covariance, also=self._covariance_pub
+        )
 
     def _motion(self) -> tuple[Transform, npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """The offset frame's world pose, and its linear and angular velocity in the world."""
@@ -94,4 +95,4 @@ class OdometryPublisher:
         return pose, np.add(linear, np.cross(angular, lever)), np.asarray(angular, dtype=float)
 
     def reset(self, info: UpdateInfo) -> None:
-        self._every.restart()
+        self.every.restart()

@@ -4,15 +4,15 @@
 from __future__ import annotations
 
 from simbot.bus import Publisher, messages
-from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import model_topic
+from simbot.description.naming import model_topic
+from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 
 POSE_RATE = 50.0
 """Hz of sim time: as often as odometry, so the two can be compared sample by sample."""
 
 
-class PosePublisher:
+class PosePublisher(Paced):
     """A world system (built in, no `<plugin>`): the poses of every model that is not static, from
     the step after it enters the world until it leaves."""
 
@@ -22,7 +22,7 @@ class PosePublisher:
         self._physics = ctx.physics
         self._bus = ctx.bus
         self._pubs: dict[str, Publisher] = {}
-        self._every = Every.hz(POSE_RATE)
+        self.every = Every.hz(POSE_RATE)
 
     def model_added(self, event: ModelEvent) -> None:
         for name in event.bodies:
@@ -36,11 +36,13 @@ class PosePublisher:
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
-        if not self._every.due(now_ns):
+        if not self.every.due(now_ns):
             return
         for name, pub in self._pubs.items():
+            if not pub.has_subscribers:
+                continue
             xyz, quat = self._physics.model_pose(name)
             pub.put(messages.pose_stamped(now_ns, "world", xyz, quat))
 
     def reset(self, info: UpdateInfo) -> None:
-        self._every.restart()
+        self.every.restart()

@@ -24,14 +24,14 @@ from simbot.bus import messages
 from simbot.bus.frames import OPTICAL_RPY, optical_frame
 from simbot.description.kinematics import KinematicTree, UrdfJoint
 from simbot.description.model import Model
+from simbot.description.naming import sensor_frame
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import link_frame, model_to_urdf
-from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import sensor_frame
+from simbot.sim.kit.joints import JOINT_STATE_RATE_HZ, MOVABLE
+from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.registry import SENSOR_GROUP, registered
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics import compose, pose_to_transform
-from simbot.sim.systems.joint_state_publisher import DEFAULT_RATE_HZ, MOVABLE
 from simbot.transform import Transform, Vec3
 
 
@@ -80,7 +80,7 @@ def static_transforms(model: Model, tree: KinematicTree) -> list[tuple[str, str,
     return found
 
 
-class RobotStatePublisher:
+class RobotStatePublisher(Paced):
     """Built into the server for the robot: the description and static tree once, latched; the movable joints at their rate."""
 
     name = "RobotStatePublisher"
@@ -106,11 +106,11 @@ class RobotStatePublisher:
         self._frames = [(ctx.bus.frame(joint.parent), ctx.bus.frame(joint.child)) for joint in self._joints]
         """Each moving joint's (parent, child) frames as published: prefixed once, not copied per message."""
         self._tf = ctx.bus.publisher("tf", messages.TFMessage) if self._joints else None
-        self._every = Every.hz(DEFAULT_RATE_HZ)
+        self.every = Every.hz(JOINT_STATE_RATE_HZ)
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
-        if self._tf is None or not self._every.due(now_ns):
+        if self._tf is None or not self.every.due(now_ns) or not self._tf.has_subscribers:
             return
         states = self._physics.joint_states(self._name, [joint.name for joint in self._joints])
         transforms = [
@@ -120,4 +120,4 @@ class RobotStatePublisher:
         self._tf.put(messages.tf_message(transforms))
 
     def reset(self, info: UpdateInfo) -> None:
-        self._every.restart()
+        self.every.restart()

@@ -36,15 +36,15 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 from dataclasses import dataclass
 from typing import Any
 
-from simbot.bus import Publisher, messages
+from simbot.bus import messages
 from simbot.description.model import Box, Capsule, Cylinder, Ellipsoid, Geometry, Mesh, Plane, Sphere, Visual
+from simbot.description.naming import scoped_key
 from simbot.description.poses import Pose
+from simbot.sim.kit.latest_sender import LatestSender
 from simbot.sim.kit.rates import Every
-from simbot.sim.loop.naming import scoped_key
 from simbot.sim.loop.system import ModelEvent, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader, pose_to_transform
 from simbot.transform import Transform
@@ -154,45 +154,6 @@ def odometry_frames(event: ModelEvent) -> list[tuple[str, str]]:
         if isinstance(frames, tuple) and len(frames) == 2:
             found.append(frames)
     return found
-
-
-class LatestSender:
-    """Puts the newest message handed to it on a thread of its own: encoding a large scene never
-    holds up the loop, and a message superseded before it went is never sent. In lockstep it puts
-    each at once, in its step, as every message of lockstep goes (a seeded run sends the same)."""
-
-    def __init__(self, publisher: Publisher, at_once: bool = False) -> None:
-        self._publisher = publisher
-        self._at_once = at_once
-        self._pending: Any = None
-        self._wake = threading.Condition()
-        self._closed = False
-        self._thread = threading.Thread(target=self._run, name="scene-sender", daemon=True)
-        self._thread.start()
-
-    def send(self, msg: Any) -> None:
-        if self._at_once:
-            self._publisher.put(msg)
-            return
-        with self._wake:
-            self._pending = msg
-            self._wake.notify()
-
-    def _run(self) -> None:
-        while True:
-            with self._wake:
-                self._wake.wait_for(lambda: self._pending is not None or self._closed)
-                if self._closed:
-                    return
-                msg, self._pending = self._pending, None
-            self._publisher.put(msg)
-
-    def close(self) -> None:
-        with self._wake:
-            self._closed = True
-            self._wake.notify()
-        self._thread.join()
-        self._publisher.close()
 
 
 class ScenePublisher:

@@ -20,7 +20,7 @@ SDF parameters: the colour camera's (`<horizontal_fov>`, `<image>` size, `<clip>
 from __future__ import annotations
 
 from simbot.description.model import Sensor
-from simbot.sim.kit.sensor_params import SdfElement
+from simbot.description.sensor_params import SdfElement
 from simbot.sim.loop.system import SystemContext
 from simbot.sim.render.segmentation import OUTPUTS, PANOPTIC, SEMANTIC
 from simbot.sim.systems.camera import Camera, Product

@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import logging
 
-from simbot.sim.kit.plugin_params import number_param, param
+from simbot.description.plugin_params import number_param, param
+from simbot.sim.kit.rendered_sensor import covered
 from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.render import Annotation
-from simbot.sim.systems.label import covered
 
 log = logging.getLogger(__name__)
 

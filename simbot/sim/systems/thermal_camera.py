@@ -45,7 +45,7 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Atmosphere, Param, Sensor
-from simbot.sim.kit.sensor_params import SdfElement
+from simbot.description.sensor_params import SdfElement
 from simbot.sim.loop.system import SystemContext
 from simbot.sim.render.lens import Distortion
 from simbot.sim.render.specs import CameraSpec

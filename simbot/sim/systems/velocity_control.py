@@ -14,8 +14,8 @@ where nothing holds it). Gazebo's per-link commands (`<link_name>`) are not supp
 
 from __future__ import annotations
 
+from simbot.description.plugin_params import param
 from simbot.sim.kit.drive import check_twist, vector_param
-from simbot.sim.kit.plugin_params import param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 

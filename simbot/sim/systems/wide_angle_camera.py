@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from simbot.bus import messages
 from simbot.description.model import Sensor
-from simbot.sim.kit.sensor_params import SdfElement
+from simbot.description.sensor_params import SdfElement
 from simbot.sim.render.wide_lens import FUNCTIONS, LENS_TYPES, WideLens
 from simbot.sim.systems.camera import Camera
 from simbot.transform import norm

@@ -1,10 +1,10 @@
-"""What sensor modules share: reading a `<sensor>`'s own SDF elements, gz-sensors' noise, and the
-frame every simple sensor reads.
+"""Reading a `<sensor>`'s own SDF elements, and gz-sensors' `<noise>`.
 
-Reading a `<sensor>`'s own SDF elements. The description layer keeps each `<sensor>` whole (its
-children as `Param` trees, as it keeps plugins), and each sensor module parses what it needs into
-its own frozen parameter dataclass through `SdfElement`: a new sensor kind is one module, and the
-SDF reader knows nothing of lidars or cameras.
+The description layer keeps each `<sensor>` whole (its children as `Param` trees, as it keeps
+plugins), and each sensor module parses what it needs into its own frozen parameter dataclass
+through `SdfElement`: a new sensor kind is one module, and the SDF reader knows nothing of lidars or
+cameras. Where another layer reads a sensor's parameters too (the gym, a lidar's range), the
+dataclass lives in this layer beside it (`lidar_params.py`).
 
 A value that is not usable is a `SystemConfigError` naming the sensor and the element path
 (`sensor cam: <camera><clip><near> expected a number, got 'near'`): the server's one-line error.
@@ -15,15 +15,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
-import numpy as np
-import numpy.typing as npt
-
+from simbot.description.errors import SystemConfigError
 from simbot.description.model import Param, Sensor
-from simbot.sim.kit.rates import Sampled
-from simbot.sim.loop.naming import sensor_frame, sensor_rate
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 
 
 @dataclass(frozen=True)
@@ -141,61 +135,3 @@ class SdfElement:
     def error(self, tag: str, message: str) -> SystemConfigError:
         where = "".join(f"<{t}>" for t in self.path + (tag,))
         return SystemConfigError(f"sensor {self.sensor}: {where} {message}")
-
-
-class ChannelNoise:
-    """Gaussian noise of a few channels (axes) as gz-sensors applies it: mean, plus a bias drawn once per
-    run (N(bias_mean, bias_stddev), random sign) and held until `draw_bias` (a reset), plus white N(0, σ)."""
-
-    def __init__(self, channels: Sequence[Noise], rng: np.random.Generator) -> None:
-        self._rng = rng
-        self.mean = np.array([n.mean for n in channels], dtype=float)
-        self.stddev = np.array([n.stddev for n in channels], dtype=float)
-        self._bias_mean = np.array([n.bias_mean for n in channels], dtype=float)
-        self._bias_stddev = np.array([n.bias_stddev for n in channels], dtype=float)
-        self.bias = np.zeros(len(channels))
-        self.draw_bias()
-
-    def draw_bias(self) -> None:
-        size = self._rng.normal(self._bias_mean, self._bias_stddev)
-        self.bias = size * self._rng.choice((-1.0, 1.0), self.bias.size)
-
-    def __call__(self, value: npt.ArrayLike) -> npt.NDArray[np.float64]:
-        return (
-            np.asarray(value, dtype=float)
-            + self.mean
-            + self.bias
-            + self._rng.normal(0.0, 1.0, self.bias.size) * self.stddev
-        )
-
-    def variances(self) -> npt.NDArray[np.float64]:
-        """σ² of each channel (0: no noise; ROS reads a 0 covariance as unknown)."""
-        return self.stddev**2
-
-    def covariance(self) -> npt.NDArray[np.float64]:
-        """The channels' diagonal covariance, row-major (an IMU's or magnetometer's 3×3)."""
-        return np.diag(self.variances()).reshape(-1)
-
-
-class FramedSensor(Sampled):
-    """A sensor that reads its own frame each sample (its pose, its motion, the joint it is on) and adds
-    per-channel noise: altimeter, magnetometer, air pressure, navsat, force/torque. It keeps where the
-    frame is (`where`: model, link, pose in the link), the noise, the frame id and the publisher on
-    Gazebo's `kind` of key; a reset redraws the noise's bias, as a new run would."""
-
-    def __init__(self, ctx: SystemContext, channels: Sequence[Noise], kind: str, msgtype: type[Any]) -> None:
-        model, link, sensor = ctx.require_sensor()
-        super().__init__(sensor.name, sensor_rate(sensor, 1.0 / ctx.physics.step_size))
-        self.physics = ctx.physics
-        self.where = (model, link.name, sensor.pose)
-        self.noise = ChannelNoise(channels, ctx.rng)
-        self.frame = sensor_frame(sensor)
-        self.publisher = ctx.bus.publisher(ctx.sensor_topic(kind), msgtype)
-
-    def publish(self, info: UpdateInfo, message: Any) -> None:
-        self.publisher.put(message)
-        self.published(info.sim_time_ns)
-
-    def reset(self, info: UpdateInfo) -> None:
-        super().reset(info)
-        self.noise.draw_bias()

@@ -1,15 +1,17 @@
 """A `<plugin>`'s parameters, read as Gazebo reads them: first of several tags, numbers, flags, priority.
 
-A value that is unusable raises `SystemConfigError` naming the plugin and the tag.
+The systems read their plugins with these, and so does every other reader of a system's parameters
+(the typed ones: `drive_params`, `crowd_params`). A value that is unusable raises
+`SystemConfigError` naming the plugin and the tag.
 """
 
 from __future__ import annotations
 
 import math
 
+from simbot.description.errors import SystemConfigError
 from simbot.description.model import Plugin
 from simbot.description.xml import parse_flag
-from simbot.sim.loop.system import SystemConfigError
 
 
 def param(plugin: Plugin, *tags: str, default: str | None = None) -> str | None:

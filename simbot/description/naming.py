@@ -1,12 +1,25 @@
-"""Names a system derives from the SDF: its keys (Gazebo's defaults), its frame, its rate, its random stream."""
+"""Names a system derives from the SDF: its keys (Gazebo's defaults), its frame, its rate, its random
+stream, and a `<plugin>`'s canonical name.
+
+Gazebo names one system several ways: `gz::sim::systems::DiffDrive`, `ignition::gazebo::systems::
+DiffDrive`, and the library files `gz-sim-diff-drive-system`, `libignition-gazebo6-diff-drive-
+system.so`. All reduce to one canonical name (`DiffDrive`): the name the server looks the system up
+by (simbot/sim/loop/registry.py), and the name by which the gym finds a robot's drive.
+"""
 
 from __future__ import annotations
 
 import hashlib
+import re
+from collections.abc import Iterable
 
 import numpy as np
 
-from simbot.description.model import Sensor
+from simbot.description.model import Plugin, Sensor
+
+_LIBRARY = re.compile(
+    r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$"
+)
 
 
 def scoped_rng(seed: int, *scope: str) -> np.random.Generator:
@@ -36,3 +49,18 @@ def sensor_frame(sensor: Sensor) -> str:
 def sensor_rate(sensor: Sensor, default: float) -> float:
     """The SDF update_rate; 0 (SDF: "as fast as possible") or absent gives `default`."""
     return sensor.update_rate if sensor.update_rate > 0 else default
+
+
+def canonical_name(plugin: Plugin) -> str:
+    """`DiffDrive` for every spelling Gazebo accepts; other names unchanged."""
+    if "::" in plugin.name:
+        return plugin.name.rsplit("::", 1)[1]
+    match = _LIBRARY.match(plugin.filename.rsplit("/", 1)[-1])
+    if match:
+        return "".join(part.capitalize() for part in match["name"].split("-"))
+    return plugin.name or plugin.filename
+
+
+def plugin_named(plugins: Iterable[Plugin], name: str) -> Plugin | None:
+    """The first of `plugins` whose canonical name is `name`."""
+    return next((plugin for plugin in plugins if canonical_name(plugin) == name), None)

@@ -22,23 +22,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
 
 from simbot.description.actor_scripts import Script, Trajectory
-from simbot.description.poses import Pose
-from simbot.transform import Transform
+from simbot.transform import Quat, Transform, rpy_to_quaternion
 
-
-@runtime_checkable
-class ActorDriver(Protocol):
-    """An actor's own system that moves it in place of its script (FollowActor), as a TrajectoryPose
-    component overrides the script in gz-sim: the actors system leaves such an actor to it."""
-
-    drives_actor: bool
-
-
-Q = tuple[float, float, float, float]
-"""A quaternion as gz-math holds it: w, x, y, z."""
+Q = Quat
+"""A quaternion x, y, z, w (gz-math holds w first: each sum below is still taken in its order)."""
 V = tuple[float, float, float]
 EPSILON = 1e-6
 """gz-math's `equal` tolerance."""
@@ -46,65 +35,46 @@ CLOSED_TOLERANCE = 1e-3
 """gz-math's `==` of Vector3 and Quaternion (per component): whether a path is closed."""
 
 
-def _quat(pose: Pose) -> Q:
-    """The rotation of an SDF pose (Rz·Ry·Rx) as w, x, y, z."""
-    roll, pitch, yaw = (a / 2 for a in pose.rpy)
-    cr, sr, cp, sp, cy, sy = (
-        math.cos(roll),
-        math.sin(roll),
-        math.cos(pitch),
-        math.sin(pitch),
-        math.cos(yaw),
-        math.sin(yaw),
-    )
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
-
-
 def _mul(a: Q, b: Q) -> Q:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
     return (
-        aw * bw - ax * bx - ay * by - az * bz,
         aw * bx + ax * bw + ay * bz - az * by,
         aw * by - ax * bz + ay * bw + az * bx,
         aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
     )
 
 
 def _inverse(q: Q) -> Q:
-    w, x, y, z = q
+    x, y, z, w = q
     s = w * w + x * x + y * y + z * z
-    return (1.0, 0.0, 0.0, 0.0) if abs(s) < EPSILON else (w / s, -x / s, -y / s, -z / s)
+    return (0.0, 0.0, 0.0, 1.0) if abs(s) < EPSILON else (-x / s, -y / s, -z / s, w / s)
 
 
 def _log(q: Q) -> Q:
-    w, x, y, z = q
+    x, y, z, w = q
     if abs(w) < 1.0:
         angle = math.acos(w)
         sin = math.sin(angle)
         if abs(sin) >= 1e-3:
             k = angle / sin
-            return (0.0, k * x, k * y, k * z)
-    return (0.0, x, y, z)
+            return (k * x, k * y, k * z, 0.0)
+    return (x, y, z, 0.0)
 
 
 def _exp(q: Q) -> Q:
-    _, x, y, z = q
+    x, y, z, _ = q
     angle = math.sqrt(x * x + y * y + z * z)
     sin = math.sin(angle)
     k = sin / angle if abs(sin) >= 1e-3 else 1.0
-    return (math.cos(angle), k * x, k * y, k * z)
+    return (k * x, k * y, k * z, math.cos(angle))
 
 
 def _slerp(t: float, p: Q, q: Q, shortest: bool) -> Q:
     """gz-math's Quaternion::Slerp, its near-parallel fallback included (written out: it runs every step)."""
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
+    px, py, pz, pw = p
+    qx, qy, qz, qw = q
     cos = pw * qw + px * qx + py * qy + pz * qz
     if cos < 0.0 and shortest:
         cos, qw, qx, qy, qz = -cos, -qw, -qx, -qy, -qz
@@ -112,10 +82,10 @@ def _slerp(t: float, p: Q, q: Q, shortest: bool) -> Q:
         sin = math.sqrt(1 - cos * cos)
         angle = math.atan2(sin, cos)
         c0, c1 = math.sin((1.0 - t) * angle) / sin, math.sin(t * angle) / sin
-        return (c0 * pw + c1 * qw, c0 * px + c1 * qx, c0 * py + c1 * qy, c0 * pz + c1 * qz)
+        return (c0 * px + c1 * qx, c0 * py + c1 * qy, c0 * pz + c1 * qz, c0 * pw + c1 * qw)
     w, x, y, z = (1.0 - t) * pw + t * qw, (1.0 - t) * px + t * qx, (1.0 - t) * py + t * qy, (1.0 - t) * pz + t * qz
     norm = math.sqrt(w * w + x * x + y * y + z * z)
-    return (w / norm, x / norm, y / norm, z / norm)
+    return (x / norm, y / norm, z / norm, w / norm)
 
 
 def _close(a: Sequence[float], b: Sequence[float]) -> bool:
@@ -146,7 +116,7 @@ def _rotation_tangents(points: list[Q]) -> list[Q]:
         after = points[i + 1] if i < n - 1 else (points[1] if closed else p)
         before = points[i - 1] if i > 0 else (points[n - 2] if closed else p)
         a, b = _log(_mul(inverse, after)), _log(_mul(inverse, before))
-        tangents.append(_mul(p, _exp((0.0, *(-0.25 * (u + v) for u, v in zip(a[1:], b[1:]))))))  # type: ignore[arg-type]
+        tangents.append(_mul(p, _exp((*(-0.25 * (u + v) for u, v in zip(a[:3], b[:3])), 0.0))))  # type: ignore[arg-type]
     return tangents
 
 
@@ -167,7 +137,7 @@ class TrajectoryPath:
     def of(trajectory: Trajectory) -> TrajectoryPath:
         start = trajectory.waypoints[0].time
         points = [w.pose.xyz for w in trajectory.waypoints]
-        rotations = [_quat(w.pose) for w in trajectory.waypoints]
+        rotations = [rpy_to_quaternion(w.pose.rpy) for w in trajectory.waypoints]
         many = len(points) > 1
         turns = _rotation_tangents(rotations) if many else rotations
         ends = zip(rotations, rotations[1:], turns, turns[1:])
@@ -238,8 +208,8 @@ class ScriptPath:
         if not self.paths:
             return Transform()
         index, time = self._playing(sim_time)
-        position, (w, x, y, z) = self.paths[index].at(time)
-        return Transform(position, (x, y, z, w))
+        position, rotation = self.paths[index].at(time)
+        return Transform(position, rotation)
 
     def trajectory_at(self, sim_time: float) -> int | None:
         """Which trajectory plays at `sim_time` (its index in the script); None without any."""
