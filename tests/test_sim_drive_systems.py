@@ -105,6 +105,7 @@ class Rig:
             inbox.append(decode(sample.payload.to_bytes(), typename))
 
         self.node.session.declare_subscriber(self.node.data_key(topic, typename), keep)
+        self.node.refresh_subscribers()  # the server's publishers know of it before the next step
         return inbox
 
 
