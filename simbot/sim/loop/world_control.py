@@ -109,11 +109,12 @@ class WorldControl:
             ("create", self._create),
             ("remove", self._remove),
         )
+        base = bus.topic(f"world/{world}")  # under a zone's name in a zone server
         self._handlers: dict[str, tuple[Any, Handler]] = {
-            name: (node.queryable(bus.topic(f"world/{world}/{name}")), handler) for name, handler in handlers
+            name: (node.queryable(f"{base}/{name}"), handler) for name, handler in handlers
         }
-        self._keys = {name: node.key(bus.topic(f"world/{world}/{name}")) for name in self._handlers}
-        self.ros = RosWorldControl(node, bus.topic(f"world/{world}"), sim, models, bus.drops)
+        self._keys = {name: node.key(f"{base}/{name}") for name in self._handlers}
+        self.ros = RosWorldControl(node, base, sim, models, bus.drops)
 
     def poll(self) -> None:
         """Handles every request that arrived since the last call."""

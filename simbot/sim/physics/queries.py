@@ -97,6 +97,31 @@ class Queries:
     def frame_motion(self, model: str, link: str, pose_in_link: Pose = IDENTITY) -> tuple[Transform, Vec3, Vec3]:
         """(world pose, linear velocity of the frame's origin, angular velocity), velocities in the
         world frame; current even right after a teleport (forward kinematics are recomputed)."""
+        pose, com, linear, angular = self._frame_state(model, link, pose_in_link)
+        (wx, wy, wz), (rx, ry, rz) = angular, (pose[0][0] - com[0], pose[0][1] - com[1], pose[0][2] - com[2])
+        velocity = (
+            linear[0] + wy * rz - wz * ry,
+            linear[1] + wz * rx - wx * rz,
+            linear[2] + wx * ry - wy * rx,
+        )  # v + ω × r
+        return pose, velocity, (float(wx), float(wy), float(wz))
+
+    def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions:
+        """`frame_motion` of many frames at once (a fleet's IMUs): the same state of each frame, and
+        the velocities of all frames' origins as arrays, summed in the same order (the same bits)."""
+        rows = []
+        for frame in frames:
+            (position, orientation), com, linear, angular = self._frame_state(*frame)
+            rows.append((*position, *orientation, *com, *linear, *angular))
+        table = np.array(rows, dtype=float).reshape(-1, 16)  # pose 7, centre of mass 3, v 3, ω 3
+        (vx, vy, vz), (wx, wy, wz) = table[:, 10:13].T, table[:, 13:].T
+        rx, ry, rz = (table[:, :3] - table[:, 7:10]).T
+        velocities = np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
+        return FrameMotions(table[:, :3], table[:, 3:7], velocities, table[:, 13:])  # v + ω × r
+
+    def _frame_state(self, model: str, link: str, pose_in_link: Pose) -> tuple[Transform, Vec3, Vec3, Vec3]:
+        """(the frame's world pose, its link's centre of mass, that centre's linear velocity, the
+        angular velocity), as PyBullet reports them."""
         body = self.body(model)
         index = body.link_index(link)
         if index == -1:
@@ -109,39 +134,7 @@ class Queries:
             )
             com, linear, angular = state[0], state[6], state[7]
             frame = Transform.of(state[4], state[5])
-        pose = compose(frame, self._offset(body, link, pose_in_link))
-        (wx, wy, wz), (rx, ry, rz) = angular, (pose[0][0] - com[0], pose[0][1] - com[1], pose[0][2] - com[2])
-        velocity = (
-            linear[0] + wy * rz - wz * ry,
-            linear[1] + wz * rx - wx * rz,
-            linear[2] + wx * ry - wy * rx,
-        )  # v + ω × r
-        return pose, velocity, (float(wx), float(wy), float(wz))
-
-    def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions:
-        """`frame_motion` of many frames at once (a fleet's IMUs): each pose composed as there (the
-        same bits), the velocities of all frames' origins found as arrays."""
-        rows = []
-        for model, link, pose_in_link in frames:
-            body = self.body(model)
-            index = body.link_index(link)
-            if index == -1:
-                com, orn = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
-                velocity, rate = pb.getBaseVelocity(body.id, physicsClientId=self.client)
-                origin = pb.multiplyTransforms(com, orn, *body.com_to_root, physicsClientId=self.client)
-            else:
-                state = pb.getLinkState(
-                    body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
-                )
-                com, velocity, rate, origin = state[0], state[6], state[7], state[4:6]
-            offset = self._offset(body, link, pose_in_link)
-            position, orientation = pb.multiplyTransforms(*origin, *offset, physicsClientId=self.client)
-            rows.append((*position, *orientation, *com, *velocity, *rate))
-        table = np.array(rows, dtype=float).reshape(-1, 16)  # pose 7, centre of mass 3, v 3, ω 3
-        spin = table[:, 13:]
-        (wx, wy, wz), (rx, ry, rz) = spin.T, (table[:, :3] - table[:, 7:10]).T
-        velocities = table[:, 10:13] + np.stack([wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx], axis=1)
-        return FrameMotions(table[:, :3], table[:, 3:7], velocities, spin)  # v + ω × r
+        return compose(frame, self._offset(body, link, pose_in_link)), com, linear, angular
 
     def _offset(self, body: Body, link: str, pose_in_link: Pose) -> Transform:
         """The frame in the link's URDF frame; worked out once (sensors ask hundreds of times a second)."""
