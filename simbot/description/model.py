@@ -119,6 +119,10 @@ class Friction:
     mu: float = 1.0
     mu2: float = 1.0
     fdir1: Vec3 | None = None
+    slip1: float = 0.0
+    """ODE's force-dependent slip along fdir1, m/s per N (0, SDF's default: none stated)."""
+    slip2: float = 0.0
+    """The same across."""
 
 
 @dataclass(frozen=True)

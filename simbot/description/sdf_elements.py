@@ -10,6 +10,7 @@ folder an `<include>` means.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
@@ -105,7 +106,35 @@ def read_friction(reader: Reader, collision: Element) -> Friction | None:
     if ode is None:
         return None
     fdir1 = reader.vector(ode, "fdir1", 3)
-    return Friction(reader.number(ode, "mu", 1.0), reader.number(ode, "mu2", 1.0), fdir1)  # type: ignore[arg-type]
+    slip1, slip2 = (_read_slip(reader, collision, ode, tag) for tag in ("slip1", "slip2"))
+    return Friction(reader.number(ode, "mu", 1.0), reader.number(ode, "mu2", 1.0), fdir1, slip1, slip2)  # type: ignore[arg-type]
+
+
+def _read_slip(reader: Reader, collision: Element, ode: Element, tag: str) -> float:
+    """ODE's force-dependent slip (m/s per N). A negative or unreadable one is a user's slip of
+    the pen, not a reason to refuse the world: one line naming where, and SDF's default (0)."""
+    text = reader.text(ode, tag)
+    if text is None:
+        return 0.0
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if value >= 0.0 and math.isfinite(value):
+        return value
+    link = collision.getparent()
+    model = next((e for e in collision.iterancestors() if sdf_tag(e) == "model"), None)
+    logger.warning(
+        "%s: model %r, link %r, collision %r: <%s> must be a non-negative number of m/s per N, got %r; "
+        "using the default tyre",
+        reader.file,
+        model.get("name") if model is not None else None,
+        link.get("name") if link is not None else None,
+        collision.get("name"),
+        tag,
+        text,
+    )
+    return 0.0
 
 
 def rgba(reader: Reader, element: Element, tag: str) -> tuple[float, float, float, float] | None:

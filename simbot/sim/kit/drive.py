@@ -177,8 +177,16 @@ class OdometryOutput:
         """Whether anyone subscribes to the odometry or its transform."""
         return self._odom.has_subscribers or (self._tf is not None and self._tf.has_subscribers)
 
-    def put_planar(self, now_ns: int, pose: PlanarPose, linear: tuple[float, float], turn_rate: float) -> None:
-        """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown)."""
+    def put_planar(
+        self,
+        now_ns: int,
+        pose: PlanarPose,
+        linear: tuple[float, float],
+        turn_rate: float,
+        twist_covariance: tuple[float, ...] = TWIST_COVARIANCE,
+    ) -> None:
+        """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown); a
+        drive that knows its twist's error better states its own diagonal."""
         if not self.watched:
             return
         self.put(
@@ -186,7 +194,7 @@ class OdometryOutput:
             ((pose.x, pose.y, 0.0), pose.quaternion),
             ((linear[0], linear[1], 0.0), (0.0, 0.0, turn_rate)),
             diagonal(POSE_COVARIANCE),
-            diagonal(TWIST_COVARIANCE),
+            diagonal(twist_covariance),
         )
 
     def put(

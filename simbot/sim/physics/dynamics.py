@@ -13,6 +13,7 @@ from simbot.description.poses import IDENTITY, Pose
 from simbot.description.urdf_writer import sdf_joint
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
+from simbot.sim.physics.tyre import Tyre
 from simbot.sim.physics.wheel_friction import TYRE_STIFFNESS, Wheel, WheelFriction
 from simbot.transform import Vec3, matmul, norm
 
@@ -53,7 +54,7 @@ def _configure_friction(client: int, body: Body) -> WheelFriction | None:
         joint = _wheel_joint(body.model, link.name) if friction and friction.mu != friction.mu2 else None
         if friction and joint is not None and joint.axis is not None:
             fdir1 = _fdir1_angle(body.model, joint, friction.fdir1)
-            wheels.append(Wheel(index, friction.mu, friction.mu2, _axis_in_link(joint, link.pose), fdir1))
+            wheels.append(Wheel(index, Tyre.of(friction), _axis_in_link(joint, link.pose), fdir1))
             mu = 0.0
         pb.changeDynamics(
             body.id, index, lateralFriction=mu, rollingFriction=0, spinningFriction=0, physicsClientId=client
@@ -61,7 +62,8 @@ def _configure_friction(client: int, body: Body) -> WheelFriction | None:
     if not wheels:
         return None
     _soften_tyres(client, body, wheels)
-    return WheelFriction(client, body.id, tuple(wheels))
+    step = pb.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"]
+    return WheelFriction(client, body.id, tuple(wheels), step)
 
 
 def _soften_tyres(client: int, body: Body, wheels: list[Wheel]) -> None:

@@ -8,18 +8,14 @@ along and 0.25 across, and then the traction wins.
 
 So for each wheel, PyBullet's own contact keeps only the normal force (its friction is 0), and
 this model applies the friction force at the contact point before each step, as ODE's friction
-pyramid does for SDF `mu`/`mu2`:
-
-    F_along  = −μ  · N · clip(v_along  / v_slip, −1, 1)
-    F_across = −μ2 · N · clip(v_across / v_slip, −1, 1)
-
-along and across turn by the angle of SDF's `fdir1` where a wheel states one (mecanum rollers);
-where v is the slip velocity of the wheel surface over the ground at the contact (the wheel's spin
-included, so a wheel driven faster than the ground under it pushes the robot), N the wheel's normal force
-PyBullet reported at the last step (all its contact points summed, applied at their load-weighted
-centre), and v_slip a small regularising slip speed (a tyre's slip
-stiffness; Coulomb friction with an infinitely sharp switch cannot be integrated explicitly).
-Traction is bounded by μ × load, so walls and a pulled trolley push back and the wheels spin.
+pyramid does for SDF `mu`/`mu2`: along and across independently, each through the tyre's slip
+curve (`tyre.Tyre`: linear in the slip ratio along and in the slip angle across, then saturating
+at μ·N and μ2·N). Along and across turn by the angle of SDF's `fdir1` where a wheel states one
+(mecanum rollers); the slip velocity is the wheel surface's over the ground at the contact (the
+wheel's spin included, so a wheel driven faster than the ground under it pushes the robot), N the
+wheel's normal force PyBullet reported at the last step (all its contact points summed, applied
+at their load-weighted centre). Traction is bounded by μ × load, so walls and a pulled trolley
+push back and the wheels spin.
 
 The wheels' contacts are also given a tyre's vertical compliance (TYRE_STIFFNESS, critically
 damped): a rigid four-wheeled chassis on rigid ground rocks between its diagonals, so the loads,
@@ -33,13 +29,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from simbot.sim.bullet import pb
+from simbot.sim.physics.tyre import Tyre
 from simbot.transform import Vec3
-
-SLIP_SPEED = 0.01
-"""m/s of slip at which friction saturates. Small enough that the tug tracks commands within
-a few percent; large enough to be stable at a 1 ms explicit step (stiffness μN/v_slip ≈ 2.4e4 N·s/m
-per wheel on the 110 kg robot)."""
-
 
 TYRE_STIFFNESS = 2.0e5
 """N/m of vertical tyre compliance: a 110 kg tug sinks 1.3 mm on its four wheels."""
@@ -50,8 +41,7 @@ class Wheel:
     """A wheel link (PyBullet index) and its SDF friction."""
 
     link: int
-    mu: float
-    mu2: float
+    tyre: Tyre
     axle: Vec3
     """The wheel's axis of rotation in its link frame."""
     fdir1: float = 0.0
@@ -67,8 +57,9 @@ N × normal summed (x, y, z each): the load-weighted centre and normal, seen fro
 class WheelFriction:
     """The wheels of one body; `apply` once before every physics step (plain floats: it runs at 1 kHz)."""
 
-    def __init__(self, client: int, body: int, wheels: tuple[Wheel, ...]) -> None:
+    def __init__(self, client: int, body: int, wheels: tuple[Wheel, ...], step: float) -> None:
         self._client = client
+        self._step = step
         self.body = body
         self._wheels = {w.link: w for w in wheels}
         self.links = frozenset(self._wheels)
@@ -114,8 +105,10 @@ class WheelFriction:
             )  # fmt: skip
         rx, ry, rz = px - cx, py - cy, pz - cz
         ux, uy, uz = vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx  # slip: v + ω × r
-        f1 = -wheel.mu * load * max(-1.0, min(1.0, (ux * lx + uy * ly + uz * lz) / SLIP_SPEED))
-        f2 = -wheel.mu2 * load * max(-1.0, min(1.0, (ux * sx + uy * sy + uz * sz) / SLIP_SPEED))
+        ground = vx * lx + vy * ly + vz * lz  # the wheel centre's speed along
+        along = ux * lx + uy * ly + uz * lz
+        rolling = max(abs(ground), abs(ground - along))  # the ground's, or the wheel surface's
+        f1, f2 = wheel.tyre.forces(along, ux * sx + uy * sy + uz * sz, rolling, load, self._step)
         force = (f1 * lx + f2 * sx, f1 * ly + f2 * sy, f1 * lz + f2 * sz)
         pb.applyExternalForce(self.body, wheel.link, force, point, pb.WORLD_FRAME, physicsClientId=self._client)
 

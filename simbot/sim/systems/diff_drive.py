@@ -22,7 +22,12 @@ The defaults are Gazebo Sim's, with `<model>` the model's name in the running wo
 vehicles of one world keep apart keys and tf trees (`vehicle_blue/odom` → `vehicle_blue/chassis`).
 
 Odometry comes from the wheel encoders only, as on the real robot: when the wheels slip (a skid
-turn, a wall) `odom` drifts from the ground truth on `model/<name>/pose`.
+turn, a wall) `odom` drifts from the ground truth on `model/<name>/pose`. A skid-steer's wheels
+slip in every turn, so odometry over-reports the yaw rate (docs/robot.md, "How the tug turns"):
+the twist's covariance says by how much, from the steady turn the model's SDF implies
+(`steady_turn.skid_error`): σ_ω = e·|ω| and σ_vy = p·|ω|, with e the yaw rate's over-report and
+p the turn centre's offset at the reference turn, over a floor of `TWIST_FLOOR`. A kinematic world
+moves the base as commanded: there only the floor.
 """
 
 from __future__ import annotations
@@ -30,9 +35,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from simbot.description.drive_params import DiffDriveParams
-from simbot.sim.kit.drive import OdometryOutput, PlanarPose, check_twist, joint_effort
+from simbot.sim.kit.drive import TWIST_COVARIANCE, OdometryOutput, PlanarPose, check_twist, joint_effort
 from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.system import SystemContext, UpdateInfo
+from simbot.sim.physics.kinematic_stepper import KINEMATIC
+from simbot.sim.physics.steady_turn import SkidError, skid_error
 
 
 @dataclass
@@ -53,6 +60,22 @@ class Odometry:
         distance, turn = (dl + dr) / 2, (dr - dl) / separation
         self.pose.advance(distance, 0.0, turn)
         return distance, turn
+
+
+TWIST_FLOOR = 1e-6
+"""(m/s)² and (rad/s)²: the twist's variance on a straight, where the wheels roll without slip."""
+ROLLING_ERROR = 0.01
+"""The forward speed's σ per m/s: the wheels roll within 1 % on a straight."""
+
+
+def twist_covariance(error: SkidError, speed: float, rate: float) -> tuple[float, ...]:
+    """The diagonal (x, y, z, roll, pitch, yaw) of odometry's twist covariance at its speed and yaw rate."""
+    return (
+        TWIST_FLOOR + (ROLLING_ERROR * speed) ** 2,
+        TWIST_FLOOR + (error.side * rate) ** 2,
+        *TWIST_COVARIANCE[2:5],
+        TWIST_FLOOR + (error.yaw * rate) ** 2,
+    )
 
 
 class DiffDrive(Paced):
@@ -76,6 +99,8 @@ class DiffDrive(Paced):
         self._applied: tuple[float, float] | None = None  # None: the first step holds the wheels still
         self._odom = Odometry()
         self._last_ns = 0
+        kinematic = ctx.world.physics.type == KINEMATIC
+        self._skid = SkidError() if kinematic else skid_error(self._model, self._physics.step_size)
 
     @property
     def odometry_frames(self) -> tuple[str, str] | None:
@@ -112,7 +137,8 @@ class DiffDrive(Paced):
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
         speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
-        self._output.put_planar(now_ns, self._odom.pose, (speed, 0.0), rate)
+        covariance = twist_covariance(self._skid, speed, rate)
+        self._output.put_planar(now_ns, self._odom.pose, (speed, 0.0), rate, covariance)
 
     def _sides(self) -> tuple[float, float]:
         """The mean wheel angle of each side, both sides' joints read in one query."""
