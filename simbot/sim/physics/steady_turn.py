@@ -9,6 +9,7 @@ hold the simulated tug to. It solves the same tyre curve the physics applies (`t
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,6 +23,8 @@ from simbot.description.naming import plugin_named
 from simbot.sim.physics.loading import ball_castors
 from simbot.sim.physics.tyre import G, Tyre
 from simbot.transform import inverse3, matmul
+
+logger = logging.getLogger(__name__)
 
 DAMPING = 1e-12
 """Levenberg-Marquardt's damping, relative to the Jacobian's scale: enough to step where it is singular."""
@@ -138,11 +141,16 @@ class SkidError:
     side: float = 0.0
 
 
-def skid_error(model: Model, step: float = 0.001) -> SkidError:
-    """Odometry's error in the reference turn of `model` (a DiffDrive on tyres): what the twist's
-    covariance says."""
+def skid_error(model: Model, step: float = 0.001) -> SkidError | None:
+    """Odometry's error in the reference turn of `model`, what the twist's covariance says; None
+    where the derivation does not apply (a wheel without the tyre: SDF μ = μ2 leaves it to
+    PyBullet's friction) or finds no steady turn."""
     speed, radius = REFERENCE_TURN
-    turn = steady_turn(Chassis.of(model), speed, speed / radius, step)
+    try:
+        turn = steady_turn(Chassis.of(model), speed, speed / radius, step)
+    except (ValueError, ArithmeticError) as exc:
+        logger.info("model %r: no skid error for its odometry's covariance (%s)", model.name, exc)
+        return None
     return SkidError(1.0 - turn.yaw_ratio, abs(turn.pivot))
 
 
@@ -205,7 +213,10 @@ def _solve(
 
 
 def _wheel(link: Link, side: float) -> Contact:
+    """A wheel on the tyre, as the physics gives one to a wheel whose SDF μ and μ2 differ."""
     friction = next((c.friction for c in link.collisions if c.friction is not None), Friction())
+    if friction.mu == friction.mu2:
+        raise ValueError(f"wheel {link.name!r} has μ = μ2: PyBullet's friction, not the tyre")
     return Contact(link.name, link.pose.xyz[0], link.pose.xyz[1], Tyre.of(friction), side)
 
 

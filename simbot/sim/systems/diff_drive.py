@@ -27,7 +27,8 @@ slip in every turn, so odometry over-reports the yaw rate (docs/robot.md, "How t
 the twist's covariance says by how much, from the steady turn the model's SDF implies
 (`steady_turn.skid_error`): σ_ω = e·|ω| and σ_vy = p·|ω|, with e the yaw rate's over-report and
 p the turn centre's offset at the reference turn, over a floor of `TWIST_FLOOR`. A kinematic world
-moves the base as commanded: there only the floor.
+moves the base as commanded: there only the floor. Wheels without the tyre (SDF μ = μ2) keep
+dead reckoning's fixed covariance.
 """
 
 from __future__ import annotations
@@ -68,8 +69,11 @@ ROLLING_ERROR = 0.01
 """The forward speed's σ per m/s: the wheels roll within 1 % on a straight."""
 
 
-def twist_covariance(error: SkidError, speed: float, rate: float) -> tuple[float, ...]:
-    """The diagonal (x, y, z, roll, pitch, yaw) of odometry's twist covariance at its speed and yaw rate."""
+def twist_covariance(error: SkidError | None, speed: float, rate: float) -> tuple[float, ...]:
+    """The diagonal (x, y, z, roll, pitch, yaw) of odometry's twist covariance at its speed and yaw
+    rate; dead reckoning's fixed one where the skid error is unknown (wheels without the tyre)."""
+    if error is None:
+        return TWIST_COVARIANCE
     return (
         TWIST_FLOOR + (ROLLING_ERROR * speed) ** 2,
         TWIST_FLOOR + (error.side * rate) ** 2,
