@@ -15,7 +15,6 @@ import dataclasses
 import math
 
 import numpy as np
-
 from tables import publish
 
 from simbot.description import load_model, load_world
@@ -30,30 +29,17 @@ from simbot.transform import yaw_of
 SPEED, RADIUS = 0.5, 3.0
 SEPARATION, WHEEL = 0.4, 0.075
 LEFT, RIGHT = ("front_left_wheel_joint", "back_left_wheel_joint"), ("front_right_wheel_joint", "back_right_wheel_joint")
+Placed = tuple[tuple[float, ...], tuple[float, ...]]
+"""A model's position and quaternion."""
 KNIFE_EDGE_SLIP = 0.01
 """m/s: the slip at which the old friction saturated."""
 
 
 def knife_edge(model: Model, load: float) -> Model:
     """The tug with its wheels' friction saturating at KNIFE_EDGE_SLIP under `load` (N), as SDF slip."""
-
-    def wheel(link):  # type: ignore[no-untyped-def]
-        collisions = tuple(
-            dataclasses.replace(
-                c,
-                friction=dataclasses.replace(
-                    c.friction,
-                    slip1=KNIFE_EDGE_SLIP / (c.friction.mu * load),
-                    slip2=KNIFE_EDGE_SLIP / (c.friction.mu2 * load),
-                ),
-            )
-            if c.friction is not None and c.friction.mu != c.friction.mu2
-            else c
-            for c in link.collisions
-        )
-        return dataclasses.replace(link, collisions=collisions)
-
-    return dataclasses.replace(model, links=tuple(wheel(link) for link in model.links))
+    return model.with_wheel_friction(
+        lambda f: dataclasses.replace(f, slip1=KNIFE_EDGE_SLIP / (f.mu * load), slip2=KNIFE_EDGE_SLIP / (f.mu2 * load))
+    )
 
 
 def measure(model: Model) -> dict[str, float]:
@@ -102,19 +88,19 @@ def _sides(sim: Physics) -> tuple[float, float]:
     return (states[0][0] + states[1][0]) / 2, (states[2][0] + states[3][0]) / 2
 
 
-def _in_frame(base: tuple, point: tuple) -> tuple[float, float]:  # type: ignore[type-arg]
+def _in_frame(base: Placed, point: Placed) -> tuple[float, float]:
     yaw = yaw_of(base[1])
     dx, dy = point[0][0] - base[0][0], point[0][1] - base[0][1]
     return math.cos(yaw) * dx + math.sin(yaw) * dy, -math.sin(yaw) * dx + math.cos(yaw) * dy
 
 
-def _pivot(before: tuple, after: tuple) -> float:  # type: ignore[type-arg]
+def _pivot(before: Placed, after: Placed) -> float:
     """m ahead of the model frame at `before`: the point a rigid turn from `before` to `after` keeps in place."""
     turn = yaw_of(after[1]) - yaw_of(before[1])
     rotation = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
     p0, p1 = np.asarray(before[0][:2]), np.asarray(after[0][:2])
     centre = np.linalg.solve(np.eye(2) - rotation, p1 - rotation @ p0)  # p1 = c + R (p0 − c)
-    return _in_frame(before, ((float(centre[0]), float(centre[1])),))[0]
+    return _in_frame(before, ((float(centre[0]), float(centre[1])), (0.0, 0.0, 0.0, 1.0)))[0]
 
 
 def main() -> None:
@@ -134,7 +120,10 @@ def main() -> None:
         f"| the tug in the warehouse, 0.5 m/s on a {RADIUS:g} m radius | derived (steady_turn) | simbot's tyre | "
         "the knife-edge (before) |",
         "| --- | --- | --- | --- |",
-        *(f"| {label} | {fmt.format(d)} | {fmt.format(tyre[k])} | {fmt.format(edge[k])} |" for label, d, k, fmt in rows),
+        *(
+            f"| {label} | {fmt.format(d)} | {fmt.format(tyre[k])} | {fmt.format(edge[k])} |"
+            for label, d, k, fmt in rows
+        ),
     ]
     publish("turn", table)
 

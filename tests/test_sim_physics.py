@@ -286,7 +286,7 @@ def test_a_stated_slip_is_the_tyre_the_turn_follows(physics: Physics) -> None:
     where the derivation with that slip puts it: the centre further ahead, carrying the
     centripetal force on softer tyres (m·v / 4k = 5.3 cm against 2.3)."""
     model = load_model(ROBOT_SDF)
-    soft = _with_slip2(model, 4e-3)
+    soft = model.with_wheel_friction(lambda f: dataclasses.replace(f, slip2=4e-3))
     chassis = Chassis.of(soft)
     derived, default = steady_turn(chassis, 0.5, 0.5 / 3.0), steady_turn(Chassis.of(model), 0.5, 0.5 / 3.0)
     assert abs(derived.pivot - default.pivot) > 0.02, "the stated slip must make a difference the test can see"
@@ -302,14 +302,17 @@ def test_a_stated_slip_is_the_tyre_the_turn_follows(physics: Physics) -> None:
     assert pivot == pytest.approx(derived.pivot, abs=0.01)
 
 
-def _with_slip2(model: Model, slip2: float) -> Model:
-    def wheel(link: Link) -> Link:
-        collisions = tuple(
-            dataclasses.replace(c, friction=dataclasses.replace(c.friction, slip2=slip2))
-            if c.friction is not None and c.friction.mu != c.friction.mu2
-            else c
-            for c in link.collisions
+def test_the_robot_page_states_the_derived_turns() -> None:
+    """docs/robot.md's table of steady turns is what `steady_turn` derives from the SDF, to its digits."""
+    page = (Path(__file__).resolve().parents[1] / "docs" / "robot.md").read_text()
+    table = page[page.index("| speed, m/s | radius, m |") :].split("\n\n", 1)[0].splitlines()[2:]
+    chassis = Chassis.of(load_model(ROBOT_SDF))
+    assert len(table) == 7
+    for row in table:
+        speed, radius = (float(cell) for cell in row.split("|")[1:3])
+        turn = steady_turn(chassis, speed, speed / radius)
+        derived = (
+            f"| {speed:g} | {radius:g} | {turn.pivot:.3f} | {turn.side_slip:.2%} | {turn.radius:.2f} | "
+            f"{turn.yaw_ratio:.3f} | {turn.odom_yaw_ratio:.3f} |"
         )
-        return dataclasses.replace(link, collisions=collisions)
-
-    return dataclasses.replace(model, links=tuple(wheel(link) for link in model.links))
+        assert row == derived

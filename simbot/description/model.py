@@ -7,7 +7,8 @@ model's frame, a joint's pose is in its model's frame, and the poses of what a l
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from simbot.description.poses import IDENTITY, Pose, Vec3
@@ -261,6 +262,19 @@ class Model:
     def joint_of(self, sensor: Sensor) -> Joint | None:
         """The joint a sensor belongs to (a force_torque sensor), None for a link's sensor."""
         return next((joint for joint in self.joints if sensor in joint.sensors), None)
+
+    def with_wheel_friction(self, change: Callable[[Friction], Friction]) -> Model:
+        """This model with `change` applied to the friction of every collision whose μ and μ2
+        differ (the wheels the physics gives a tyre): a tyre's slip restated, for a comparison."""
+
+        def restated(collision: Collision) -> Collision:
+            friction = collision.friction
+            if friction is None or friction.mu == friction.mu2:
+                return collision
+            return replace(collision, friction=change(friction))
+
+        links = tuple(replace(link, collisions=tuple(map(restated, link.collisions))) for link in self.links)
+        return replace(self, links=links)
 
 
 @dataclass(frozen=True)

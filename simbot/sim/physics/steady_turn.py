@@ -85,9 +85,7 @@ class Chassis:
         basis = np.stack([np.ones_like(xs), xs, ys])
         weight = self.mass * G
         x, y, h = self.centre
-        wanted = np.array(
-            [weight, weight * x - self.mass * longitudinal * h, weight * y - self.mass * lateral * h]
-        )
+        wanted = np.array([weight, weight * x - self.mass * longitudinal * h, weight * y - self.mass * lateral * h])
         coefficients = matmul(inverse3(matmul(basis, basis.T)), wanted[:, np.newaxis])
         return matmul(coefficients.T, basis)[0]
 
@@ -197,7 +195,9 @@ def _solve(
         h = 1e-7
         jacobian = np.stack([(residual(q + h * e) - residual(q - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
         normal = matmul(jacobian.T, jacobian)
-        delta = -matmul(inverse3(normal + DAMPING * np.trace(normal) * np.eye(3)), matmul(jacobian.T, r[:, np.newaxis]))[:, 0]
+        delta = -matmul(
+            inverse3(normal + DAMPING * np.trace(normal) * np.eye(3)), matmul(jacobian.T, r[:, np.newaxis])
+        )[:, 0]
         for _ in range(40):
             trial = q + delta
             trial_r = residual(trial)

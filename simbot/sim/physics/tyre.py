@@ -63,7 +63,9 @@ class Tyre:
         """The tyre of a wheel's SDF friction, with the default stiffness where it states no slip."""
         return Tyre(friction.mu, friction.mu2, slip1=friction.slip1, slip2=friction.slip2)
 
-    def forces(self, slip_along: float, slip_across: float, rolling: float, load: float, step: float) -> tuple[float, float]:
+    def forces(
+        self, slip_along: float, slip_across: float, rolling: float, load: float, step: float
+    ) -> tuple[float, float]:
         """The friction force along and across on the wheel (newtons, opposing the slip velocities,
         m/s) at a rolling speed (m/s), a load (N) and an explicit step (s)."""
         bound = load * STEP_MARGIN / (G * step)
