@@ -40,11 +40,13 @@ lint: $(STAMP)
 docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict --site-dir build/site
 
-## Speed, as ratios against a baseline measured in the same run (each benchmark writes its own table into docs/speed.md, with the date and machine).
+## Speed, as ratios against a baseline measured in the same run (each benchmark writes its own table into docs/speed.md, with the date and machine). Installs the localisation extra (Nav2's AMCL, for bench_localisation), which `make test` does not.
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
 	$(BIN)/python benchmarks/bench_fleet.py
 	$(BIN)/python benchmarks/bench_turn.py
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[localisation]'
+	$(BIN)/python benchmarks/bench_localisation.py
 	$(BIN)/python benchmarks/bench_sensors.py
 	$(BIN)/python benchmarks/bench_looks.py
 	$(BIN)/python benchmarks/bench_cameras.py
