@@ -36,17 +36,16 @@ import dataclasses
 import math
 import statistics
 import sys
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 from bench_turn import knife_edge
+from nav2_map import Map, closest_approach, simbot_warehouse_map
 from tables import cpu_model, publish
 
 from simbot.bus import messages
@@ -54,7 +53,6 @@ from simbot.bus.local import LocalNode
 from simbot.description import load_world
 from simbot.description.model import Model
 from simbot.description.resources import asset
-from simbot.mapping.command import main as simbot_map
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.simulation import Mode
 from simbot.sim.loop.world import SimWorld, load_robot
@@ -283,70 +281,6 @@ def record(robot: Model) -> tuple[Recording, float]:
     return rec, time.perf_counter() - started
 
 
-# The map, as map_server reads it
-
-
-@dataclass(frozen=True)
-class Map:
-    cells: npt.NDArray[np.int8]
-    """nav_msgs/OccupancyGrid's values, row 0 the lowest y: 100 occupied, 0 free, -1 unknown."""
-    resolution: float
-    origin: tuple[float, float]
-
-
-def read_map(folder: Path) -> Map:
-    """map.yaml and its image as nav2_map_server's map_io loads them (trinary, negate 0)."""
-    entries = dict(line.split(":", 1) for line in (folder / "map.yaml").read_text().splitlines() if ":" in line)
-    values = {key.strip(): value.strip() for key, value in entries.items()}
-    assert values["mode"] == "trinary" and values["negate"] == "0", values
-    image = cv2.imread(str(folder / values["image"]), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise SystemExit(f"{folder / values['image']}: not an image")
-    occupancy = (255.0 - image.astype(np.float64)) / 255.0
-    cells = np.full(image.shape, -1, dtype=np.int8)
-    cells[occupancy > float(values["occupied_thresh"])] = 100
-    cells[occupancy < float(values["free_thresh"])] = 0
-    origin = [float(v) for v in values["origin"].strip("[]").split(",")]
-    return Map(np.flipud(cells), float(values["resolution"]), (origin[0], origin[1]))
-
-
-def simbot_warehouse_map() -> Map:
-    with tempfile.TemporaryDirectory() as folder:
-        if simbot_map(["--world", "warehouse", "-o", folder]) != 0:
-            raise SystemExit("simbot map failed")
-        return read_map(Path(folder))
-
-
-def _clearance(grid: Map) -> npt.NDArray[np.float32]:
-    """Metres from each cell's centre to the nearest occupied cell's."""
-    free = (grid.cells != 100).astype(np.uint8)
-    return cv2.distanceTransform(free, cv2.DIST_L2, 5) * grid.resolution
-
-
-def closest_approach(grid: Map, poses: Sequence[Pose2]) -> float:
-    """m: the least distance from the chassis' outline, at each of `poses`, to an occupied cell (cell
-    centres), less half a cell."""
-    distance = _clearance(grid)
-    length, width = CHASSIS
-    u = np.linspace(-0.5, 0.5, 43)
-    outline = np.concatenate(
-        [
-            np.stack([u * length, np.full_like(u, width / 2)], 1),
-            np.stack([u * length, np.full_like(u, -width / 2)], 1),
-            np.stack([np.full_like(u, length / 2), u * width], 1),
-            np.stack([np.full_like(u, -length / 2), u * width], 1),
-        ]
-    )
-    least = math.inf
-    for x, y, yaw in poses:
-        c, s = math.cos(yaw), math.sin(yaw)
-        wx, wy = x + c * outline[:, 0] - s * outline[:, 1], y + s * outline[:, 0] + c * outline[:, 1]
-        cols = np.floor((wx - grid.origin[0]) / grid.resolution).astype(int)
-        rows = np.floor((wy - grid.origin[1]) / grid.resolution).astype(int)
-        least = min(least, float(distance[rows, cols].min()))
-    return least - grid.resolution / 2
-
-
 def returns_on_map(grid: Map, rec: Recording) -> float:
     """The share of returns that, placed by the ground truth and tf_static, land on or next to an
     occupied cell (the issue's check that lidar, map and tf agree)."""
@@ -479,7 +413,7 @@ def main() -> None:
             "sim_s": (rec.odom[-1][0] - rec.scans[0].stamp_ns) / 1e9,
             "wall_s": wall,
             "on_map": returns_on_map(grid, rec),
-            "clearance": closest_approach(grid, rec.truth),
+            "clearance": closest_approach(grid, rec.truth, CHASSIS),
         }
         print(f"{name}: {columns[name]}", file=sys.stderr)
     tyre, edge = columns["tyre"], columns["edge"]
