@@ -1,23 +1,32 @@
-# `make run` and `make test` create .venv when missing and install simbot with what it needs.
+# `make run` and `make test` create .venv when missing and install simbot with what each needs:
+# `make run` simbot and its Foxglove extra alone (RUN_STAMP), everything else the rest (STAMP).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+RUN_STAMP := $(VENV)/.run-stamp
 STAMP := $(VENV)/.installed-stamp
+PIP := $(BIN)/python -m pip install --quiet --disable-pip-version-check
 
 EXAMPLE := examples/simbot-example-sensor
 
 .PHONY: run test test-browser lint bench bench-learning docs urdf meshes textures layout image clean
 
-# The example plug-in goes in too: tests/test_example_plugin.py runs a server on its sensor, the
-# proof that a package outside simbot extends it through the entry points (docs/write-a-system.md).
-$(STAMP): pyproject.toml $(EXAMPLE)/pyproject.toml
+# The main job's install: simbot and the Foxglove bridge's SDK, nothing of the tests, the docs or ROS 2.
+$(RUN_STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,foxglove,ros2,docs]'
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e $(EXAMPLE)
+	$(PIP) -e '.[foxglove]'
+	touch $(RUN_STAMP)
+
+# The rest over it: the test, docs and ROS 2 extras, and the example plug-in: tests/test_example_plugin.py
+# runs a server on its sensor, the proof that a package outside simbot extends it through the entry
+# points (docs/write-a-system.md).
+$(STAMP): $(RUN_STAMP) pyproject.toml $(EXAMPLE)/pyproject.toml
+	$(PIP) -e '.[test,foxglove,ros2,docs]'
+	$(PIP) -e $(EXAMPLE)
 	touch $(STAMP)
 
 ## The main job: the simulator in the warehouse with its people (three workers walking their loops, a cart going round), the lidar merger, the camera stitcher, the monitor and the Foxglove bridge on ws://127.0.0.1:8765 (Ctrl-C ends them all).
-run: $(STAMP)
+run: $(RUN_STAMP)
 	$(BIN)/simbot launch --world warehouse --server-args="--add warehouse_people" --clients merger,stitcher,monitor,foxglove
 
 ## The lint first (seconds), then every test, in three processes (pytest-xdist; a file stays in one, with its module fixtures): about 10 minutes on two cores, where one process took 18.

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from simbot.bus import Node, ServiceError
+from simbot.transform import yaw_quaternion
 
 from .common import EXIT_USAGE, ClientError, client_parser, run_client
 from .state import EXIT_NO_WORLD, NoWorld, add_world_arguments, choose_world
@@ -54,7 +55,7 @@ def create_request(args: argparse.Namespace) -> dict[str, Any]:
         if not all(math.isfinite(v) for v in args.pose):
             raise ClientError(f"--pose expects finite numbers, got {' '.join(map(str, args.pose))}")
         x, y, z, yaw = args.pose
-        orientation = {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+        orientation = dict(zip("xyzw", yaw_quaternion(yaw), strict=True))
         request["pose"] = {"position": {"x": x, "y": y, "z": z}, "orientation": orientation}
     return request
 

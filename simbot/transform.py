@@ -4,8 +4,10 @@ The description (frames computed from SDF poses), the simulation (PyBullet's (xy
 the renderers (camera and body poses) and the bus (tf seen by the clients) all hold a rigid
 transform as a `Transform`; 4×4 matrices and headings are made here and nowhere else, and so is
 every rotation: a quaternion (always x, y, z, w) as a matrix and back, one or many at a time
-(Shepperd's method, safe at a half turn), from roll, pitch and yaw, or as turns about an axis (a
-skeleton's keys, a BVH channel). Plain numpy, depending on nothing else in simbot, so that the bus
+(Shepperd's method, safe at a half turn), from roll, pitch and yaw or a heading alone, roll, pitch
+and yaw as a matrix and back (SDF's and URDF's poses), or as turns about an axis (a skeleton's
+keys, a BVH channel). PyBullet's own math stays with the physics (`sim/physics/bullet_transforms.py`),
+so that its poses keep PyBullet's bits. Plain numpy, depending on nothing else in simbot, so that the bus
 need not import the description layer (SPEC §7). A `Transform` is a tuple `(position, orientation)`: it unpacks as PyBullet's
 pose pairs do and crosses process boundaries as plain data.
 
@@ -179,6 +181,45 @@ def rpy_to_quaternion(rpy: Sequence[float]) -> Quat:
         cr * cp * sy - sr * sp * cy,
         cr * cp * cy + sr * sp * sy,
     )
+
+
+def yaw_quaternion(yaw: float) -> Quat:
+    """The quaternion x, y, z, w of an upright frame heading `yaw` (radians about z, REP-103)."""
+    return (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+
+
+def axis_quaternion(axis: Sequence[float], angle: float) -> Quat:
+    """The quaternion x, y, z, w of a turn by `angle` (radians) about the unit `axis` (a revolute joint's)."""
+    s = math.sin(angle / 2)
+    return (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(angle / 2))
+
+
+def rpy_to_matrix(rpy: Sequence[float]) -> Matrix:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), the convention of both SDF and URDF."""
+    roll, pitch, yaw = rpy
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def matrix_to_rpy(rot: Matrix) -> Vec3:
+    """Inverse of rpy_to_matrix; at gimbal lock the roll is folded into the yaw."""
+    sp = -float(rot[2, 0])
+    if abs(sp) >= 1.0 - 1e-12:
+        pitch = math.copysign(math.pi / 2, sp)
+        yaw = math.atan2(-float(rot[0, 1]), float(rot[1, 1]))
+        return (0.0, pitch, yaw)
+    pitch = math.asin(sp)
+    roll = math.atan2(float(rot[2, 1]), float(rot[2, 2]))
+    yaw = math.atan2(float(rot[1, 0]), float(rot[0, 0]))
+    return (roll, pitch, yaw)
 
 
 def axis_rotations(axis: Sequence[float] | npt.NDArray[np.floating], angles: ArrayLike) -> Matrix:

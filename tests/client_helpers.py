@@ -2,7 +2,7 @@
 
 `client_process(sim, "merger", ...)` runs `python -m clients.merger` connected to the server's
 port and namespace, and on the way out sends SIGTERM and asserts a clean exit (code 0) within
-`EXIT_TIMEOUT_S`; it is handed over once the client has installed its stop handlers. `pty_client(...)` runs a keyboard client in a pseudo-terminal, as a person
+`EXIT_TIMEOUT_S`, or within the time it took to start where that was longer; it is handed over once the client has installed its stop handlers. `pty_client(...)` runs a keyboard client in a pseudo-terminal, as a person
 would: the test types keys into the master side and reads the screen from it; the slave side
 stays open in the test so that its terminal attributes can be compared before and after.
 """
@@ -98,6 +98,8 @@ class ClientProcess:
     process: subprocess.Popen[bytes]
     out_path: Path
     err_path: Path
+    started_s: float = 0.0
+    """How long it took to start (to install its stop handlers): the measure of how long it may take to stop."""
 
     def stdout(self) -> str:
         return self.out_path.read_text(errors="replace")
@@ -108,8 +110,11 @@ class ClientProcess:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def stop(self, sig: int = signal.SIGTERM, timeout: float = EXIT_TIMEOUT_S) -> int:
-        """Send `sig`, wait for the exit; the exit code (the process is killed after `timeout`)."""
+    def stop(self, sig: int = signal.SIGTERM, timeout: float | None = None) -> int:
+        """Send `sig`, wait for the exit; the exit code (the process is killed after `timeout`: by
+        default EXIT_TIMEOUT_S, or as long as it took to start where that was longer, since a loaded
+        machine slows both alike)."""
+        timeout = max(EXIT_TIMEOUT_S, self.started_s) if timeout is None else timeout
         if self.process.poll() is None:
             self.process.send_signal(sig)
         try:
@@ -138,7 +143,9 @@ def client_process(sim: OnBus, name: str, *args: str) -> Iterator[ClientProcess]
             )
         client = ClientProcess(process, out_path, err_path)
         try:
+            started = time.monotonic()
             wait_started(process)
+            client.started_s = time.monotonic() - started
             yield client
             if client.alive():
                 code = client.stop()

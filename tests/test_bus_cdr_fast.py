@@ -1,5 +1,6 @@
 """The fixed-layout CDR writers (simbot/bus/fixed_cdr.py) against rosbags' generic serializer: the same
-bytes for every message, and the same error for every bad one.
+bytes for every message, and the same error for every bad one; and a real server whose five hot
+types never fall back from them (the registry's count, simbot/bus/encoders.py).
 
 Random messages of each of the five types, with frame ids of every byte length from 0 to 17 (every
 padding case after a string), non-ASCII UTF-8, stamps over the whole int32/uint32 range, NaN, ±inf,
@@ -12,15 +13,22 @@ import dataclasses
 import math
 import random
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from bus_helpers import endpoint, free_port, unique_namespace, wait_until
+from conftest import REPO, ROBOT_SDF
 
-from simbot.bus import messages
-from simbot.bus.codec import TYPESTORE, EncodeError, decode, encode
-from simbot.bus.fixed_cdr import WRITERS, encode_fixed
+from simbot.bus import BusOptions, Node, messages
+from simbot.bus.codec import ENCODERS, TYPESTORE, EncodeError, decode, encode, serialize
+from simbot.bus.encoders import Encoders
+from simbot.bus.fixed_cdr import WRITERS
 from simbot.bus.frames import with_frame_prefix
+from simbot.bus.type_hashes import dds_type_name
+from simbot.sim.loop.simulation import Mode
+from simbot.sim.server import Server, ServerConfig
 
 MESSAGES_PER_TYPE = 300
 ALPHABET = "abcxyz_/0189" + "éß°→€🤖"  # 1-byte ASCII, 2-, 3- and 4-byte UTF-8
@@ -178,7 +186,7 @@ def test_random_messages_are_written_byte_for_byte_as_rosbags_writes_them(typena
     back the message, every bit of every field (NaN and -0.0 included): rosbags writes it to the same bytes."""
     for msg in random_messages(typename):
         expected = rosbags_bytes(msg)
-        assert encode_fixed(msg, typename) == expected, msg
+        assert ENCODERS.fast(msg, typename) == expected, msg
         assert encode(msg) == expected
         decoded = decode(expected, typename)
         assert type(decoded) is type(msg) and rosbags_bytes(decoded) == expected
@@ -216,7 +224,7 @@ def test_the_servers_messages_with_a_robots_frame_prefix() -> None:
     for prefix in ("", "tug_2", "tug_17", "chariot_é"):
         for msg in built:
             prefixed = with_frame_prefix(msg, prefix)
-            data = encode_fixed(prefixed, prefixed.__msgtype__)
+            data = ENCODERS.fast(prefixed, prefixed.__msgtype__)
             assert data is not None and data == rosbags_bytes(prefixed)
             if prefix and hasattr(prefixed, "header"):
                 assert decode(data, prefixed.__msgtype__).header.frame_id.startswith(prefix + "/")
@@ -266,9 +274,12 @@ def bad_messages() -> dict[str, Any]:
 
 @pytest.mark.parametrize("name", sorted(bad_messages()))
 def test_a_bad_field_gives_the_error_rosbags_gives(name: str) -> None:
-    """The writer declines (None), and encode raises the one-line EncodeError of rosbags' path, word for word."""
+    """The writer declines (None, counted once against the type), and encode raises the one-line
+    EncodeError of rosbags' path, word for word."""
     msg = bad_messages()[name]
-    assert encode_fixed(msg, msg.__msgtype__) is None
+    registry = Encoders(WRITERS, serialize)
+    assert registry.fast(msg, msg.__msgtype__) is None
+    assert registry.fallbacks() == {msg.__msgtype__: 1}
     with pytest.raises(EncodeError) as caught:
         encode(msg)
     assert str(caught.value) == rosbags_error(msg)
@@ -298,3 +309,29 @@ def unusual_but_valid() -> dict[str, Any]:
 def test_unusual_fields_still_give_rosbags_bytes(name: str) -> None:
     msg = unusual_but_valid()[name]
     assert encode(msg) == rosbags_bytes(msg)
+
+
+def test_the_servers_hot_types_never_fall_back(tmp_path: Path) -> None:
+    """A real server's tug, stepped in lockstep with a subscriber to each fixed-layout type on its own
+    session: every one of the five types goes out, and none of them leaves its fixed-layout writer
+    for rosbags' (`ENCODERS.fallbacks`: a regression in a writer is a failure here, not a slowdown)."""
+    hot = sorted(WRITERS)
+    seen: set[str] = set()
+    options = BusOptions(listen=(endpoint(free_port()),), namespace=unique_namespace())
+    config = ServerConfig(REPO / "worlds" / "empty.sdf", ROBOT_SDF, mode=Mode.LOCKSTEP)
+    with Node(options, "server") as node:
+        for typename in hot:
+            dds = dds_type_name(typename)
+            node.session.declare_subscriber(f"**/{dds}/**", lambda _sample, dds=dds: seen.add(dds))
+        server = Server(config, node)
+        try:
+            node.refresh_subscribers()
+            before = ENCODERS.fallbacks()
+            for _ in range(round(0.2 / server.physics.step_size)):  # 0.2 s: every lidar's scan period (10 Hz) twice
+                server.sim.step()
+            wait_until(lambda: len(seen) == len(hot), 5.0, "a sample of each fixed-layout type")
+            after = ENCODERS.fallbacks()
+        finally:
+            server.close()
+    fell_back = {t: after.get(t, 0) - before.get(t, 0) for t in hot if after.get(t, 0) != before.get(t, 0)}
+    assert fell_back == {}, f"fell back to rosbags' serializer: {fell_back}"

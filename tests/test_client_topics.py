@@ -21,6 +21,7 @@ import re
 import subprocess
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import pytest
@@ -29,6 +30,7 @@ from conftest import CAMERAS
 from server_helpers import REPO, SimServer, running_server, wait_until
 
 from simbot.bus import encode, messages
+from simbot.sim.systems.clock_publisher import CLOCK_RATE
 
 WORLD_EXTRA = ("--camera-size", "160x120", "--camera-rate", "5")
 WIDTH, HEIGHT = 160, 120
@@ -227,8 +229,14 @@ def _near(value: float, expected: float, tolerance: float) -> bool:
     return abs(value - expected) <= tolerance
 
 
+def clock_ns(msg: dict[str, Any]) -> int:
+    return int(msg["clock"]["sec"]) * 10**9 + int(msg["clock"]["nanosec"])
+
+
 def check_clock(msg: dict[str, Any], key: str) -> None:
-    assert msg["clock"]["sec"] * 10**9 + msg["clock"]["nanosec"] > 0
+    """A tick of the 100 Hz clock (a multiple of 10 ms of sim time: the server steps 1 ms), past zero;
+    where it lies in the server's time, `test_echo_reads_the_servers_sim_time_on_clock`."""
+    assert clock_ns(msg) > 0 and clock_ns(msg) % round(1e9 / CLOCK_RATE) == 0, msg
 
 
 def check_odometry(msg: dict[str, Any], key: str) -> None:
@@ -320,9 +328,23 @@ CHECKS: dict[str, Callable[[dict[str, Any], str], None]] = {
 }
 
 
+@dataclass(frozen=True)
+class Echoes:
+    """What `echo KEY --once --json` printed for each output, and the server's sim time (ns) read
+    just before they started and just after the last ended."""
+
+    results: dict[str, subprocess.CompletedProcess[str]]
+    sim_ns: tuple[int, int]
+
+
+def sim_ns(sim: SimServer) -> int:
+    return round(float(sim.state()["sim_time"]) * 1e9)
+
+
 @pytest.fixture(scope="module", name="echoes")
-def echoes_fixture(sim: SimServer, table: dict[str, dict[str, str]]) -> dict[str, subprocess.CompletedProcess[str]]:
+def echoes_fixture(sim: SimServer, table: dict[str, dict[str, str]]) -> Echoes:
     """`echo KEY --once --json` of every output there is, all at once (each waits for its first message)."""
+    before = sim_ns(sim)
     processes = {
         key: subprocess.Popen(
             client_command("echo", *bus_args(sim), key, "--once", "--json", "--wait", ECHO_WAIT_S),
@@ -337,16 +359,25 @@ def echoes_fixture(sim: SimServer, table: dict[str, dict[str, str]]) -> dict[str
     for key, process in processes.items():
         out, err = process.communicate(timeout=RUN_TIMEOUT_S)
         results[key] = subprocess.CompletedProcess(process.args, process.returncode, out, err)
-    return results
+    return Echoes(results, (before, sim_ns(sim)))
 
 
 @pytest.mark.parametrize("key", OUTPUTS)
-def test_echo_decodes_one_message_of_each_output(echoes: dict[str, subprocess.CompletedProcess[str]], key: str) -> None:
-    result = echoes[key]
+def test_echo_decodes_one_message_of_each_output(echoes: Echoes, key: str) -> None:
+    result = echoes.results[key]
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert len(lines) == 1, f"--once --json prints one line: {result.stdout[:500]}"
     CHECKS[KEYS[key][0]](json.loads(lines[0]), key)
+
+
+def test_echo_reads_the_servers_sim_time_on_clock(echoes: Echoes) -> None:
+    """The clock echo prints is the server's sim time while it ran: after the sim time read before
+    the echoes started, before the one read after they ended."""
+    result = echoes.results["clock"]
+    assert result.returncode == 0, result.stderr
+    before, after = echoes.sim_ns
+    assert before <= clock_ns(json.loads(result.stdout)) <= after, (before, result.stdout, after)
 
 
 def test_echo_decodes_what_is_sent_to_the_inputs(sim: SimServer) -> None:

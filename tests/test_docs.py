@@ -181,3 +181,49 @@ def test_the_site_builds_strictly(tmp_path: Path) -> None:
             assert f'id="{slug(heading)}"' in html, f"{page.relative_to(REPO)}: no anchor {slug(heading)!r}"
     reference = (site / "reference" / "systems" / "index.html").read_text()
     assert "SystemContext" in reference and "require_sensor" in reference, "the API reference lacks the contract"
+
+
+LAYOUT = DOCS / "layout.md"
+LISTED_TREES = ("simbot", "clients")
+"""The trees whose every module docs/layout.md names."""
+
+
+def layout_rows() -> list[tuple[Path, set[str]]]:
+    """Each row of docs/layout.md's table of what is here: the folder it speaks of (an indented path
+    lies under the row above it with less indent) and every name it puts in backticks."""
+    rows: list[tuple[Path, set[str]]] = []
+    folders: list[tuple[int, Path]] = [(-1, REPO)]
+    for line in LAYOUT.read_text().splitlines():
+        cells = line.split("|")
+        first = re.match(r"`( *)([^`]+)`", cells[1].strip()) if len(cells) > 3 else None
+        if first is None:
+            continue
+        indent, path = len(first.group(1)), first.group(2)
+        while folders[-1][0] >= indent:
+            folders.pop()
+        resolved = folders[-1][1] / path
+        if path.endswith("/"):
+            folders.append((indent, resolved))
+        names = {name.strip() for name in re.findall(r"`([^`]+)`", line)}
+        rows.append((resolved if path.endswith("/") else resolved.parent, names | {resolved.name}))
+    return rows
+
+
+def unlisted_modules() -> list[str]:
+    """The modules of simbot/ and clients/ that no row of their folder (or, where the page gives the
+    folder no row, of the nearest folder above it that has one) names, as `name.py` or `name`."""
+    rows = layout_rows()
+    folders = {folder for folder, _ in rows}
+    missing = []
+    for module in sorted(p for tree in LISTED_TREES for p in (REPO / tree).rglob("*.py") if p.name != "__init__.py"):
+        folder = next(f for f in (module.parent, *module.parent.parents) if f in folders)
+        named = set().union(*(names for f, names in rows if f == folder))
+        if not {module.name, module.stem} & named:
+            missing.append(str(module.relative_to(REPO)))
+    return missing
+
+
+def test_the_layout_page_names_every_module() -> None:
+    """docs/layout.md is where a newcomer looks for a module: each of simbot/ and clients/ is named
+    in its folder's rows."""
+    assert unlisted_modules() == []

@@ -4,8 +4,8 @@ A lockstep server with `--robots 2` (tug_1 at y 0, tug_2 at y 1.5; cameras 8 × 
 0.5 m cube of the test's own, tall enough for the lidars' plane, 3 m ahead of tug_2's front
 lidar. Each client follows tug_2, and each test shows that it does and that tug_1 is left alone:
 - teleop reads tug_2's front lidar through tug_2's prefixed frames (the cube 3.00 m ahead: the
-  path's nearest return, quantised to 0.01 m) and drives tug_2 on `tug_2/cmd_vel` while tug_1
-  stays (< 1 cm).
+  path's nearest return, quantised to 0.01 m) and drives tug_2 on `tug_2/cmd_vel` at its 0.5 m/s
+  (±5 %, straight) while tug_1 stays (< 1 cm).
 - the merger merges tug_2's scans into `tug_2/scan` in `tug_2/base_link`: straight ahead, the
   cube's face lies at its distance from base_link's origin, within the merger's 0.03 m (its bins
   are 0.25°, the face square to the bearing).
@@ -46,6 +46,13 @@ WAIT_S = 60.0
 WIDTH, HEIGHT = 8, 6
 CAMERA_STEPS = 100
 """One camera period at 10 Hz, in 1 ms steps."""
+TELEOP_SPEED, TELEOP_SPEED_REL = 0.5, 0.05
+"""teleop's `w` (its default --speed), which the tug holds within 5 % once up to speed
+(tests/test_client_teleop.py: it settles within 0.1 s)."""
+UP_TO_SPEED_STEPS = 200
+"""0.2 s from the step the command was seen after: the tug is at speed before it is timed."""
+STRAIGHT_M = 0.01
+"""How far across its heading a tug driving straight for 1 s may drift (its wheels' skid)."""
 TROLLEY_OFFSET = 0.2
 ATTACHED_TOLERANCE = 0.02
 
@@ -112,12 +119,18 @@ def test_teleop_reads_and_drives_the_followed_robot(sim: SimServer) -> None:
         before = {name: sim.pose(name)[0] for name in ("tug_1", "tug_2")}
         client.type("w")
         step_until(sim, lambda: any(m.linear.x > 0.4 for m in commands.messages()), "w on tug_2/cmd_vel")
+        sim.step(UP_TO_SPEED_STEPS)
+        start, start_s = sim.pose("tug_2")[0], float(sim.state()["sim_time"])
         sim.step(1000)
+        end, end_s = sim.pose("tug_2")[0], float(sim.state()["sim_time"])
         client.type("q")
         client.wait_exit()
     moved = {name: planar_distance(before[name], sim.pose(name)[0]) for name in before}
-    print(f"\nteleop on tug_2: tug_2 moved {moved['tug_2']:.3f} m, tug_1 {moved['tug_1']:.4f} m")
-    assert moved["tug_2"] > 0.3 and moved["tug_1"] < 0.01
+    speed = planar_distance(start, end) / (end_s - start_s)
+    print(f"\nteleop on tug_2: tug_2 drove at {speed:.4f} m/s, tug_1 moved {moved['tug_1']:.4f} m")
+    assert speed == pytest.approx(TELEOP_SPEED, rel=TELEOP_SPEED_REL), f"tug_2 drove at {speed:.4f} m/s"
+    assert abs(end[1] - start[1]) < STRAIGHT_M, "tug_2 drove straight ahead, along x"
+    assert moved["tug_1"] < 0.01
 
 
 def _last(states: Collector[object]) -> str | None:

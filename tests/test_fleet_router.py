@@ -61,7 +61,7 @@ def test_a_client_of_the_router_sees_both_servers() -> None:
                 for server in servers:
                     state = node.call(f"{server.namespace}/world/{server.world}/state", {}, timeout=5.0)
                     assert state["ok"] and state["sim_time"] > 0, state
-        exits = [server.stop() for server in (site_b, site_a)]  # within the 2 s every server test allows
+        exits = [server.stop() for server in (site_b, site_a)]  # each within what every server test allows
     print(f"\nrouted servers exited in {', '.join(f'{s:.2f}' for s in exits)} s of SIGTERM")
 
 

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from probe_helpers import PROBE, WORLD, load
 
-from simbot.description import DescriptionError, load_model, load_world
+from simbot.description import DescriptionError, load_model, load_sdf, load_world
+from simbot.description.model import Atmosphere, Model, SphericalCoordinates
 
 LINK = "<link name='{name}'>{body}</link>"
 
@@ -169,3 +171,51 @@ def test_world_include_with_overrides(tmp_path: Path, monkeypatch: pytest.Monkey
     assert (
         world.gravity == (0, 0, -3.7) and world.physics.max_step_size == 0.004 and world.lights[0].type == "directional"
     )
+
+
+def test_world_earth_magnetic_field_and_atmosphere_are_read(tmp_path: Path) -> None:
+    """`<spherical_coordinates>`, `<magnetic_field>` and `<atmosphere>` into the World; SDF's defaults
+    where a world leaves them out; a world frame other than ENU is an error naming the file."""
+    world = (
+        "<spherical_coordinates><surface_model>EARTH_WGS84</surface_model><world_frame_orientation>ENU"
+        "</world_frame_orientation><latitude_deg>-33.9</latitude_deg><longitude_deg>151.2</longitude_deg>"
+        "<elevation>58</elevation><heading_deg>12.5</heading_deg></spherical_coordinates>"
+        "<magnetic_field>1e-6 2e-6 -3e-6</magnetic_field>"
+        '<atmosphere type="adiabatic"><temperature>300</temperature><pressure>100000</pressure>'
+        "<temperature_gradient>-0.005</temperature_gradient></atmosphere>"
+    )
+    given, bare = tmp_path / "given.sdf", tmp_path / "bare.sdf"
+    given.write_text(WORLD.format(world=world))
+    bare.write_text(WORLD.format(world=""))
+    read, default = load_world(given), load_world(bare)
+    assert read.spherical_coordinates == SphericalCoordinates("EARTH_WGS84", "ENU", -33.9, 151.2, 58.0, 12.5)
+    assert read.magnetic_field == (1e-6, 2e-6, -3e-6)
+    assert read.atmosphere == Atmosphere(300.0, 100000.0, -0.005)
+    assert default.spherical_coordinates == SphericalCoordinates()
+    assert default.magnetic_field == (5.5645e-6, 22.8758e-6, -42.3884e-6)
+    assert default.atmosphere == Atmosphere(288.15, 101325.0, -0.0065)
+    ned = tmp_path / "ned.sdf"
+    ned.write_text(
+        WORLD.format(
+            world="<spherical_coordinates><world_frame_orientation>NED</world_frame_orientation></spherical_coordinates>"
+        )
+    )
+    with pytest.raises(DescriptionError, match="world_frame_orientation 'NED' is not supported"):
+        load_world(ned)
+
+
+def test_a_joints_sensor_is_posed_from_the_joint_on_its_child_link(tmp_path: Path) -> None:
+    """A `<sensor>` in a `<joint>` is the joint's (`joint_of`), listed with the joint's child link, its
+    pose relative to the joint frame by default (SDF), kept in the child link's frame."""
+    extra = (
+        load("held", 0.5, "")
+        .replace("<child>held</child>", "<child>held</child><pose>0.1 0 0 0 0 0</pose>")
+        .replace('type="force_torque"><pose>0 0 0 0 0 0</pose>', 'type="force_torque"><pose>0 0 0.2 0 0 0</pose>')
+    )
+    robot = tmp_path / "probe.sdf"
+    robot.write_text(PROBE.format(static="true", mass=1.0, sensors="", extra=extra))
+    model = load_sdf(robot)
+    assert isinstance(model, Model)
+    ((link, held),) = model.sensors()
+    assert (link.name, held.type, model.joint_of(held)) == ("held", "force_torque", model.joint("held_joint"))
+    assert held.pose.xyz == pytest.approx((0.1, 0.0, 0.2))

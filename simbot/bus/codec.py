@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING, Any
 from rosbags.interfaces import Msgdef
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from simbot.bus.fixed_cdr import encode_fixed
+from simbot.bus.encoders import Encoders
+from simbot.bus.fixed_cdr import WRITERS
 
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
@@ -186,20 +187,27 @@ def _msgdef(typename: str) -> Msgdef[object]:
     return TYPESTORE.get_msgdef(typename)
 
 
-def encode(msg: Any) -> bytes:
-    """CDR little-endian bytes with the 4-byte encapsulation header `00 01 00 00`; the fixed-layout
-    types the server publishes at high rates are written by fixed_cdr, byte for byte as rosbags would."""
-    typename = getattr(msg, "__msgtype__", None)
-    if not isinstance(typename, str):
-        raise EncodeError(f"cannot encode {type(msg).__name__}: not a rosbags message (no __msgtype__)")
-    fixed = encode_fixed(msg, typename)
-    if fixed is not None:  # Imu, Odometry, tf, Clock, LaserScan: the same bytes without rosbags' walk
-        return fixed
+def serialize(msg: Any, typename: str) -> bytes:
+    """rosbags' generic serializer: every type, and the errors of bad fields as EncodeError."""
     message_type(typename)
     try:
         return bytes(TYPESTORE.serialize_cdr(msg, typename, little_endian=True))
     except Exception as exc:  # rosbags raises struct.error, AttributeError, TypeError... for bad fields
         raise EncodeError(f"cannot encode {typename}: {_one_line(exc)}") from exc
+
+
+ENCODERS = Encoders(WRITERS, serialize)
+"""simbot's one encoder registry (`encoders`): the fixed layouts the server publishes at high rates
+(fixed_cdr), rosbags for the rest and for what they decline."""
+
+
+def encode(msg: Any) -> bytes:
+    """CDR little-endian bytes with the 4-byte encapsulation header `00 01 00 00`, through `ENCODERS`:
+    the fixed-layout types are written by fixed_cdr, byte for byte as rosbags would."""
+    typename = getattr(msg, "__msgtype__", None)
+    if not isinstance(typename, str):
+        raise EncodeError(f"cannot encode {type(msg).__name__}: not a rosbags message (no __msgtype__)")
+    return ENCODERS.encode(msg, typename)
 
 
 def decode(data: bytes | bytearray | memoryview, typename: str) -> Any:

@@ -10,18 +10,20 @@ string depends on it), their covariances and ranges copied as the arrays' raw by
 The bytes are rosbags' own (tests/test_bus_cdr_fast.py holds them equal), so nothing downstream
 can tell. Only what rosbags would copy verbatim takes the fast road: a covariance or scan array
 that is not a 1-D contiguous numpy array of the field's dtype and length, or any field that
-struct refuses, makes `encode_fixed` answer None, and the codec hands the message to rosbags,
-which writes the same bytes or raises the error it always raised.
+struct refuses, makes a writer raise, and the encoder registry (`encoders`, `codec.ENCODERS`)
+counts the fall-back and hands the message to rosbags, which writes the same bytes or raises the
+error it always raised.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from functools import lru_cache
 from struct import Struct
 from typing import Any
 
 import numpy as np
+
+from simbot.bus.encoders import Writer
 
 ENCAPSULATION = b"\x00\x01\x00\x00"
 """CDR little-endian, options 0: the 4 bytes before every message (codec.CDR_LE and its options)."""
@@ -186,7 +188,7 @@ def laser_scan(msg: Any) -> bytes:
     return b"".join((head, ranges, COUNT.pack(len(intensities) // F32.itemsize), intensities))
 
 
-WRITERS: dict[str, Callable[[Any], bytes]] = {
+WRITERS: dict[str, Writer] = {
     "sensor_msgs/msg/Imu": imu,
     "nav_msgs/msg/Odometry": odometry,
     "tf2_msgs/msg/TFMessage": tf_message,
@@ -194,15 +196,3 @@ WRITERS: dict[str, Callable[[Any], bytes]] = {
     "sensor_msgs/msg/LaserScan": laser_scan,
 }
 """The writer of each fixed-layout type, by ROS 2 type name (a message's `__msgtype__`)."""
-
-
-def encode_fixed(msg: Any, typename: str) -> bytes | None:
-    """`msg`'s CDR bytes with the encapsulation header when `typename` has a writer here and every field
-    is one rosbags would write the same way; None otherwise (the caller then serializes with rosbags)."""
-    writer = WRITERS.get(typename)
-    if writer is None:
-        return None
-    try:
-        return writer(msg)
-    except Exception:  # Unusual, struct.error, AttributeError, UnicodeEncodeError...: rosbags' to write or word
-        return None

@@ -1,43 +1,15 @@
-"""Rigid transforms as SDF and URDF write them: xyz plus fixed-axis roll, pitch, yaw."""
+"""Rigid transforms as SDF and URDF write them: xyz plus fixed-axis roll, pitch, yaw (their rotation
+arithmetic is `simbot.transform`'s)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from simbot.transform import Transform, matmul, rigid_inverse
+from simbot.transform import Transform, matmul, matrix_to_rpy, rigid_inverse, rpy_to_matrix
 
 Vec3 = tuple[float, float, float]
-
-
-def rpy_to_matrix(rpy: Vec3) -> np.ndarray:
-    """R = Rz(yaw) Ry(pitch) Rx(roll), the convention of both SDF and URDF."""
-    roll, pitch, yaw = rpy
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def matrix_to_rpy(rot: np.ndarray) -> Vec3:
-    """Inverse of rpy_to_matrix; at gimbal lock the roll is folded into the yaw."""
-    sp = -float(rot[2, 0])
-    if abs(sp) >= 1.0 - 1e-12:
-        pitch = math.copysign(math.pi / 2, sp)
-        yaw = math.atan2(-float(rot[0, 1]), float(rot[1, 1]))
-        return (0.0, pitch, yaw)
-    pitch = math.asin(sp)
-    roll = math.atan2(float(rot[2, 1]), float(rot[2, 2]))
-    yaw = math.atan2(float(rot[1, 0]), float(rot[0, 0]))
-    return (roll, pitch, yaw)
 
 
 @dataclass(frozen=True)

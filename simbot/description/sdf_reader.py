@@ -38,7 +38,7 @@ from simbot.description.model import (
     Visual,
     World,
 )
-from simbot.description.poses import Pose, rpy_to_matrix
+from simbot.description.poses import Pose
 from simbot.description.resources import resolve
 from simbot.description.sdf_elements import (
     model_file,
@@ -54,7 +54,7 @@ from simbot.description.sdf_elements import (
 )
 from simbot.description.sdf_frames import MODEL_FRAME, Frames, read_pose
 from simbot.description.xml import Element, Reader, parse_file, sdf_tag
-from simbot.transform import matmul
+from simbot.transform import matmul, rpy_to_matrix
 
 logger = logging.getLogger(__name__)
 

@@ -67,9 +67,9 @@ from simbot.description.model import (
     Sphere,
     Visual,
 )
-from simbot.description.poses import IDENTITY, Pose, Vec3, matrix_to_rpy
+from simbot.description.poses import IDENTITY, Pose, Vec3
 from simbot.description.stand_in_meshes import needs_stand_in, stand_in
-from simbot.transform import matmul, norm
+from simbot.transform import matmul, matrix_to_rpy, norm
 
 MASSLESS = Inertial(0.0, IDENTITY, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
 ROOT_TOKEN = Inertial(1e-3, IDENTITY, (1e-6, 0.0, 0.0, 1e-6, 0.0, 1e-6))

@@ -22,11 +22,11 @@ from pathlib import Path
 from typing import Any
 
 from simbot.bus.local import LocalNode, LocalPublisher
-from simbot.gym.session import ServerSpec, upright
+from simbot.gym.session import ServerSpec
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.world_control import model_states, unit_quaternion
 from simbot.sim.server import build_world, parse_config
-from simbot.transform import Transform
+from simbot.transform import Transform, yaw_quaternion
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,7 @@ class LocalSession:
         self.sim_world.reset(seed)
 
     def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:
-        quat = unit_quaternion(list(upright(yaw)))
+        quat = unit_quaternion(list(yaw_quaternion(yaw)))
         self.sim_world.physics.set_model_pose(model, Transform((x, y, z), quat))
 
     def send(self, items: Sequence[tuple[str, Any]]) -> None:

@@ -26,7 +26,6 @@ from __future__ import annotations
 import contextlib
 import itertools
 import logging
-import math
 import multiprocessing
 import os
 import secrets
@@ -44,6 +43,7 @@ from typing import Any
 from simbot.bus import BusOpenError, BusOptions, Node, Publisher, ServiceError
 from simbot.bus.forks import check_fork_safe
 from simbot.gym.errors import SimServerError
+from simbot.transform import yaw_quaternion
 
 log = logging.getLogger(__name__)
 
@@ -256,7 +256,7 @@ class Session:
 
     def set_pose(self, model: str, x: float, y: float, z: float, yaw: float) -> None:
         """Teleports `model` (and stops it) to a pose upright on the floor, heading `yaw`."""
-        orientation = dict(zip("xyzw", upright(yaw), strict=True))
+        orientation = dict(zip("xyzw", yaw_quaternion(yaw), strict=True))
         self.call("set_pose", {"name": model, "position": {"x": x, "y": y, "z": z}, "orientation": orientation})
 
     def send(self, items: Sequence[tuple[str, Any]]) -> None:
@@ -299,12 +299,6 @@ class Session:
             _end(self.process)
         if self.folder is not None:
             shutil.rmtree(self.folder, ignore_errors=True)
-
-
-def upright(yaw: float) -> tuple[float, float, float, float]:
-    """The quaternion (x, y, z, w) of an upright model heading `yaw`."""
-    half = yaw / 2
-    return 0.0, 0.0, math.sin(half), math.cos(half)
 
 
 def _fork_safe() -> None:

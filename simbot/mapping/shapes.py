@@ -45,8 +45,7 @@ from simbot.description.model import (
     Polyline,
     Sphere,
 )
-from simbot.description.poses import rpy_to_matrix
-from simbot.transform import matmul
+from simbot.transform import matmul, rpy_to_matrix
 
 log = logging.getLogger(__name__)
 

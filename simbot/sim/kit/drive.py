@@ -21,6 +21,7 @@ from simbot.sim.kit.rates import Every
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.system import SystemConfigError, SystemContext
 from simbot.sim.physics import WorldReader
+from simbot.transform import yaw_quaternion
 
 log = logging.getLogger(__name__)
 
@@ -148,7 +149,7 @@ class PlanarPose:
 
     @property
     def quaternion(self) -> tuple[float, float, float, float]:
-        return 0.0, 0.0, math.sin(self.yaw / 2), math.cos(self.yaw / 2)
+        return yaw_quaternion(self.yaw)
 
 
 class OdometryOutput:

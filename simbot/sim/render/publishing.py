@@ -20,12 +20,9 @@ asked its own session once dropped the first frames of a seeded lockstep run now
 for it (`Publisher.await_subscribers`, up to `MATCH_TIMEOUT_S`), so that Zenoh's own filtering on
 the publisher's side cannot drop the put either; in real time it puts at once.
 
-A product's CDR is written in place (`InPlace`): the first frame's message is built and encoded,
-and where its stamp and its array's bytes lie in the encoding is found by encoding it again with
-other ones; each later frame copies that encoding, writes its stamp there and copies the array's
-bytes from shared memory into it, one copy of the pixels where building a message and encoding it
-took three. A builder whose bytes are not its array's (none of simbot's) is checked once and built
-each frame.
+A product's CDR is written in place (`simbot.bus.in_place.InPlace`, through the bus's encoder
+registry): one copy of the pixels from shared memory into the first frame's encoding, where
+building a message and encoding it took three.
 
 In lockstep the worker asks the server's barrier queryable (`Bus.barrier`, `Node.answering`)
 after its puts and before it reports the frame done: the query follows the samples on the one link
@@ -36,29 +33,21 @@ the frame, as they were when the server put them itself.
 from __future__ import annotations
 
 import logging
-import struct
-from collections.abc import Callable, Collection, Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numpy as np
-
 from simbot.bus import BusOptions, Node, messages
-from simbot.bus.codec import encode
+from simbot.bus.in_place import Build, InPlace
 from simbot.bus.node import Publisher
 from simbot.sim.render.kinds import Array
 
 log = logging.getLogger(__name__)
 
-Build = Callable[[int, str, Any], Any]
-"""(stamp ns, frame id, the output's array) → the message."""
 BARRIER_TIMEOUT_S = 10.0
 MATCH_TIMEOUT_S = 5.0
 """How long a lockstep worker waits for its session to hear of a subscriber the server counted (it
 takes under a millisecond; a subscriber that left meanwhile costs this once)."""
-STAMP = slice(4, 12)
-"""builtin_interfaces/Time (int32 s, uint32 ns) right after the 4-byte CDR encapsulation: where
-every message that starts with a std_msgs/Header keeps its stamp."""
 
 
 @dataclass(frozen=True)
@@ -92,54 +81,6 @@ class Publication:
     info_key: str
     info: Any
     """sensor_msgs/CameraInfo, its header's frame id set; stamped per frame."""
-
-
-class InPlace:
-    """One product's CDR, written in place per frame; see the module docstring."""
-
-    def __init__(self, build: Build, frame_id: str) -> None:
-        self.build = build
-        self.frame_id = frame_id
-        self._encoded: bytes | None = None
-        self._data: slice | None = None
-        self._checked = False
-
-    def encode(self, stamp_ns: int, array: Array) -> bytes | bytearray:
-        if self._encoded is not None and self._data is not None:
-            out = bytearray(self._encoded)
-            out[STAMP] = stamp_bytes(stamp_ns)
-            out[self._data] = np.ascontiguousarray(array).reshape(-1).view(np.uint8).data
-            return out
-        encoded = encode(self.build(stamp_ns, self.frame_id, array))
-        if not self._checked:
-            self._checked = True
-            self._learn(encoded, stamp_ns, array)
-        return encoded
-
-    def _learn(self, encoded: bytes, stamp_ns: int, array: Array) -> None:
-        """Where the stamp and the array's bytes lie, kept only where writing them there gives the
-        very encoding the builder gives."""
-        raw = np.ascontiguousarray(array).reshape(-1).view(np.uint8)
-        flipped = (~raw).view(array.dtype).reshape(array.shape)
-        other = encode(self.build(stamp_ns, self.frame_id, flipped))
-        differ = np.flatnonzero(np.frombuffer(encoded, np.uint8) != np.frombuffer(other, np.uint8))
-        if (
-            len(other) != len(encoded)
-            or len(differ) != raw.size
-            or (raw.size and differ[-1] - differ[0] + 1 != raw.size)
-        ):
-            log.debug("%s: its message's bytes are not its array's; built each frame", self.build.__name__)
-            return
-        start = int(differ[0]) if raw.size else len(encoded)
-        self._encoded, self._data = encoded, slice(start, start + raw.size)
-        if bytes(self.encode(stamp_ns + 1, array)) != encode(self.build(stamp_ns + 1, self.frame_id, array)):
-            log.debug("%s: its stamp is not where a header keeps it; built each frame", self.build.__name__)
-            self._encoded = self._data = None
-
-
-def stamp_bytes(stamp_ns: int) -> bytes:
-    stamp = messages.time_msg(stamp_ns)
-    return struct.pack("<iI", stamp.sec, stamp.nanosec)
 
 
 @dataclass

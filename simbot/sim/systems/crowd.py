@@ -86,7 +86,7 @@ from simbot.sim.kit.waypoints import waypoints
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
 from simbot.sim.physics.protocols import WorldAccess
-from simbot.transform import Transform
+from simbot.transform import Transform, yaw_quaternion
 
 MOVED_TOLERANCE = 1e-4
 """Metres by which the actor must stand off where it was put to count as moved by world control."""
@@ -295,7 +295,7 @@ class SocialForce:
 
     def _place(self) -> Transform:
         (x, y), yaw = self._walker.position, self._walker.yaw
-        pose = Transform((float(x), float(y), self._height), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+        pose = Transform((float(x), float(y), self._height), yaw_quaternion(yaw))
         self._physics.set_model_pose(self._actor, pose)
         return pose
 

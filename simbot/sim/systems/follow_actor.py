@@ -30,7 +30,7 @@ from simbot.description.actor_scripts import is_actor
 from simbot.description.plugin_params import number_param, param
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
-from simbot.transform import Transform
+from simbot.transform import Transform, yaw_quaternion
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,7 @@ class FollowActor:
             return
         step = self._velocity * dt / distance
         yaw = math.atan2(dy, dx)
-        self._path = Transform((x + dx * step, y + dy * step, 0.0), (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+        self._path = Transform((x + dx * step, y + dy * step, 0.0), yaw_quaternion(yaw))
         self._place()
 
     def _in_range(self, distance: float) -> bool:

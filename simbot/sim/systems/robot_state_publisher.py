@@ -17,7 +17,6 @@ are stamped in.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from simbot.bus import messages
@@ -32,7 +31,7 @@ from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.registry import SENSOR_GROUP, registered
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics import compose, pose_to_transform
-from simbot.transform import Transform, Vec3
+from simbot.transform import Transform, Vec3, axis_quaternion
 
 
 @dataclass(frozen=True)
@@ -56,11 +55,7 @@ class MovableJoint:
         if self.prismatic:
             x, y, z = self.axis
             return compose(self.origin, Transform((x * position, y * position, z * position)))
-        s = math.sin(position / 2)
-        return compose(
-            self.origin,
-            Transform((0.0, 0.0, 0.0), (self.axis[0] * s, self.axis[1] * s, self.axis[2] * s, math.cos(position / 2))),
-        )
+        return compose(self.origin, Transform((0.0, 0.0, 0.0), axis_quaternion(self.axis, position)))
 
 
 def movable_joints(tree: KinematicTree) -> list[MovableJoint]:
