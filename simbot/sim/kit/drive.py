@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -18,9 +19,10 @@ from simbot.bus import Publisher, messages
 from simbot.description.model import Model, Plugin
 from simbot.description.naming import scoped_key
 from simbot.description.plugin_params import bool_param, number_param, param
+from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.system import SystemConfigError, SystemContext
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader
 
 log = logging.getLogger(__name__)
@@ -280,3 +282,31 @@ class DeadReckoning:
         self._encoders.restart()
         self.every.restart()
         self._last_ns = now_ns
+
+
+class Drive(ABC):
+    """What every drive system is around its own kinematics (`apply`): before each step the command
+    its pipeline limited, when there is one to apply; at a reset the pipeline at zero and the
+    odometry from the origin; the frames its odometry publishes."""
+
+    _pipeline: CommandPipeline
+    _odometry: DeadReckoning | None
+
+    @abstractmethod
+    def apply(self, command: Command) -> None:
+        """The wheels' speeds and the base's twist (`drive_base`) for a limited command."""
+
+    @property
+    def odometry_frames(self) -> tuple[str, str] | None:
+        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
+        return None if self._odometry is None else self._odometry.frames
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        command = self._pipeline.step(info.step_ns / 1e9)
+        if command is not None:
+            self.apply(command)
+
+    def reset(self, info: UpdateInfo) -> None:
+        self._pipeline.reset()
+        if self._odometry is not None:
+            self._odometry.restart(info.sim_time_ns)

@@ -43,6 +43,7 @@ from simbot.description.plugin_params import bool_param
 from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.drive import (
     DeadReckoning,
+    Drive,
     Encoders,
     OdometryOutput,
     check_float,
@@ -128,7 +129,7 @@ def _angle(msg: messages.Float64) -> Command:
     return (msg.data,)
 
 
-class AckermannSteering:
+class AckermannSteering(Drive):
     """Steers and drives a car; publishes its odometry."""
 
     name = "AckermannSteering"
@@ -157,18 +158,15 @@ class AckermannSteering:
         self._steering = (0.0, 0.0)
         """The (left, right) angles the steering servo turns the wheels to."""
 
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return None if self._odometry is None else self._odometry.frames
-
     def pre_update(self, info: UpdateInfo) -> None:
-        command = self._pipeline.step(info.step_ns / 1e9)
-        if command is not None and self.params.steering_only:
-            self._steering = self._angles_for(command[0])
-        elif command is not None:
-            self._drive(*command)
+        super().pre_update(info)
         self._steer()
+
+    def apply(self, command: Command) -> None:
+        if self.params.steering_only:
+            self._steering = self._angles_for(command[0])
+        else:
+            self._drive(*command)
 
     def _angles_for(self, angle: float) -> tuple[float, float]:
         """Steering only: the bicycle angle, bounded by the limit, spread over the wheels `wheel_separation` apart."""
@@ -203,8 +201,3 @@ class AckermannSteering:
         steering = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
         turn = distance * bicycle_curvature(steering[0][0], steering[1][0], p.wheel_base)
         self._odometry.advance(info.sim_time_ns, distance, 0.0, turn)
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._pipeline.reset()
-        if self._odometry is not None:
-            self._odometry.restart(info.sim_time_ns)

@@ -43,6 +43,7 @@ from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.drive import (
     TWIST_COVARIANCE,
     DeadReckoning,
+    Drive,
     Encoders,
     OdometryOutput,
     PlanarTwist,
@@ -85,7 +86,7 @@ def _twist(msg: messages.Twist) -> Command:
     return msg.linear.x, msg.angular.z
 
 
-class DiffDrive(Paced):
+class DiffDrive(Drive, Paced):
     """Drives both wheels of each side at v ∓ ω·separation/2 over the radius; publishes odometry."""
 
     name = "DiffDrive"
@@ -104,20 +105,11 @@ class DiffDrive(Paced):
         kinematic = ctx.world.physics.type == KINEMATIC
         skid = SkidError() if kinematic else skid_error(self._model, self._physics.step_size)
         encoders = Encoders(ctx.physics, self._name, p.left + p.right)
-        self._odometry = DeadReckoning(output, encoders, p.odom_rate, partial(twist_covariance, skid))
+        self._odometry: DeadReckoning = DeadReckoning(output, encoders, p.odom_rate, partial(twist_covariance, skid))
         self.every = self._odometry.every
 
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return self._odometry.frames
-
-    def pre_update(self, info: UpdateInfo) -> None:
-        command = self._pipeline.step(info.step_ns / 1e9)
-        if command is not None:
-            self._drive(*command)
-
-    def _drive(self, v: float, w: float) -> None:
+    def apply(self, command: Command) -> None:
+        v, w = command
         half = w * self.params.separation / 2
         for joints, speed in ((self.params.left, v - half), (self.params.right, v + half)):
             for joint in joints:
@@ -131,7 +123,3 @@ class DiffDrive(Paced):
         p, sides = self.params, len(self.params.left)
         left, right = sum(rotations[:sides]) / sides, sum(rotations[sides:]) / len(p.right)
         self._odometry.advance(info.sim_time_ns, *wheel_motion(left, right, p.radius, p.separation))
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._pipeline.reset()
-        self._odometry.restart(info.sim_time_ns)

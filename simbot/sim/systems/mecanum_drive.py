@@ -34,6 +34,7 @@ from simbot.description.model import Model, Plugin
 from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.drive import (
     DeadReckoning,
+    Drive,
     Encoders,
     OdometryOutput,
     check_twist,
@@ -96,7 +97,7 @@ def _twist(msg: messages.Twist) -> Command:
     return msg.linear.x, msg.linear.y, msg.angular.z
 
 
-class MecanumDrive(Paced):
+class MecanumDrive(Drive, Paced):
     """Drives four mecanum wheels; publishes odometry."""
 
     name = "MecanumDrive"
@@ -109,24 +110,15 @@ class MecanumDrive(Paced):
         self._efforts = {j: joint_effort(model, j) for corner in p.wheels for j in corner}
         commands = ctx.bus.input(command_topic(ctx, ctx.plugin, "cmd_vel"), "geometry_msgs/msg/Twist", check_twist)
         self._pipeline = CommandPipeline(commands, _twist, (p.limits,) * 3)
-        self._odometry = DeadReckoning(
+        self._odometry: DeadReckoning = DeadReckoning(
             OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
             Encoders(ctx.physics, self._name, tuple(corner[0] for corner in p.wheels)),
             p.odom_rate,
         )
         self.every = self._odometry.every
 
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return self._odometry.frames
-
-    def pre_update(self, info: UpdateInfo) -> None:
-        command = self._pipeline.step(info.step_ns / 1e9)
-        if command is not None:
-            self._drive(*command)
-
-    def _drive(self, vx: float, vy: float, w: float) -> None:
+    def apply(self, command: Command) -> None:
+        vx, vy, w = command
         self._physics.drive_base(self._name, vx, vy, w)
         for corner, speed in zip(self.params.wheels, self.params.wheel_speeds(vx, vy, w)):
             for joint in corner:
@@ -136,7 +128,3 @@ class MecanumDrive(Paced):
         rotations = self._odometry.due(info.sim_time_ns)
         if rotations is not None:
             self._odometry.advance(info.sim_time_ns, *self.params.twist(rotations))
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._pipeline.reset()
-        self._odometry.restart(info.sim_time_ns)
