@@ -269,16 +269,11 @@ class Dataset:
 
     out: Path
     cameras: Sequence[str] = ()
-    every: int = 1
-    """Keep every Nth set."""
-    count: int | None = None
-    """Sets to write (of each world when randomised); None: until stopped."""
-    robot: str | None = None
-    """The model carrying the cameras; None: the followed robot."""
-    timeout_s: float = 10.0
-    """How long to wait for the cameras."""
-    randomise: range | None = None
-    """The seeds of the worlds to draw, `count` sets of each; None: the world as it is."""
+    every: int = 1  # keep every Nth set
+    count: int | None = None  # sets to write (of each world when randomised); None: until stopped
+    robot: str | None = None  # the model carrying the cameras; None: the followed robot
+    timeout_s: float = 10.0  # how long to wait for the cameras
+    randomise: range | None = None  # the seeds of the worlds to draw, `count` sets of each
 
 
 class Collector:
