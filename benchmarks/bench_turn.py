@@ -23,7 +23,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
 from simbot.sim.physics.steady_turn import Chassis, SteadyTurn, steady_turn
-from simbot.sim.systems.diff_drive import Odometry
+from simbot.sim.systems.diff_drive import wheel_motion
 from simbot.transform import yaw_of
 
 SPEED, RADIUS = 0.5, 3.0
@@ -56,19 +56,17 @@ def measure(model: Model) -> dict[str, float]:
             sim.set_joint_velocity("flexley_tug", joint, speed / WHEEL, 10000.0)
     for _ in range(3000):
         sim.step()
-    odometry, truth = Odometry(), [sim.model_pose("flexley_tug")]
-    sides = _sides(sim)
-    odometry.update(*sides, WHEEL, SEPARATION)
-    starts, laterals, odom_turn = [truth[0]], [], 0.0
+    truth, (left, right) = [sim.model_pose("flexley_tug")], _sides(sim)
+    starts, laterals = [truth[0]], []
     for _ in range(12000):
         sim.step()
-        _, turn = odometry.update(*_sides(sim), WHEEL, SEPARATION)
-        odom_turn += turn
         now = sim.model_pose("flexley_tug")
         if math.dist(now[0][:2], starts[-1][0][:2]) >= 0.1:  # the odometry rolls on, straight ahead
             laterals.append(abs(_in_frame(starts[-1], now)[1]))
             starts.append(now)
         truth.append(now)
+    end_left, end_right = _sides(sim)
+    *_, odom_turn = wheel_motion(end_left - left, end_right - right, WHEEL, SEPARATION)
     first, last = truth[0], truth[-1]
     turned = sum(math.remainder(yaw_of(b[1]) - yaw_of(a[1]), math.tau) for a, b in zip(truth, truth[1:]))
     travel = sum(math.dist(a[0][:2], b[0][:2]) for a, b in zip(truth, truth[1:]))

@@ -262,11 +262,25 @@ def box_of(detection: Any) -> Box:
     return Box(label, x, y, width + 1, height + 1)
 
 
+@dataclass(frozen=True)
+class Dataset:
+    """What `simbot dataset` writes: where, of which cameras (none named: every camera of the
+    robot), which sets and how many, and the worlds to draw."""
+
+    out: Path
+    cameras: Sequence[str] = ()
+    every: int = 1  # keep every Nth set
+    count: int | None = None  # sets to write (of each world when randomised); None: until stopped
+    robot: str | None = None  # the model carrying the cameras; None: the followed robot
+    timeout_s: float = 10.0  # how long to wait for the cameras
+    randomise: range | None = None  # the seeds of the worlds to draw, `count` sets of each
+
+
 class Collector:
     """The loop: complete sets from the sync, their poses, the kept ones written."""
 
-    def __init__(self, node: Node, sources: list[Source], writer: DatasetWriter, args: argparse.Namespace) -> None:
-        self.sources, self.writer, self.every, self.count = sources, writer, args.every, args.count
+    def __init__(self, node: Node, sources: list[Source], writer: DatasetWriter, dataset: Dataset) -> None:
+        self.sources, self.writer, self.every, self.count = sources, writer, dataset.every, dataset.count
         infos = sorted({s.info for s in sources if s.info is not None})
         self.sync: StampSync[Any] = StampSync([s.camera for s in sources] + infos, 0, MAX_WAIT_NS)
         self.sets: Mailbox[dict[str, Any]] = Mailbox(size=QUEUE)
@@ -274,7 +288,7 @@ class Collector:
             node.subscribe("/" + source.topic, source.typename, functools.partial(self._receive, source.camera))
         for info in infos:
             node.subscribe("/" + info, CAMERA_INFO, functools.partial(self._receive, info))
-        self.poses = PoseTrack(node, args.robot or followed_model(node.robot_namespace))
+        self.poses = PoseTrack(node, dataset.robot or followed_model(node.robot_namespace))
         self.tf = StaticTransforms(node, "base_link")
         self.pending: deque[tuple[float, dict[str, Any]]] = deque()
         self.seen = self.written = self.incomplete = self.unreadable = 0
@@ -390,23 +404,25 @@ def _stamp(ready: dict[str, Any]) -> int:
     return next(messages.stamp_ns(msg.header) for msg in ready.values() if msg is not None)
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, stop: threading.Event, dataset: Dataset) -> int:
+    """Writes `dataset` until its count or `stop`; the exit code."""
     try:
-        writer = DatasetWriter(args.out)
+        writer = DatasetWriter(dataset.out)
     except OSError as exc:
-        raise ClientError(f"--out {args.out}: cannot write there: {exc.strerror or exc}") from None
-    sources = find_sources(node, args.cameras, args.timeout, stop)
+        raise ClientError(f"--out {dataset.out}: cannot write there: {exc.strerror or exc}") from None
+    sources = find_sources(node, dataset.cameras, dataset.timeout_s, stop)
     logger.info("cameras: %s", ", ".join(f"{s.camera} ({s.kind})" for s in sources))
-    collector = Collector(node, sources, writer, args)
+    collector = Collector(node, sources, writer, dataset)
     status = StatusLine()
     try:
-        if args.randomise is None:
+        if dataset.randomise is None:
             _collect(collector, status, stop)
-        world = _world_control(node) if args.randomise else ""
-        for index, seed in enumerate(args.randomise or ()):
-            _reset(node, world, seed, args.timeout)
+        world = _world_control(node) if dataset.randomise else ""
+        for index, seed in enumerate(dataset.randomise or ()):
+            assert dataset.count is not None  # main refuses --randomise without --count
+            _reset(node, world, seed, dataset.timeout_s)
             collector.restart(seed)
-            collector.count = args.count * (index + 1)
+            collector.count = dataset.count * (index + 1)
             _collect(collector, status, stop)
     finally:
         collector.flush()
@@ -472,7 +488,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.randomise is not None and args.count is None:
         parser.error("--randomise needs --count (the sets of each world)")
-    return run_client(parser, argv, _run)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, _dataset_of(args)))
+
+
+def _dataset_of(args: argparse.Namespace) -> Dataset:
+    return Dataset(args.out, args.cameras, args.every, args.count, args.robot, args.timeout, args.randomise)
 
 
 if __name__ == "__main__":

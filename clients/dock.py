@@ -99,12 +99,25 @@ def nearness(robot: Planar | None, trolley: Planar | None, distance: float, yaw_
     return Nearness(True, f"near ({text})")
 
 
+@dataclass(frozen=True)
+class Dock:
+    """What `simbot-dock` docks: the robot and the trolley (model names), when they count as near, how often it checks."""
+
+    robot: str
+    trolley: str = "trolley"
+    distance: float = 0.55
+    """m in XY between their origins."""
+    yaw_tolerance: float | None = None
+    """rad between their headings; None: any heading."""
+    check_period_s: float = 0.2
+    """Sim time between the checks."""
+
+
 class Docking:
     """The attempt in progress (near checks passed so far) and the joint's state as last reported."""
 
-    def __init__(self, args: argparse.Namespace, attach: Publisher, detach: Publisher, terminal: Terminal) -> None:
-        self.distance = args.distance
-        self.yaw_tolerance = args.yaw_tolerance
+    def __init__(self, distance: float, attach: Publisher, detach: Publisher, terminal: Terminal) -> None:
+        self.distance = distance
         self.joint = "unknown"
         self.passed: int | None = None
         """Checks passed in the attempt in progress; None when no attempt is."""
@@ -151,20 +164,20 @@ class Docking:
         return f"trolley {verdict.text} | joint {self.joint}{attempt}"
 
 
-def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: threading.Event) -> None:
+def _dock(node: Node, dock: Dock, terminal: Terminal, stop: threading.Event) -> None:
     """The loop: keys at once, a check every period, the joint's state as it changes."""
     clock = ClockSubscriber(node)
-    robot, trolley = PoseWatch(node, args.robot or followed_model(args.robot_namespace)), PoseWatch(node, args.trolley)
+    robot, trolley = PoseWatch(node, dock.robot), PoseWatch(node, dock.trolley)
     joint_inbox: Mailbox[Any] = Mailbox(size=8)
     node.subscribe("detachable_joint/state", STRING, joint_inbox.put, latched=True)
     docking = Docking(
-        args,
+        dock.distance,
         node.publisher("attach", messages.Empty, drop=False),
         node.publisher("detach", messages.Empty, drop=False),
         terminal,
     )
     near: bool | None = None
-    checks = SimTicker(args.check_period)
+    checks = SimTicker(dock.check_period_s)
     while not stop.is_set():
         keys = terminal.read_keys(POLL_S)
         if keys is None or QUIT in keys:
@@ -174,7 +187,7 @@ def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: thread
                 docking.joint = state.data
                 terminal.message(f"joint {state.data}")
         now = clock.now()
-        verdict = nearness(robot.pose(now), trolley.pose(now), args.distance, args.yaw_tolerance)
+        verdict = nearness(robot.pose(now), trolley.pose(now), dock.distance, dock.yaw_tolerance)
         for key in keys:
             if docking.press(key, verdict):
                 checks.restart(now)  # the attempt's next check, a period after its first
@@ -186,10 +199,16 @@ def _dock(node: Node, args: argparse.Namespace, terminal: Terminal, stop: thread
         terminal.status(docking.status(verdict))
 
 
-def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, stop: threading.Event, dock: Dock) -> int:
+    """Docks from the keyboard (the terminal) until q, end of input or `stop`."""
     with Terminal(KEYS_HELP) as terminal:
-        _dock(node, args, terminal, stop)
+        _dock(node, dock, terminal, stop)
     return 0
+
+
+def _dock_of(args: argparse.Namespace) -> Dock:
+    robot = args.robot or followed_model(args.robot_namespace)
+    return Dock(robot, args.trolley, args.distance, args.yaw_tolerance, args.check_period)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -230,7 +249,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot-dock`."""
-    return run_client(build_parser(), argv, _body, check=terminal_input)
+    return run_client(
+        build_parser(), argv, lambda args, node, stop: run(node, stop, _dock_of(args)), check=terminal_input
+    )
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ naming it (and similar live keys), exit 2.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import difflib
 import json
@@ -29,6 +28,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -185,17 +185,31 @@ def _unknown(name: str, wait_s: float, topics: Mapping[str, Topic]) -> ClientErr
     return ClientError(f"key {name!r}: nothing publishes or subscribes to it (waited {wait_s:g} s){suffix}")
 
 
+@dataclass(frozen=True)
+class Echoed:
+    """What `simbot echo` prints: the key (its topic name), how, and how long it waits for it."""
+
+    key: str
+    once: bool = False
+    """Stop after the first message."""
+    as_json: bool = False
+    full: bool = False
+    """Long arrays and strings whole."""
+    wait_s: float = DEFAULT_WAIT_S
+    """How long the key may be absent from the bus before it is an error."""
+
+
 class Echo:
     """One key's samples, queued by Zenoh, typed, decoded and printed by the loop."""
 
-    def __init__(self, node: Node, args: argparse.Namespace) -> None:
+    def __init__(self, node: Node, echoed: Echoed) -> None:
         self.node = node
-        self.args = args
+        self.echoed = echoed
         try:
-            self.key = node.graph.any_type_key(node.key(args.key))
+            self.key = node.graph.any_type_key(node.key(echoed.key))
         except ValueError as exc:
             raise ClientError(str(exc)) from None
-        self.name = args.key.strip("/")
+        self.name = echoed.key.strip("/")
         self.topic: Topic | None = None
         self.inbox: Mailbox[tuple[bytes, str]] = Mailbox(QUEUE)
 
@@ -232,28 +246,29 @@ class Echo:
         except (DecodeError, UnknownMessageType) as exc:
             logger.warning("%s: skipped a sample: %s", self.name, exc)
             return False
-        print(render(msg, self.args.json, self.args.full), flush=True)
+        print(render(msg, self.echoed.as_json, self.echoed.full), flush=True)
         return True
 
     def run(self, stop: threading.Event) -> int:
         """Prints until stopped (or after one message with --once); waits `--wait` s for an unknown key."""
-        deadline = time.monotonic() + self.args.wait
+        deadline = time.monotonic() + self.echoed.wait_s
         known = False
         while not stop.is_set():
             item = self.inbox.get(GRAPH_POLL_S)  # a quiet poll period between two looks at the graph
             if item is not None:
                 known = True
-                if self.show(*item) and self.args.once:
+                if self.show(*item) and self.echoed.once:
                     return 0
             elif not known:
                 known = self.look_up()
                 if not known and time.monotonic() > deadline:
-                    raise _unknown(self.name, self.args.wait, live_topics(self.node))
+                    raise _unknown(self.name, self.echoed.wait_s, live_topics(self.node))
         return 0
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    echo = Echo(node, args)
+def run(node: Node, stop: threading.Event, echoed: Echoed) -> int:
+    """Prints the messages of `echoed`'s key until `stop` (or the first, `once`); the exit code."""
+    echo = Echo(node, echoed)
     history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
     subscriber = zenoh.ext.declare_advanced_subscriber(node.session, echo.key, echo.on_sample, history=history)
     try:
@@ -283,7 +298,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="SECONDS",
         help=f"how long a key may be absent from the bus before it is an error (default {DEFAULT_WAIT_S:g})",
     )
-    return run_client(parser, argv, _run)
+    return run_client(
+        parser,
+        argv,
+        lambda args, node, stop: run(node, stop, Echoed(args.key, args.once, args.json, args.full, args.wait)),
+    )
 
 
 if __name__ == "__main__":

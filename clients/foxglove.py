@@ -45,7 +45,6 @@ when the server starts, so `--help` works without it. Run it as `simbot foxglove
 
 from __future__ import annotations
 
-import argparse
 import logging
 import queue
 import sys
@@ -330,7 +329,7 @@ def _require_sdk() -> None:
 
 
 def _start_server(
-    args: argparse.Namespace, listener: Listener, context: foxglove.Context, assets: SceneAssets
+    namespace: str, listener: Listener, context: foxglove.Context, assets: SceneAssets
 ) -> WebSocketServer:
     """Foxglove's WebSocket server with the Time capability and asset fetch, on a private loopback port behind the front."""
     import foxglove
@@ -338,7 +337,7 @@ def _start_server(
 
     try:
         return foxglove.start_server(
-            name=f"simbot {args.namespace}" if args.namespace else "simbot",
+            name=f"simbot {namespace}" if namespace else "simbot",
             host=LOOPBACK,
             port=0,
             capabilities=[Capability.Time],  # an asset handler adds the Assets capability
@@ -351,36 +350,33 @@ def _start_server(
         raise ClientError(f"cannot start Foxglove's server on {LOOPBACK}: {reason}") from None
 
 
-def _bind_front(args: argparse.Namespace) -> SubprotocolFront:
+def _bind_front(host: str, port: int) -> SubprotocolFront:
     """The front where the user asked, taking both subprotocols; a port in use (or a bad host) is a ClientError."""
-    front = SubprotocolFront(args.host, args.port)
+    front = SubprotocolFront(host, port)
     try:
         front.bind()
     except OSError as exc:
         front.stop()
-        raise ClientError(
-            f"cannot serve on {args.host} port {args.port} (--host, --port): {exc.strerror or exc}"
-        ) from None
+        raise ClientError(f"cannot serve on {host} port {port} (--host, --port): {exc.strerror or exc}") from None
     return front
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, stop: threading.Event, host: str, port: int, namespace: str) -> int:
+    """Serves the bus (its `namespace`) to Foxglove on `host`:`port` (0: a free one) until `stop`."""
     import foxglove
 
     listener = Listener()
     context = foxglove.Context()
     assets = SceneAssets()
-    front = _bind_front(args)
+    front = _bind_front(host, port)
     try:
-        server = _start_server(args, listener, context, assets)
+        server = _start_server(namespace, listener, context, assets)
     except ClientError:
         front.stop()
         raise
     front.serve(server.port)
     bridge = Bridge(node, server, context, listener, assets)
-    logger.info(
-        "serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(args.host, front.port)
-    )
+    logger.info("serving the bus on %s: in Foxglove, Open connection → Foxglove WebSocket", _ws_url(host, front.port))
     next_graph = 0.0
     try:
         while not stop.is_set():
@@ -413,7 +409,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=DEFAULT_PORT,
         help=f"TCP port to serve on (default {DEFAULT_PORT}; 0 picks a free one)",
     )
-    return run_client(parser, argv, _run, check=_require_sdk)
+    return run_client(
+        parser, argv, lambda args, node, stop: run(node, stop, args.host, args.port, args.namespace), check=_require_sdk
+    )
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ import fnmatch
 import sys
 import threading
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,10 +68,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _call(node: Node, args: argparse.Namespace, zone: Zone, service: str, request: dict[str, Any]) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Handover:
+    """What `simbot handover` watches and how: the robots (names or shell patterns), the zones, the
+    robot's model file, the zones' world, how often it looks, and how long a call may take."""
+
+    robots: Sequence[str]
+    zones: Sequence[Zone]
+    file: Path
+    world: str = "warehouse"
+    every_s: float = 0.2
+    once: bool = False
+    """Exit after the first handover."""
+    timeout_s: float = DEFAULT_TIMEOUT_S
+
+
+def _call(node: Node, handover: Handover, zone: Zone, service: str, request: dict[str, Any]) -> dict[str, Any]:
     """One world-control call in `zone`; NoAnswer when it does not answer, ClientError when it refuses."""
     try:
-        reply = node.call(f"{zone.name}/world/{args.world}/{service}", request, timeout=args.timeout)
+        reply = node.call(f"{zone.name}/world/{handover.world}/{service}", request, timeout=handover.timeout_s)
     except (TimeoutError, ServiceError) as exc:
         raise NoAnswer(f"zone {zone.name}: the world does not answer: {exc}") from None
     if reply.get("ok") is not True:
@@ -78,16 +94,16 @@ def _call(node: Node, args: argparse.Namespace, zone: Zone, service: str, reques
     return reply
 
 
-def wanted(args: argparse.Namespace, name: str) -> bool:
+def wanted(handover: Handover, name: str) -> bool:
     """Whether model `name` is one of the robots to watch (a name or a pattern of the command line)."""
-    return any(fnmatch.fnmatchcase(name, pattern) for pattern in args.robots)
+    return any(fnmatch.fnmatchcase(name, pattern) for pattern in handover.robots)
 
 
 class Watch:
     """The zones and what their worlds hold at each look; which zones stopped answering."""
 
-    def __init__(self, node: Node, args: argparse.Namespace) -> None:
-        self.node, self.args = node, args
+    def __init__(self, node: Node, handover: Handover) -> None:
+        self.node, self.handover = node, handover
         self.silent: set[Zone] = set()
 
     def look(self) -> list[tuple[str, Zone, Zone, dict[str, Any]]]:
@@ -95,19 +111,19 @@ class Watch:
         another's: (name, its zone, the other, its state). A robot in two zones (mid-handover, or
         a create whose remove was refused) counts in the first. NoAnswer when no zone answers."""
         seen: dict[str, tuple[Zone, dict[str, Any]]] = {}
-        for each in self.args.zone:
+        for each in self.handover.zones:
             models = self._models(each)
             for name, state in (models or {}).items():
-                if wanted(self.args, name):
+                if wanted(self.handover, name):
                     seen.setdefault(name, (each, state))
-        if len(self.silent) == len(self.args.zone):
+        if len(self.silent) == len(self.handover.zones):
             raise NoAnswer("no zone's world answers")
         moves = []
         for name, (source, state) in seen.items():
             x = state["position"][0]
             if x is None or source.holds(x):  # null: a body that left the world
                 continue
-            target = next((z for z in self.args.zone if z.holds(x) and z not in self.silent), None)
+            target = next((z for z in self.handover.zones if z.holds(x) and z not in self.silent), None)
             if target is not None:
                 moves.append((name, source, target, state))
         return moves
@@ -115,9 +131,9 @@ class Watch:
     def _models(self, zone: Zone) -> dict[str, Any] | None:
         """The models of `zone`'s world, or None (said once) while it does not answer."""
         try:
-            models: dict[str, Any] = _call(self.node, self.args, zone, "state", {})["models"]
+            models: dict[str, Any] = _call(self.node, self.handover, zone, "state", {})["models"]
         except NoAnswer as exc:
-            if self.args.once:
+            if self.handover.once:
                 raise
             if zone not in self.silent:
                 print(f"simbot handover: {exc}; watching the other zones", file=sys.stderr, flush=True)
@@ -129,42 +145,45 @@ class Watch:
         return models
 
 
-def hand_over(
-    node: Node, args: argparse.Namespace, robot: str, source: Zone, target: Zone, state: dict[str, Any]
-) -> None:
+def hand_over(node: Node, handover: Handover, robot: str, source: Zone, target: Zone, state: dict[str, Any]) -> None:
     """Created in `target` at the pose it has in `source`, then removed from `source`."""
     (x, y, z), (qx, qy, qz, qw) = state["position"], state["orientation"]
     pose = {"position": {"x": x, "y": y, "z": z}, "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
-    request = {"sdf_filename": str(args.file.absolute()), "name": robot, "namespace": robot, "pose": pose}
-    _call(node, args, target, "create", request)
-    _call(node, args, source, "remove", {"name": robot})
+    request = {"sdf_filename": str(handover.file.absolute()), "name": robot, "namespace": robot, "pose": pose}
+    _call(node, handover, target, "create", request)
+    _call(node, handover, source, "remove", {"name": robot})
     print(f"{robot}: {source.name} → {target.name} at x {x:.3f} y {y:.3f}", flush=True)
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    watch = Watch(node, args)
+def run(node: Node, stop: threading.Event, handover: Handover) -> int:
+    """Hands the robots over between the zones until `stop` (or after the first, `once`); the exit code."""
+    watch = Watch(node, handover)
     try:
         while not stop.is_set():
             for robot, source, target, state in watch.look():
                 try:
-                    hand_over(node, args, robot, source, target, state)
+                    hand_over(node, handover, robot, source, target, state)
                 except NoAnswer as exc:
-                    if args.once:
+                    if handover.once:
                         raise
                     print(f"simbot handover: {robot} stays in {source.name}: {exc}", file=sys.stderr, flush=True)
                     continue
-                if args.once:
+                if handover.once:
                     return 0
-            stop.wait(args.every)
+            stop.wait(handover.every_s)
     except NoAnswer as exc:
         print(f"simbot handover: {exc}", file=sys.stderr)
         return EXIT_NO_WORLD
     return 0
 
 
+def _handover_of(args: argparse.Namespace) -> Handover:
+    return Handover(args.robots, args.zone, args.file, args.world, args.every, args.once, args.timeout)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot handover`."""
-    return run_client(build_parser(), argv, _run)
+    return run_client(build_parser(), argv, lambda args, node, stop: run(node, stop, _handover_of(args)))
 
 
 if __name__ == "__main__":

@@ -440,6 +440,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    return run(plan, stop)
+
+
+def run(plan: Plan, stop: threading.Event) -> int:
+    """Runs `plan` until its clients end or `stop`; with the monitor on a terminal, the others' output
+    goes to log files, whose folder it names. The exit code."""
     if MONITOR not in plan.clients or not sys.stdout.isatty():
         return Launch(plan, stop).run()
     logs = Path(tempfile.mkdtemp(prefix="simbot-launch-"))

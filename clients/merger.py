@@ -21,7 +21,6 @@ client's loop.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 import threading
@@ -125,9 +124,10 @@ class MergerNode:
         )
 
 
-def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    merger = MergerNode(node, Binning(args.bins), args.scan_period)
-    logger.info("merging lidar_front and lidar_back into %s in %s (%d bins)", MERGED_TOPIC, TARGET_FRAME, args.bins)
+def run(node: Node, stop: threading.Event, bins: int, scan_period_s: float) -> int:
+    """Merges the lidars' scans into `bins` bins until `stop`, pairing scans within half of `scan_period_s`."""
+    merger = MergerNode(node, Binning(bins), scan_period_s)
+    logger.info("merging lidar_front and lidar_back into %s in %s (%d bins)", MERGED_TOPIC, TARGET_FRAME, bins)
     while not stop.is_set():
         merger.spin_once(POLL_S)
     logger.info("%s", merger.summary())
@@ -150,7 +150,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="SECONDS",
         help=f"the lidars' scan period (default {DEFAULT_PERIOD_S}); scans pair within half of it",
     )
-    return run_client(parser, argv, _body)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, args.bins, args.scan_period))
 
 
 if __name__ == "__main__":

@@ -31,7 +31,6 @@ each refresh is a block of lines followed by a blank line. SIGINT / SIGTERM end 
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import threading
@@ -261,17 +260,18 @@ class Monitor:
         return "\n".join(lines)
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    monitor = Monitor(node, args.world)
+def run(node: Node, stop: threading.Event, world: str | None, period_s: float) -> int:
+    """Shows the table of `world` (None: the one on the bus) every `period_s` until `stop`."""
+    monitor = Monitor(node, world)
     monitor.follow_graph()
     if not sys.stdout.isatty():
-        while not stop.wait(args.period):  # the first table after a period, when the subscriptions have data
+        while not stop.wait(period_s):  # the first table after a period, when the subscriptions have data
             sys.stdout.write(f"{monitor.frame()}\n\n")
             sys.stdout.flush()
         return 0
     with FullScreen() as screen:
-        screen.draw(f"{state_line(monitor.world, None)}\n(the first table in {args.period:g} s)")
-        while not stop.wait(args.period):
+        screen.draw(f"{state_line(monitor.world, None)}\n(the first table in {period_s:g} s)")
+        while not stop.wait(period_s):
             screen.draw(monitor.frame())
     return 0
 
@@ -289,7 +289,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="SECONDS",
         help=f"refresh period (default {REFRESH_S:g})",
     )
-    return run_client(parser, argv, _run)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, args.world, args.period))
 
 
 if __name__ == "__main__":

@@ -17,7 +17,6 @@ subscriber, as in ROS.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 import threading
@@ -93,19 +92,20 @@ def timed(reader: Reader, rate: float, stop: threading.Event) -> Iterator[tuple[
         yield connection, data
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    reader = open_bag(Path(args.bag))
+def run(node: Node, stop: threading.Event, bag: str, rate: float) -> int:
+    """Publishes the messages of `bag` (a directory or its file) at `rate` × their recorded pace until done or `stop`."""
+    reader = open_bag(Path(bag))
     total = reader.message_count
     try:
         outputs = publishers(node, reader)
         await_routes(outputs, stop)
         played = 0
-        for connection, data in timed(reader, args.rate, stop):
+        for connection, data in timed(reader, rate, stop):
             outputs[connection.id].put_raw(data)
             played += 1
     finally:
         reader.close()
-    print(f"played {played} of {total} messages from {args.bag}", file=sys.stderr)
+    print(f"played {played} of {total} messages from {bag}", file=sys.stderr)
     return 0
 
 
@@ -116,7 +116,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--rate", type=number(float), default=1.0, help="speed factor: 2 plays twice as fast (default 1)"
     )
-    return run_client(parser, argv, _run)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, args.bag, args.rate))
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ reader can tell the runs apart.
 
 from __future__ import annotations
 
-import argparse
 import fnmatch
 import json
 import logging
@@ -256,10 +255,11 @@ class Recorder:
         )
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    recorder = Recorder(node, Bag(Path(args.output or default_bag_name())), Selection(args.keys, args.exclude))
+def run(node: Node, stop: threading.Event, output: Path, selection: Selection, duration_s: float | None) -> int:
+    """Records the selected keys into the bag `output` for `duration_s` (None: until `stop`), then closes it."""
+    recorder = Recorder(node, Bag(output), selection)
     try:
-        recorder.run(stop, args.duration)
+        recorder.run(stop, duration_s)
     finally:
         recorder.finish()
     return 0
@@ -285,7 +285,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         "--duration", type=number(float), metavar="SECONDS", help="stop after this many seconds (default: until Ctrl-C)"
     )
-    return run_client(parser, argv, _run)
+    return run_client(
+        parser,
+        argv,
+        lambda args, node, stop: run(
+            node, stop, Path(args.output or default_bag_name()), Selection(args.keys, args.exclude), args.duration
+        ),
+    )
 
 
 if __name__ == "__main__":

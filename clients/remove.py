@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import threading
 from collections.abc import Sequence
 
 from simbot.bus import Node
@@ -27,13 +26,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    return world_call("simbot remove", node, args, "remove", {"name": args.name})
+def run(node: Node, name: str, world: str | None, timeout: float) -> int:
+    """Asks `world` (None: the one on the bus) to remove model `name`, waiting `timeout` s; the exit code."""
+    return world_call("simbot remove", node, world, timeout, "remove", {"name": name})
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot remove`."""
-    return run_client(build_parser(), argv, _run)
+    return run_client(build_parser(), argv, lambda args, node, _: run(node, args.name, args.world, args.timeout))
 
 
 if __name__ == "__main__":

@@ -39,7 +39,6 @@ bridge see its own `cmd_vel` publisher and carry it back out.
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import logging
 import sys
@@ -398,19 +397,20 @@ def _loop(bridge: Bridge, executor: Executor, stop: threading.Event) -> None:
         status.show(now, bridge.status)
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, stop: threading.Event, selection: Selection, dds_domain: int | None) -> int:
+    """Carries the selected keys between the bus and DDS domain `dds_domain` (None: ROS_DOMAIN_ID's) until `stop`."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
     context = rclpy.Context()
     rclpy.init(  # Ctrl-C is run_client's
-        args=[], context=context, domain_id=args.dds_domain, signal_handler_options=SignalHandlerOptions.NO
+        args=[], context=context, domain_id=dds_domain, signal_handler_options=SignalHandlerOptions.NO
     )
     ros = rclpy.create_node(NODE_NAME, context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(ros)
-    bridge = Bridge(node, ros, Selection(args.allow, args.deny))
+    bridge = Bridge(node, ros, selection)
     try:
         _loop(bridge, executor, stop)
     finally:
@@ -441,7 +441,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="N",
         help="the DDS domain to carry the bus into (default: ROS_DOMAIN_ID, the bus's own domain)",
     )
-    return run_client(parser, argv, _run, check=_require_rclpy)
+    return run_client(
+        parser,
+        argv,
+        lambda args, node, stop: run(node, stop, Selection(args.allow, args.deny), args.dds_domain),
+        check=_require_rclpy,
+    )
 
 
 if __name__ == "__main__":

@@ -291,20 +291,20 @@ def make_map(got: dict[str, Any]) -> tuple[npt.NDArray[np.uint8], list[str]]:
     return render_map(got[SCAN], robot or SPEC_FOOTPRINT, trolley), notes
 
 
-def snapshot(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    """Wait for the keys, write the images that can be made, report what was silent."""
-    images = [name for name in NEEDS if getattr(args, name)] or list(NEEDS)
+def snapshot(node: Node, stop: threading.Event, out: Path, images: Sequence[str], timeout_s: float) -> int:
+    """Wait up to `timeout_s` for the keys of `images` (of NEEDS), write those that can be made into
+    `out`, report what was silent; the exit code."""
     needs = {key for name in images for key in NEEDS[name]}
     details = {key for name in images for key in DETAILS[name]}
     try:
-        args.out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ClientError(f"--out {args.out}: {exc.strerror or exc}") from None
+        raise ClientError(f"--out {out}: {exc.strerror or exc}") from None
     box: Mailbox[tuple[str, Any]] = Mailbox(size=64)
     for key in sorted(needs | details):
         node.subscribe(key, TYPES[key], functools.partial(_deliver, box, key), latched=key in LATCHED)
     start = time.monotonic()
-    got = collect(box, needs, details, args.timeout, stop)
+    got = collect(box, needs, details, timeout_s, stop)
     if stop.is_set():
         return 0
     waited = time.monotonic() - start
@@ -314,13 +314,13 @@ def snapshot(args: argparse.Namespace, node: Node, stop: threading.Event) -> int
     written = []
     if "panorama" in images and PANORAMA in got:
         try:
-            written.append(write(args.out / "panorama.png", panorama_pixels(got[PANORAMA])))
+            written.append(write(out / "panorama.png", panorama_pixels(got[PANORAMA])))
         except ValueError as exc:
             notes.append(str(exc))
     if "map" in images and SCAN in got:
         image, map_notes = make_map(got)
         notes += map_notes
-        written.append(write(args.out / "map.png", image))
+        written.append(write(out / "map.png", image))
     for note in notes:
         print(f"{PROG}: {note}", file=sys.stderr)
     for path in written:
@@ -345,7 +345,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot snapshot`."""
-    return run_client(build_parser(), argv, snapshot)
+    return run_client(
+        build_parser(),
+        argv,
+        lambda args, node, stop: snapshot(
+            node, stop, args.out, [name for name in NEEDS if getattr(args, name)] or list(NEEDS), args.timeout
+        ),
+    )
 
 
 if __name__ == "__main__":

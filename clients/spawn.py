@@ -17,8 +17,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-import threading
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,27 +44,40 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def create_request(args: argparse.Namespace) -> dict[str, Any]:
-    """The create request of the command line; ClientError for a pose that is not finite."""
-    request: dict[str, Any] = {"sdf_filename": str(Path(args.file).absolute()), "allow_renaming": args.allow_renaming}
-    if args.name is not None:
-        request["name"] = args.name
-    if args.robot_namespace:
-        request["namespace"] = args.robot_namespace
-    if args.pose is not None:
-        if not all(math.isfinite(v) for v in args.pose):
-            raise ClientError(f"--pose expects finite numbers, got {' '.join(map(str, args.pose))}")
-        x, y, z, yaw = args.pose
+@dataclass(frozen=True)
+class Spawn:
+    """What `simbot spawn` asks for: the model's file, and optionally its name, namespace and pose."""
+
+    file: Path
+    name: str | None = None
+    robot_namespace: str = ""
+    pose: Sequence[float] | None = None
+    """x, y, z (m) and yaw (rad) in the world."""
+    allow_renaming: bool = False
+
+
+def create_request(spawn: Spawn) -> dict[str, Any]:
+    """World control's create request for `spawn`; ClientError for a pose that is not finite."""
+    request: dict[str, Any] = {"sdf_filename": str(spawn.file.absolute()), "allow_renaming": spawn.allow_renaming}
+    if spawn.name is not None:
+        request["name"] = spawn.name
+    if spawn.robot_namespace:
+        request["namespace"] = spawn.robot_namespace
+    if spawn.pose is not None:
+        if not all(math.isfinite(v) for v in spawn.pose):
+            raise ClientError(f"--pose expects finite numbers, got {' '.join(map(str, spawn.pose))}")
+        x, y, z, yaw = spawn.pose
         orientation = dict(zip("xyzw", yaw_quaternion(yaw), strict=True))
         request["pose"] = {"position": {"x": x, "y": y, "z": z}, "orientation": orientation}
     return request
 
 
-def world_call(prog: str, node: Node, args: argparse.Namespace, service: str, request: dict[str, Any]) -> int:
-    """Asks world control's `service`; prints the name it acted on, or the refusal; the exit code."""
+def world_call(prog: str, node: Node, world: str | None, timeout: float, service: str, request: dict[str, Any]) -> int:
+    """Asks world control's `service` of `world` (None: the one on the bus), waiting `timeout` s; prints
+    the name it acted on, or the refusal; the exit code."""
     try:
-        world = choose_world(node, args.world)
-        reply = node.call(f"world/{world}/{service}", request, timeout=args.timeout)
+        chosen = choose_world(node, world)
+        reply = node.call(f"world/{chosen}/{service}", request, timeout=timeout)
     except NoWorld as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return EXIT_NO_WORLD
@@ -78,13 +91,18 @@ def world_call(prog: str, node: Node, args: argparse.Namespace, service: str, re
     return 0
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    return world_call("simbot spawn", node, args, "create", create_request(args))
+def run(node: Node, spawn: Spawn, world: str | None, timeout: float) -> int:
+    """Asks `world` (None: the one on the bus) to create `spawn`, waiting `timeout` s; the exit code."""
+    return world_call("simbot spawn", node, world, timeout, "create", create_request(spawn))
+
+
+def _spawn(args: argparse.Namespace) -> Spawn:
+    return Spawn(Path(args.file), args.name, args.robot_namespace, args.pose, args.allow_renaming)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot spawn`."""
-    return run_client(build_parser(), argv, _run)
+    return run_client(build_parser(), argv, lambda args, node, _: run(node, _spawn(args), args.world, args.timeout))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@ import argparse
 import json
 import os
 import sys
-import threading
 from collections.abc import Sequence
 from typing import Any
 
@@ -115,15 +114,16 @@ def summary(world: str, state: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, world: str | None, timeout: float, as_json: bool) -> int:
+    """Prints the state of `world` (None: the one on the bus), as JSON or a summary; the exit code."""
     try:
-        world = choose_world(node, args.world)
-        state = ask(node, world, args.timeout)
+        chosen = choose_world(node, world)
+        state = ask(node, chosen, timeout)
     except NoWorld as exc:
         print(f"simbot state: {exc}", file=sys.stderr)
         return EXIT_NO_WORLD
     try:
-        print(json.dumps(state, indent=2) if args.json else summary(world, state), flush=True)
+        print(json.dumps(state, indent=2) if as_json else summary(chosen, state), flush=True)
     except BrokenPipeError:  # `simbot state | head`: the reader is gone, which is no error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
@@ -131,7 +131,7 @@ def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot state`."""
-    return run_client(build_parser(), argv, _run)
+    return run_client(build_parser(), argv, lambda args, node, _: run(node, args.world, args.timeout, args.json))
 
 
 if __name__ == "__main__":

@@ -60,7 +60,6 @@ and again only when a camera's size, intrinsics or pose change. Zenoh callbacks 
 
 from __future__ import annotations
 
-import argparse
 import functools
 import logging
 import math
@@ -432,10 +431,11 @@ class StitcherNode:
         )
 
 
-def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    stitcher = StitcherNode(node, args.layout, args.radius)
-    where = f" on a cylinder of radius {args.radius:g} m about {BASE_FRAME}" if args.layout == "cylindrical" else ""
-    logger.info("stitching %s into a %s panorama%s on %s", ", ".join(CAMERAS), args.layout, where, IMAGE_TOPIC)
+def run(node: Node, stop: threading.Event, layout: str, radius: float) -> int:
+    """Stitches the six cameras in `layout` (one of LAYOUTS; cylindrical at `radius` m) until `stop`."""
+    stitcher = StitcherNode(node, layout, radius)
+    where = f" on a cylinder of radius {radius:g} m about {BASE_FRAME}" if layout == "cylindrical" else ""
+    logger.info("stitching %s into a %s panorama%s on %s", ", ".join(CAMERAS), layout, where, IMAGE_TOPIC)
     while not stop.is_set():
         stitcher.spin_once(POLL_S)
     logger.info("%s", stitcher.summary())
@@ -459,7 +459,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help=f"cylindrical: radius of the cylinder about {BASE_FRAME} where neighbouring cameras line up"
         f" (default {DEFAULT_RADIUS_M:g})",
     )
-    return run_client(parser, argv, _body)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, args.layout, args.radius))
 
 
 if __name__ == "__main__":

@@ -200,9 +200,10 @@ def _drive(node: Node, settings: Settings, terminal: Terminal, stop: threading.E
         cmd_vel.put(messages.twist())
 
 
-def _body(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
+def run(node: Node, stop: threading.Event, settings: Settings) -> int:
+    """Drives from the keyboard (the terminal) until q, end of input or `stop`; a stop command last."""
     with Terminal(KEYS_HELP) as terminal:
-        _drive(node, Settings.from_args(args), terminal, stop)
+        _drive(node, settings, terminal, stop)
     return 0
 
 
@@ -251,7 +252,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot-teleop`."""
-    return run_client(build_parser(), argv, _body, check=terminal_input)
+    return run_client(
+        build_parser(), argv, lambda args, node, stop: run(node, stop, Settings.from_args(args)), check=terminal_input
+    )
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ The rate counter (`Traffic`) and the graph lookups here are shared with `simbot 
 
 from __future__ import annotations
 
-import argparse
 import sys
 import threading
 import time
@@ -247,8 +246,9 @@ def format_table(rows: Sequence[tuple[str, ...]]) -> str:
     )
 
 
-def _run(args: argparse.Namespace, node: Node, stop: threading.Event) -> int:
-    measurement = measure(node, args.window, stop) if args.window > 0 else None
+def run(node: Node, stop: threading.Event, window_s: float) -> int:
+    """Prints the table of live keys, their rates measured over `window_s` (0: the graph only); the exit code."""
+    measurement = measure(node, window_s, stop) if window_s > 0 else None
     if stop.is_set():
         return 0
     rows = table_rows(node, measurement)
@@ -270,7 +270,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help=f"how long to measure rates and bandwidth (default {DEFAULT_WINDOW_S:g}); 0 lists the graph only, "
         "without subscribing (measuring subscribes to the cameras too, so the server renders meanwhile)",
     )
-    return run_client(parser, argv, _run)
+    return run_client(parser, argv, lambda args, node, stop: run(node, stop, args.window))
 
 
 if __name__ == "__main__":

@@ -14,11 +14,11 @@ from simbot.description.model import Param, Plugin
 from simbot.description.naming import canonical_name
 from simbot.description.plugin_params import number_param
 from simbot.description.resources import asset
-from simbot.sim.kit.drive import check_twist
+from simbot.sim.kit.drive import PlanarPose, check_twist
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.registry import lookup, registered
 from simbot.sim.loop.system import SystemConfigError
-from simbot.sim.systems.diff_drive import Odometry
+from simbot.sim.systems.diff_drive import wheel_motion
 from simbot.sim.systems.recognised import Recognised
 
 
@@ -139,14 +139,14 @@ def test_limits_clamp_and_ramp() -> None:
 
 def test_odometry_integrates_an_arc_exactly() -> None:
     """Wheels that trace a quarter circle of 1 m arc, in 100 updates: the exact end pose."""
-    odom, radius, sep = Odometry(), 0.075, 0.4
+    pose, radius, sep = PlanarPose(), 0.075, 0.4
     turn = math.pi / 2
     arc = 1.0  # metres travelled by the centre
     left, right = (arc - turn * sep / 2) / radius, (arc + turn * sep / 2) / radius
-    for i in range(101):
-        odom.update(left * i / 100, right * i / 100, radius, sep)
+    for _ in range(100):
+        pose.advance(*wheel_motion(left / 100, right / 100, radius, sep))
     r = arc / turn
-    assert (odom.pose.x, odom.pose.y, odom.pose.yaw) == pytest.approx((r, r, turn), abs=1e-9)
+    assert (pose.x, pose.y, pose.yaw) == pytest.approx((r, r, turn), abs=1e-9)
 
 
 class _Twist:

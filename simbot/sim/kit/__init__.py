@@ -1,7 +1,8 @@
 """What the systems share, none of it the loop (a system imports the kit and the layers below it,
 never another system but the camera a camera of another kind specialises):
 
-- drives and joints: cmd_vel → wheel speeds and odometry (`drive.py`), the joint controllers'
+- drives and joints: a drive's command from its key to what it applies, ramped and clamped
+  (`command_pipeline.py`), cmd_vel → wheel speeds and odometry (`drive.py`), the joint controllers'
   commanded joints and the joint-state rate (`joints.py`), their PID (`pid.py`);
 - sensors: channel noise and the sensor that reads its own frame (`sensors.py`), rates in sim time
   (`rates.py`);

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import logging
 import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,9 +19,10 @@ from simbot.bus import Publisher, messages
 from simbot.description.model import Model, Plugin
 from simbot.description.naming import scoped_key
 from simbot.description.plugin_params import bool_param, number_param, param
+from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.system import SystemConfigError, SystemContext
+from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader
 from simbot.transform import yaw_quaternion
 
@@ -184,10 +187,10 @@ class OdometryOutput:
         pose: PlanarPose,
         linear: tuple[float, float],
         turn_rate: float,
-        twist_covariance: tuple[float, ...] = TWIST_COVARIANCE,
+        twist_covariance: tuple[float, ...],
     ) -> None:
-        """Planar odometry with the covariances of dead reckoning (z, roll and pitch unknown); a
-        drive that knows its twist's error better states its own diagonal."""
+        """Planar odometry with the pose covariance of dead reckoning (z, roll and pitch unknown) and
+        the twist's diagonal the drive states."""
         if not self.watched:
             return
         self.put(
@@ -231,31 +234,80 @@ def diagonal(values: tuple[float, ...]) -> list[float]:
     return matrix
 
 
-class DeadReckoning:
-    """Wheel-encoder odometry at its own rate: integrates each motion, publishes pose and mean twist."""
+PlanarTwist = tuple[float, float, float]
+"""(forward m/s, lateral m/s, turn rad/s) in the robot's own frame."""
+TwistCovariance = Callable[[PlanarTwist], tuple[float, ...]]
+"""The diagonal of odometry's twist covariance at a twist: a drive that knows how its wheels err states it."""
 
-    def __init__(self, output: OdometryOutput, encoders: Encoders, rate_hz: float) -> None:
-        self._output, self._encoders = output, encoders
+
+def fixed_twist_covariance(twist: PlanarTwist) -> tuple[float, ...]:
+    """Dead reckoning's covariance whatever the twist: what a drive knows nothing better of."""
+    return TWIST_COVARIANCE
+
+
+class DeadReckoning:
+    """Wheel-encoder odometry at its own rate (`every`): integrates each motion, publishes pose and mean twist.
+
+    The drive turns its encoders' rotations into a motion of its own frame (its kinematics); this
+    integrates it along the exact arc and publishes, so every drive's odometry is one piece of code."""
+
+    def __init__(
+        self,
+        output: OdometryOutput,
+        encoders: Encoders,
+        rate_hz: float,
+        covariance: TwistCovariance = fixed_twist_covariance,
+    ) -> None:
+        self._output, self._encoders, self._covariance = output, encoders, covariance
         self.frames = (output.frame_id, output.child_frame_id)
         """(odometry frame, child frame) as published: the robot's namespace prefixed."""
-        self._every = Every.hz(rate_hz)
+        self.every = Every.hz(rate_hz)
         self.pose = PlanarPose()
         self._last_ns = 0
 
     def due(self, now_ns: int) -> list[float] | None:
         """The encoders' rotation since the last update when one is due, else None."""
-        return self._encoders.deltas() if self._every.due(now_ns) else None
+        return self._encoders.deltas() if self.every.due(now_ns) else None
 
     def advance(self, now_ns: int, forward: float, lateral: float, turn: float) -> None:
         """Moves by a motion of the robot's own frame and publishes; the twist is its mean since the last."""
         self.pose.advance(forward, lateral, turn)
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
-        rate = 1 / dt if dt > 0 else 0.0
-        self._output.put_planar(now_ns, self.pose, (forward * rate, lateral * rate), turn * rate)
+        twist = (forward / dt, lateral / dt, turn / dt) if dt > 0 else (0.0, 0.0, 0.0)
+        self._output.put_planar(now_ns, self.pose, twist[:2], twist[2], self._covariance(twist))
 
     def restart(self, now_ns: int) -> None:
+        """From the origin again, the encoders read afresh at the next update."""
         self.pose = PlanarPose()
         self._encoders.restart()
-        self._every.restart()
+        self.every.restart()
         self._last_ns = now_ns
+
+
+class Drive(ABC):
+    """What every drive system is around its own kinematics (`apply`): before each step the command
+    its pipeline limited, when there is one to apply; at a reset the pipeline at zero and the
+    odometry from the origin; the frames its odometry publishes."""
+
+    _pipeline: CommandPipeline
+    _odometry: DeadReckoning | None
+
+    @abstractmethod
+    def apply(self, command: Command) -> None:
+        """The wheels' speeds and the base's twist (`drive_base`) for a limited command."""
+
+    @property
+    def odometry_frames(self) -> tuple[str, str] | None:
+        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
+        return None if self._odometry is None else self._odometry.frames
+
+    def pre_update(self, info: UpdateInfo) -> None:
+        command = self._pipeline.step(info.step_ns / 1e9)
+        if command is not None:
+            self.apply(command)
+
+    def reset(self, info: UpdateInfo) -> None:
+        self._pipeline.reset()
+        if self._odometry is not None:
+            self._odometry.restart(info.sim_time_ns)

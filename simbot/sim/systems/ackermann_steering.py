@@ -26,7 +26,9 @@ side's wheels run at v (1 ∓ wheel_separation / 2R) / wheel_radius. A turn comm
 steers full lock and stands. Odometry integrates the first left and right wheels' rotation
 along the arc their steering angles give (the car's bicycle angle φ: cot φ = mean of the two
 cotangents), from the start pose, so it drifts where the wheels slip. Gazebo's `min_jerk`,
-`max_jerk` are ignored with a warning; `use_actuator_msg` is refused.
+`max_jerk` are ignored with a warning; `use_actuator_msg` is refused. The command (the twist, or
+the steering angle) is limited as every drive's is (simbot.sim.kit.command_pipeline); the
+steering servo follows its angles every step, as Gazebo's PID does.
 """
 
 from __future__ import annotations
@@ -34,11 +36,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from simbot.bus import messages
 from simbot.description.drive_params import Limits, limits
 from simbot.description.model import Model, Plugin
 from simbot.description.plugin_params import bool_param
+from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.drive import (
     DeadReckoning,
+    Drive,
     Encoders,
     OdometryOutput,
     check_float,
@@ -114,7 +119,17 @@ def bicycle_curvature(left: float, right: float, wheel_base: float) -> float:
     return 0.0 if abs(tl + tr) < 1e-12 else 2.0 * tl * tr / (tl + tr) / wheel_base
 
 
-class AckermannSteering:
+def _twist(msg: messages.Twist) -> Command:
+    """(v, ω): what a car takes of a twist."""
+    return msg.linear.x, msg.angular.z
+
+
+def _angle(msg: messages.Float64) -> Command:
+    """The bicycle angle, steering only."""
+    return (msg.data,)
+
+
+class AckermannSteering(Drive):
     """Steers and drives a car; publishes its odometry."""
 
     name = "AckermannSteering"
@@ -129,55 +144,50 @@ class AckermannSteering:
         self._odometry: DeadReckoning | None = None
         if p.steering_only:
             topic = command_topic(ctx, ctx.plugin, "steer_angle")
-            self._commands = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
+            angles = ctx.bus.input(topic, "std_msgs/msg/Float64", check_float)
+            self._pipeline = CommandPipeline(angles, _angle, (p.limits,))
         else:
             topic = command_topic(ctx, ctx.plugin, "cmd_vel")
-            self._commands = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
+            twists = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
+            self._pipeline = CommandPipeline(twists, _twist, (p.limits, p.limits))
             self._odometry = DeadReckoning(
                 OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
                 Encoders(ctx.physics, self._name, (p.left[0], p.right[0])),
                 p.odom_rate,
             )
-        self._target = self._current = (0.0, 0.0)
-
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return None if self._odometry is None else self._odometry.frames
+        self._steering = (0.0, 0.0)
+        """The (left, right) angles the steering servo turns the wheels to."""
 
     def pre_update(self, info: UpdateInfo) -> None:
-        for msg in self._commands.drain():
-            self._target = (msg.data, msg.data) if self.params.steering_only else (msg.linear.x, msg.angular.z)
-        dt = info.step_ns / 1e9
-        lim = self.params.limits
-        self._current = (
-            lim.ramp(self._current[0], lim.clamp(self._target[0]), dt),
-            lim.ramp(self._current[1], lim.clamp(self._target[1]), dt),
-        )
-        if self.params.steering_only:
-            self._steer_to_angle(self._current[1])
-        else:
-            self._drive(*self._current)
+        super().pre_update(info)
+        self._steer()
 
-    def _steer_to_angle(self, angle: float) -> None:
+    def apply(self, command: Command) -> None:
+        if self.params.steering_only:
+            self._steering = self._angles_for(command[0])
+        else:
+            self._drive(*command)
+
+    def _angles_for(self, angle: float) -> tuple[float, float]:
         """Steering only: the bicycle angle, bounded by the limit, spread over the wheels `wheel_separation` apart."""
         p = self.params
         angle = max(-p.steering_limit, min(p.steering_limit, angle))
-        self._steer(*p.steering_angles(math.tan(angle) / p.wheel_base, p.separation))
+        return p.steering_angles(math.tan(angle) / p.wheel_base, p.separation)
 
     def _drive(self, v: float, w: float) -> None:
         p = self.params
         k = p.curvature(v, w)
-        self._steer(*p.steering_angles(k, p.kingpin_width))
+        self._steering = p.steering_angles(k, p.kingpin_width)
         self._physics.drive_base(self._name, v, 0.0, v * k)
         for joints, speed in ((p.left, v * (1 - k * p.separation / 2)), (p.right, v * (1 + k * p.separation / 2))):
             for joint in joints:
                 self._physics.set_joint_velocity(self._name, joint, speed / p.radius, self._efforts[joint])
 
-    def _steer(self, left: float, right: float) -> None:
+    def _steer(self) -> None:
+        """The steering joints' speeds toward their angles: a P servo, so every step."""
         p = self.params
         now = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
-        for joint, target, state in ((p.left_steering, left, now[0]), (p.right_steering, right, now[1])):
+        for joint, target, state in zip((p.left_steering, p.right_steering), self._steering, now):
             self._physics.set_joint_velocity(
                 self._name, joint, p.steer_gain * (target - state[0]), self._efforts[joint]
             )
@@ -191,8 +201,3 @@ class AckermannSteering:
         steering = self._physics.joint_states(self._name, [p.left_steering, p.right_steering])
         turn = distance * bicycle_curvature(steering[0][0], steering[1][0], p.wheel_base)
         self._odometry.advance(info.sim_time_ns, distance, 0.0, turn)
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._target = self._current = (0.0, 0.0)
-        if self._odometry is not None:
-            self._odometry.restart(info.sim_time_ns)

@@ -20,6 +20,8 @@ SDF parameters (Gazebo's names first; the older names the original robot uses st
 
 The defaults are Gazebo Sim's, with `<model>` the model's name in the running world: two
 vehicles of one world keep apart keys and tf trees (`vehicle_blue/odom` → `vehicle_blue/chassis`).
+The command is limited as every drive's is (simbot.sim.kit.command_pipeline: ramped at the
+acceleration limits, then clamped to the velocity limits, each step).
 
 Odometry comes from the wheel encoders only, as on the real robot: when the wheels slip (a skid
 turn, a wall) `odom` drifts from the ground truth on `model/<name>/pose`. A skid-steer's wheels
@@ -33,35 +35,25 @@ dead reckoning's fixed covariance.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from functools import partial
 
+from simbot.bus import messages
 from simbot.description.drive_params import DiffDriveParams
-from simbot.sim.kit.drive import TWIST_COVARIANCE, OdometryOutput, PlanarPose, check_twist, joint_effort
-from simbot.sim.kit.rates import Every, Paced
+from simbot.sim.kit.command_pipeline import Command, CommandPipeline
+from simbot.sim.kit.drive import (
+    TWIST_COVARIANCE,
+    DeadReckoning,
+    Drive,
+    Encoders,
+    OdometryOutput,
+    PlanarTwist,
+    check_twist,
+    joint_effort,
+)
+from simbot.sim.kit.rates import Paced
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 from simbot.sim.physics.kinematic_stepper import KINEMATIC
 from simbot.sim.physics.steady_turn import SkidError, skid_error
-
-
-@dataclass
-class Odometry:
-    """Dead reckoning from the mean encoder angle of each side: each update is an exact circular arc."""
-
-    pose: PlanarPose = field(default_factory=PlanarPose)
-    left: float | None = None
-    right: float | None = None
-
-    def update(self, left: float, right: float, radius: float, separation: float) -> tuple[float, float]:
-        """Advances by the wheel rotation since the last call; returns the distance and turn."""
-        if self.left is None or self.right is None:
-            self.left, self.right = left, right
-            return 0.0, 0.0
-        dl, dr = (left - self.left) * radius, (right - self.right) * radius
-        self.left, self.right = left, right
-        distance, turn = (dl + dr) / 2, (dr - dl) / separation
-        self.pose.advance(distance, 0.0, turn)
-        return distance, turn
-
 
 TWIST_FLOOR = 1e-6
 """(m/s)² and (rad/s)²: the twist's variance on a straight, where the wheels roll without slip."""
@@ -69,11 +61,12 @@ ROLLING_ERROR = 0.01
 """The forward speed's σ per m/s: the wheels roll within 1 % on a straight."""
 
 
-def twist_covariance(error: SkidError | None, speed: float, rate: float) -> tuple[float, ...]:
+def twist_covariance(error: SkidError | None, twist: PlanarTwist) -> tuple[float, ...]:
     """The diagonal (x, y, z, roll, pitch, yaw) of odometry's twist covariance at its speed and yaw
     rate; dead reckoning's fixed one where the skid error is unknown (wheels without the tyre)."""
     if error is None:
         return TWIST_COVARIANCE
+    speed, _, rate = twist
     return (
         TWIST_FLOOR + (ROLLING_ERROR * speed) ** 2,
         TWIST_FLOOR + (error.side * rate) ** 2,
@@ -82,7 +75,18 @@ def twist_covariance(error: SkidError | None, speed: float, rate: float) -> tupl
     )
 
 
-class DiffDrive(Paced):
+def wheel_motion(left: float, right: float, radius: float, separation: float) -> tuple[float, float, float]:
+    """(forward, lateral, turn) of the base for its sides' mean wheel rotation (rad): a circular arc."""
+    dl, dr = left * radius, right * radius
+    return (dl + dr) / 2, 0.0, (dr - dl) / separation
+
+
+def _twist(msg: messages.Twist) -> Command:
+    """(v, ω): what a differential drive takes of a twist."""
+    return msg.linear.x, msg.angular.z
+
+
+class DiffDrive(Drive, Paced):
     """Drives both wheels of each side at v ∓ ω·separation/2 over the radius; publishes odometry."""
 
     name = "DiffDrive"
@@ -90,72 +94,32 @@ class DiffDrive(Paced):
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
         self._model, self._name = ctx.require_model("DiffDrive")
-        self.params = DiffDriveParams.parse(ctx.plugin, self._model, self._name)
+        self.params = p = DiffDriveParams.parse(ctx.plugin, self._model, self._name)
         self._physics = ctx.physics
-        self._efforts = {j: joint_effort(self._model, j) for j in self.params.left + self.params.right}
-        self._commands = ctx.bus.input(self.params.topic, "geometry_msgs/msg/Twist", check_twist)
-        tf_topic = self.params.tf_topic if self.params.publish_tf else None
-        self._output = OdometryOutput(
-            ctx.bus, self.params.odom_topic, tf_topic, self.params.frame_id, self.params.child_frame_id
+        self._efforts = {j: joint_effort(self._model, j) for j in p.left + p.right}
+        commands = ctx.bus.input(p.topic, "geometry_msgs/msg/Twist", check_twist)
+        self._pipeline = CommandPipeline(commands, _twist, (p.linear, p.angular))
+        output = OdometryOutput(
+            ctx.bus, p.odom_topic, p.tf_topic if p.publish_tf else None, p.frame_id, p.child_frame_id
         )
-        self.every = Every.hz(self.params.odom_rate)
-        self._target = self._current = (0.0, 0.0)
-        self._applied: tuple[float, float] | None = None  # None: the first step holds the wheels still
-        self._odom = Odometry()
-        self._last_ns = 0
         kinematic = ctx.world.physics.type == KINEMATIC
-        self._skid = SkidError() if kinematic else skid_error(self._model, self._physics.step_size)
+        skid = SkidError() if kinematic else skid_error(self._model, self._physics.step_size)
+        encoders = Encoders(ctx.physics, self._name, p.left + p.right)
+        self._odometry: DeadReckoning = DeadReckoning(output, encoders, p.odom_rate, partial(twist_covariance, skid))
+        self.every = self._odometry.every
 
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return (self._output.frame_id, self._output.child_frame_id)
-
-    def pre_update(self, info: UpdateInfo) -> None:
-        commands = self._commands.drain()
-        if not commands and self._current == self._target == self._applied:
-            return  # at its command and applied: nothing to ramp (most of a fleet, most steps)
-        for msg in commands:
-            self._target = (self.params.linear.clamp(msg.linear.x), self.params.angular.clamp(msg.angular.z))
-        dt = self._physics.step_size
-        v = self.params.linear.ramp(self._current[0], self._target[0], dt)
-        w = self.params.angular.ramp(self._current[1], self._target[1], dt)
-        self._current = (v, w)
-        if self._current != self._applied:
-            self._drive(v, w)
-
-    def _drive(self, v: float, w: float) -> None:
+    def apply(self, command: Command) -> None:
+        v, w = command
         half = w * self.params.separation / 2
         for joints, speed in ((self.params.left, v - half), (self.params.right, v + half)):
             for joint in joints:
                 self._physics.set_joint_velocity(self._name, joint, speed / self.params.radius, self._efforts[joint])
         self._physics.drive_base(self._name, v, 0.0, w)
-        self._applied = (v, w)
 
     def post_update(self, info: UpdateInfo) -> None:
-        now_ns = info.sim_time_ns
-        if not self.every.due(now_ns):
+        rotations = self._odometry.due(info.sim_time_ns)
+        if rotations is None:
             return
-        left, right = self._sides()
-        distance, turn = self._odom.update(left, right, self.params.radius, self.params.separation)
-        dt = (now_ns - self._last_ns) / 1e9
-        self._last_ns = now_ns
-        speed, rate = (distance / dt, turn / dt) if dt > 0 else (0.0, 0.0)
-        covariance = twist_covariance(self._skid, speed, rate)
-        self._output.put_planar(now_ns, self._odom.pose, (speed, 0.0), rate, covariance)
-
-    def _sides(self) -> tuple[float, float]:
-        """The mean wheel angle of each side, both sides' joints read in one query."""
-        left, right = self.params.left, self.params.right
-        states = self._physics.joint_states(self._name, [*left, *right])
-        return (
-            sum(s[0] for s in states[: len(left)]) / len(left),
-            sum(s[0] for s in states[len(left) :]) / len(right),
-        )
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._target = self._current = (0.0, 0.0)
-        self._drive(0.0, 0.0)
-        self._odom = Odometry()
-        self.every.restart()
-        self._last_ns = info.sim_time_ns
+        p, sides = self.params, len(self.params.left)
+        left, right = sum(rotations[:sides]) / sides, sum(rotations[sides:]) / len(p.right)
+        self._odometry.advance(info.sim_time_ns, *wheel_motion(left, right, p.radius, p.separation))

@@ -15,6 +15,7 @@
 Input: geometry_msgs/Twist (linear.x, linear.y, angular.z). With l = (wheelbase +
 wheel_separation)/2, the wheels turn at (vx ∓ vy ∓ ω·l)/r: front left −,−; front right +,+; back
 left +,−; back right −,+. Odometry inverts the same kinematics from the first wheel of each corner.
+The command is limited as every drive's is (simbot.sim.kit.command_pipeline).
 
 The rollers: a mecanum wheel only pushes along its rollers' axis, which is what moves the car
 sideways. PyBullet has no rollers; as in Gazebo's mecanum example, each wheel's collision
@@ -27,10 +28,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from simbot.bus import messages
 from simbot.description.drive_params import Limits, limits
 from simbot.description.model import Model, Plugin
+from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.drive import (
     DeadReckoning,
+    Drive,
     Encoders,
     OdometryOutput,
     check_twist,
@@ -40,6 +44,7 @@ from simbot.sim.kit.drive import (
     require_joints,
     warn_unsupported,
 )
+from simbot.sim.kit.rates import Paced
 from simbot.sim.loop.system import SystemContext, UpdateInfo
 
 CORNERS = ("front_left", "front_right", "back_left", "back_right")
@@ -87,7 +92,12 @@ class MecanumParams:
         )
 
 
-class MecanumDrive:
+def _twist(msg: messages.Twist) -> Command:
+    """(vx, vy, ω): what a mecanum platform takes of a twist."""
+    return msg.linear.x, msg.linear.y, msg.angular.z
+
+
+class MecanumDrive(Drive, Paced):
     """Drives four mecanum wheels; publishes odometry."""
 
     name = "MecanumDrive"
@@ -95,30 +105,20 @@ class MecanumDrive:
     def __init__(self, ctx: SystemContext) -> None:
         assert ctx.plugin is not None
         model, self._name = ctx.require_model("MecanumDrive")
-        self.params = MecanumParams.parse(ctx.plugin, model)
+        self.params = p = MecanumParams.parse(ctx.plugin, model)
         self._physics = ctx.physics
-        self._efforts = {j: joint_effort(model, j) for corner in self.params.wheels for j in corner}
-        topic = command_topic(ctx, ctx.plugin, "cmd_vel")
-        self._commands = ctx.bus.input(topic, "geometry_msgs/msg/Twist", check_twist)
-        self._odometry = DeadReckoning(
+        self._efforts = {j: joint_effort(model, j) for corner in p.wheels for j in corner}
+        commands = ctx.bus.input(command_topic(ctx, ctx.plugin, "cmd_vel"), "geometry_msgs/msg/Twist", check_twist)
+        self._pipeline = CommandPipeline(commands, _twist, (p.limits,) * 3)
+        self._odometry: DeadReckoning = DeadReckoning(
             OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
-            Encoders(ctx.physics, self._name, tuple(corner[0] for corner in self.params.wheels)),
-            self.params.odom_rate,
+            Encoders(ctx.physics, self._name, tuple(corner[0] for corner in p.wheels)),
+            p.odom_rate,
         )
-        self._target = self._current = (0.0, 0.0, 0.0)
+        self.every = self._odometry.every
 
-    @property
-    def odometry_frames(self) -> tuple[str, str] | None:
-        """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
-        return self._odometry.frames
-
-    def pre_update(self, info: UpdateInfo) -> None:
-        lim = self.params.limits
-        for msg in self._commands.drain():
-            self._target = (lim.clamp(msg.linear.x), lim.clamp(msg.linear.y), lim.clamp(msg.angular.z))
-        dt = info.step_ns / 1e9
-        vx, vy, w = (lim.ramp(now, goal, dt) for now, goal in zip(self._current, self._target))
-        self._current = (vx, vy, w)
+    def apply(self, command: Command) -> None:
+        vx, vy, w = command
         self._physics.drive_base(self._name, vx, vy, w)
         for corner, speed in zip(self.params.wheels, self.params.wheel_speeds(vx, vy, w)):
             for joint in corner:
@@ -128,7 +128,3 @@ class MecanumDrive:
         rotations = self._odometry.due(info.sim_time_ns)
         if rotations is not None:
             self._odometry.advance(info.sim_time_ns, *self.params.twist(rotations))
-
-    def reset(self, info: UpdateInfo) -> None:
-        self._target = self._current = (0.0, 0.0, 0.0)
-        self._odometry.restart(info.sim_time_ns)
