@@ -212,6 +212,8 @@ class RayScene:
     def _link_frames(self, body: Body, indices: list[int]) -> list[tuple[Floats, Floats]]:
         """The world pose (position, rotation matrix) of each link's URDF frame, as PyBullet holds it."""
         poses = self._link_poses(body, indices)
+        if not poses:
+            return []
         rotations = quaternions_to_matrices(np.asarray([quat for _, quat in poses], dtype=float))
         return list(zip(np.asarray([position for position, _ in poses], dtype=float), rotations))
 
