@@ -97,6 +97,9 @@ class RayScene:
         if body.name in self._static and self._static_at[body.name] != self._base_pose(body):
             self.add(body)
 
+    def moving_parts(self) -> int:
+        return sum(len(parts) for _, parts in self._moving.values())
+
     def static_build(self) -> int:
         """Builds the static structure now (a benchmark times it); returns its triangles' count."""
         self._built = None

@@ -116,18 +116,19 @@ def _collision_triangles(model: Model, link: Link, collision: Collision, folder:
     try:
         triangles = shape_triangles(geometry, model, folder)
     except Exception as exc:  # noqa: BLE001 - trimesh and the readers raise many kinds for a bad file
-        return _left_out(model, link, geometry, f"cannot be read ({exc})")
-    if triangles is None or not len(triangles):
-        return _left_out(model, link, geometry, "has no triangles")
-    if float(np.ptp(triangles.reshape(-1, 3), axis=0).max()) <= 0.0:
-        return _left_out(model, link, geometry, "has zero size")
-    return triangles
+        why = f"cannot be read ({exc})"
+    else:
+        if triangles is not None and len(triangles) and float(np.ptp(triangles.reshape(-1, 3), axis=0).max()) > 0.0:
+            return triangles
+        why = "has zero size" if triangles is not None and len(triangles) else "has no triangles"
+    _left_out(model, link, geometry, why)
+    return None
 
 
 def _left_out(model: Model, link: Link, geometry: Geometry, why: str) -> None:
+    """The one line a shape the engine leaves out is: its model, link and file, and why."""
     where = getattr(geometry, "path", None) or getattr(geometry, "uri", type(geometry).__name__.lower())
     log.warning("ray engine: model %r, link %r: %s %s; lidars see the rest", model.name, link.name, where, why)
-    return None
 
 
 def shape_triangles(geometry: Geometry, model: Model, folder: Path) -> Triangles | None:

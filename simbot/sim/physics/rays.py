@@ -34,6 +34,10 @@ log = logging.getLogger(__name__)
 
 RAYS_VARIABLE = "SIMBOT_RAYS"
 """`pybullet` casts every ray through PyBullet even where the engine is installed."""
+MOVING_PARTS_MAX = 200
+"""Moving parts (links of moving bodies) beyond which PyBullet's cast is the cheaper: measured, the
+engine is 12× cheaper with the warehouse's 28 (an env step) and 8× dearer with a hundred tugs'
+1100 (docs/speed.md, "The ray engine"), each part being a cast of its own."""
 Batch = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], "Body | None"]
 """N×3 starts, N×3 ends, and the body the rays pass through (or None)."""
 
@@ -89,15 +93,22 @@ class Rays:
                 self.scene.touch(body)
 
     def blind_to(self, body: Body) -> None:
-        """Prepares rays blind to `body`: PyBullet's cast needs a ray group, set before stepping; the engine nothing."""
-        if self.scene is None:
+        """Prepares rays blind to `body`: PyBullet's cast needs a ray group, set before stepping (the
+        engine needs none, so where the groups run out the engine alone casts for it)."""
+        try:
             self.bullet.blind_to(body)
+        except ValueError:
+            if self.scene is None:
+                raise
 
     def cast(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
-        """Each batch's fraction of each ray to its first hit, NaN where it hits nothing; every batch in one cast."""
-        if self.scene is None:
-            return self.bullet.cast_all(batches)
-        return self.scene.cast([(starts, ends, body.name if body else None) for starts, ends, body in batches])
+        """Each batch's fraction of each ray to its first hit, NaN where it hits nothing; every batch
+        in one cast: the engine's, or PyBullet's where the engine is off or the moving parts too many
+        (MOVING_PARTS_MAX) and every blind body has its ray group."""
+        scene = self.scene
+        if scene is not None and (scene.moving_parts() <= MOVING_PARTS_MAX or not self.bullet.has_groups(batches)):
+            return scene.cast([(starts, ends, body.name if body else None) for starts, ends, body in batches])
+        return self.bullet.cast_all(batches)
 
 
 def _engine(client: int, folder: Path) -> RayScene | None:
@@ -149,6 +160,10 @@ class BulletRays:
         """A removed body's group, free for the next robot."""
         if (group := self._groups.pop(name, None)) is not None:
             self._returned = sorted([*self._returned, group])
+
+    def has_groups(self, batches: Sequence[Batch]) -> bool:
+        """Whether every body the batches are blind to has its ray group already."""
+        return all(body.name in self._groups for _, _, body in batches if body is not None)
 
     def cast_all(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
         """`cast` of each batch, blind to its body (given a ray group now if it has none)."""
