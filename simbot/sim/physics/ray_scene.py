@@ -221,13 +221,11 @@ class RayScene:
         return list(zip(np.asarray([position for position, _ in poses], dtype=float), rotations))
 
     def _link_poses(self, body: Body, indices: list[int]) -> list[tuple[Sequence[float], Sequence[float]]]:
-        """The world pose (position, quaternion) of each link's URDF frame, as PyBullet holds it."""
+        """The world pose (position, quaternion) of each link's URDF frame, as PyBullet's collision
+        holds it since the last step (forward kinematics are not run again: that rewrites PyBullet's
+        cached link transforms and moves the next step's last bits)."""
         links = [i for i in indices if i >= 0]
-        states = iter(
-            pb.getLinkStates(body.id, links, computeForwardKinematics=True, physicsClientId=self.client)
-            if links
-            else []
-        )
+        states = iter(pb.getLinkStates(body.id, links, physicsClientId=self.client) if links else [])
         poses = []
         for index in indices:
             if index < 0:
