@@ -74,6 +74,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_dataset_cameras.py
 	$(BIN)/python benchmarks/bench_products.py
 	$(BIN)/python benchmarks/bench_gym.py
+	$(BIN)/python benchmarks/bench_rays.py
 
 ## PPO on Navigate-v0's easy variant (empty world, goal 2 m ahead) for a fixed budget of env steps, on the CPU, against the random policy over the same seeded episodes, after Stable-Baselines3's env checker on both environments: about 11 minutes on two cores. Installs the learning extra, which `make test` does not.
 # torch first, pinned: 2.13.0 is the CPU build that lies on this machine's disk (pip's find-links), while

@@ -46,6 +46,7 @@ import simbot.gym  # noqa: F401  registers simbot/Navigate-v0
 from simbot.gym.base import SimbotEnv
 from simbot.gym.local import LocalSession
 from simbot.sim.bullet import pb
+from simbot.sim.physics.rays import Batch
 
 ENV_ID = "simbot/Navigate-v0"
 WORLD = "warehouse"
@@ -92,9 +93,10 @@ def ray_ceiling(seconds: float) -> float:
         cast: list[tuple[np.ndarray, np.ndarray, int]] = []
         original = physics._rays.cast
 
-        def recording(starts: np.ndarray, ends: np.ndarray, mask: int) -> np.ndarray:
-            cast.append((starts, ends, mask))
-            return original(starts, ends, mask)
+        def recording(batches: Sequence[Batch]) -> list[np.ndarray]:
+            for starts, ends, body in batches:
+                cast.append((starts, ends, ~physics._rays.bullet.blind_to(body) if body else -1))
+            return original(batches)
 
         physics._rays.cast = recording  # type: ignore[method-assign]
         env.step(np.asarray(ACTION, np.float32))

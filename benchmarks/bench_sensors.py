@@ -124,7 +124,7 @@ def lidar_costs(server: Server, costs: Costs, repeats: int) -> None:
     directions = fan.directions[fan.scan_row] @ np.asarray(pb.getMatrixFromQuaternion(quat)).reshape(3, 3).T
     starts = (np.asarray(position) + directions * params.range_min).tolist()
     ends = (np.asarray(position) + directions * params.range_max).tolist()
-    client, mask = physics.client, ~physics.blind_rays_to(ROBOT_NAME)
+    client, mask = physics.client, ~physics._rays.bullet.blind_to(physics.body(ROBOT_NAME))
     costs.lidar_ms = per_call_ms(ours, repeats)
     costs.rays_ms = per_call_ms(
         lambda: pb.rayTestBatch(starts, ends, collisionFilterMask=mask, physicsClientId=client), repeats

@@ -29,10 +29,13 @@ CYCLE_S = 1.1
 """The walk cycle make_worker.py writes."""
 TOUCH_M = FAN_RAD / (RAYS - 1) * RANGE_M * 2
 """Legs closer than this apart may show as one run or two (a ray or two between them)."""
-CAST_M = 1.5e-3
-"""Bullet's ray cast at a tilted capsule (an iterative convex cast, not a closed form) finds its
-surface up to about a millimetre outside it: 0.94 mm measured on a capsule tilted 0.5 rad, a
-shin's tilt at double support (exact on an upright one)."""
+CAST_M = 2.5e-3
+"""How far the cast's edge of a leg may lie off the skeleton's, beyond a ray spacing: Bullet's ray
+cast at a tilted capsule (an iterative convex cast, not a closed form) finds its surface up to about
+a millimetre outside it (0.94 mm measured on a capsule tilted 0.5 rad, a shin's tilt at double
+support; exact on an upright one), which hid that the capsules cut the plane up to 2 mm inside the
+skeleton's bone cylinders at mid-swing; the ray engine's facets lie within 0.13 mm of the capsule
+and show it (measured: its edges up to 1.9 mm further in than the ray spacing allows)."""
 Run = tuple[float, float]
 
 

@@ -33,6 +33,7 @@ class Commands(Queries):
         com = compose(pose, invert(body.com_to_frame))
         pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
         pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
+        self._rays.moved([body])
 
     @changes_world
     def set_model_velocity(self, model: str, linear: Vec3, angular: Vec3) -> None:

@@ -17,7 +17,7 @@ from simbot.sim.physics.body import Body
 from simbot.sim.physics.commands import Commands
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.loading import Loader
-from simbot.sim.physics.rays import Rays
+from simbot.sim.physics.rays import Rays, engine_wanted
 from simbot.sim.physics.stepping import Stepper, stepper
 from simbot.transform import Transform
 
@@ -35,6 +35,8 @@ class Physics(Commands):
     links become 5 (its base and four wheels), each costing the articulated-body solver and the
     broadphase as much as a moving one. A model with a contact or force/torque sensor keeps its links:
     those sensors read one link's contacts or one fixed joint's wrench."""
+    ray_engine: bool = field(default_factory=engine_wanted)
+    """Cast rays through the ray engine where it is installed (`rays`); False: through PyBullet."""
     client: int = field(init=False)
     bodies: dict[str, Body] = field(default_factory=dict)
     constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
@@ -56,9 +58,9 @@ class Physics(Commands):
         pb.setGravity(*self.world.gravity, physicsClientId=self.client)
         pb.setTimeStep(self.world.physics.max_step_size, physicsClientId=self.client)
         pb.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
-        self._rays = Rays(self.client)
         self._stepper = stepper(self.world, self.client)
         self._loader = Loader(self.client, Path(self._tmp.name), self.fixed_castors, self.merge_fixed_links)
+        self._rays = Rays(self.client, Path(self._tmp.name), self.ray_engine)
 
     def close(self) -> None:
         """Disconnects PyBullet and removes the generated URDF files."""
@@ -89,6 +91,7 @@ class Physics(Commands):
         self.bodies[name] = loaded.body
         self._stepper.add(loaded.body.id, loaded.wheels)
         self._heightfields[name] = loaded.heightfields
+        self._rays.add(loaded.body)
         return loaded.body
 
     def restyle(self, name: str, model: Model) -> None:
@@ -109,7 +112,7 @@ class Physics(Commands):
             body = self.bodies.pop(part)
             self._stepper.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
-            self._rays.release(part)
+            self._rays.remove(part)
             for heightfield in self._heightfields.pop(part, []):
                 pb.removeBody(heightfield, physicsClientId=self.client)
             pb.removeBody(body.id, physicsClientId=self.client)
@@ -149,3 +152,4 @@ class Physics(Commands):
             raise ValueError(f"reset: the world as started held {', '.join(gone)}, removed since; restart the server")
         if self._saved_state is not None:
             pb.restoreState(self._saved_state, physicsClientId=self.client)
+            self._rays.moved(list(self.bodies.values()))

@@ -16,6 +16,8 @@ from simbot.description.poses import IDENTITY, Pose
 from simbot.sim.physics.contacts import ContactPoint
 from simbot.transform import Transform, Vec3
 
+RayBatch = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], str | None]
+"""One sensor's rays: N×3 starts, N×3 ends, and the model they pass through (its own robot), or None."""
 Frame = tuple[str, str, Pose]
 """A frame fixed to a link: (model, link, pose in the SDF link frame), where a sensor is."""
 
@@ -71,11 +73,13 @@ class WorldReader(Protocol):
 
     def joint_wrench(self, model: str, joint: str) -> tuple[Vec3, Vec3, Vec3]: ...
 
-    def blind_rays_to(self, model: str) -> int: ...
+    def blind_rays_to(self, model: str) -> None: ...
 
     def cast_rays(
         self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], blind_to: str | None = None
     ) -> npt.NDArray[np.float64]: ...
+
+    def cast_ray_batches(self, batches: Sequence[RayBatch]) -> list[npt.NDArray[np.float64]]: ...
 
 
 class WorldCommands(Protocol):

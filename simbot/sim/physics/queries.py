@@ -16,7 +16,7 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.bullet_transforms import compose, pose_to_transform, vec3
 from simbot.sim.physics.contacts import ContactPoint, contact_point
-from simbot.sim.physics.protocols import Frame, FrameMotions
+from simbot.sim.physics.protocols import Frame, FrameMotions, RayBatch
 from simbot.sim.physics.rays import Rays
 from simbot.transform import Transform, Vec3, matmul
 
@@ -196,14 +196,20 @@ class Queries:
         rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
         return vec3(matmul(rotation, reaction[:3])), vec3(matmul(rotation, reaction[3:])), vec3(com)
 
-    def blind_rays_to(self, model: str) -> int:
-        """Gives `model` a ray group of its own (once; call it before stepping, as a sensor's setup
-        does): rays cast `blind_to` it pass through it and hit every other body. Returns the group."""
-        return self._rays.blind_to(self.body(model))
+    def blind_rays_to(self, model: str) -> None:
+        """Makes rays cast `blind_to` `model` pass through it and hit every other body (call it before
+        stepping, as a sensor's setup does: PyBullet's cast gives the model a ray group of its own)."""
+        self._rays.blind_to(self.body(model))
 
     def cast_rays(
         self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], blind_to: str | None = None
     ) -> npt.NDArray[np.float64]:
         """Fraction of each ray (N×3 starts to N×3 ends) to its first hit, NaN where it hits nothing;
         the rays pass through the model `blind_to` (the sensor's own robot) and no other."""
-        return self._rays.cast(starts, ends, ~self.blind_rays_to(blind_to) if blind_to is not None else -1)
+        return self.cast_ray_batches([(starts, ends, blind_to)])[0]
+
+    def cast_ray_batches(self, batches: Sequence[RayBatch], engine: bool = True) -> list[npt.NDArray[np.float64]]:
+        """`cast_rays` of many sensors' rays in one cast (every lidar due in a step); `engine=False`
+        casts through PyBullet even where the engine is on (the tests compare the two)."""
+        bodies = [(starts, ends, self.body(blind) if blind is not None else None) for starts, ends, blind in batches]
+        return self._rays.cast(bodies) if engine else self._rays.bullet.cast_all(bodies)

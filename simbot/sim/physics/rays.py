@@ -1,17 +1,45 @@
-"""Rays cast in the world, each robot's ray sensors blind to the robot itself."""
+"""Rays cast in the world, each robot's ray sensors blind to the robot itself: through the ray engine
+(`ray_scene`, Intel Embree) where `embreex` is installed, else through PyBullet's `rayTestBatch`.
+
+Both give the same ranges, within a centimetre (tests/test_ray_engine.py). The engine is blind to a
+body by passing through its triangles; PyBullet by collision groups, of which there are enough for
+210 robots (`ray_groups`). `SIMBOT_RAYS=pybullet` (or `Physics(ray_engine=False)`) asks for
+PyBullet's cast where the engine is installed.
+"""
 
 from __future__ import annotations
 
+import functools
 import itertools
-from collections.abc import Iterator
+import logging
+import os
+import platform
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from operator import itemgetter
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.bullet import pb
 from simbot.sim.physics.body import Body
+from simbot.sim.physics.ray_shapes import body_parts
+
+if TYPE_CHECKING:
+    from simbot.sim.physics.ray_scene import RayScene
+
+log = logging.getLogger(__name__)
+
+RAYS_VARIABLE = "SIMBOT_RAYS"
+"""`pybullet` casts every ray through PyBullet even where the engine is installed."""
+MOVING_PARTS_MAX = 200
+"""Moving parts (links of moving bodies) beyond which PyBullet's cast is the cheaper: measured, the
+engine is 2–3× cheaper with the warehouse's 28 (an env step) and 8× dearer with a hundred tugs'
+1100 (docs/speed.md, "The ray engine"), each part being a cast of its own."""
+Batch = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], "Body | None"]
+"""N×3 starts, N×3 ends, and the body the rays pass through (or None)."""
 
 RAY_GROUP_BITS = range(10, 31)
 """Collision-group bits that tell robots apart for rays. PyBullet's own groups are 1 (dynamic) and
@@ -28,9 +56,87 @@ def ray_groups() -> Iterator[int]:
     return ((1 << a) | (1 << b) for a, b in itertools.combinations(RAY_GROUP_BITS, 2))
 
 
+def engine_wanted() -> bool:
+    """Whether the environment leaves the engine on (`SIMBOT_RAYS` is not `pybullet`)."""
+    return os.environ.get(RAYS_VARIABLE, "").strip().lower() != "pybullet"
+
+
 @dataclass
 class Rays:
-    """The ray groups handed out in the world `client`, and the casting."""
+    """Casting in the world `client`: through the engine where it is wanted and installed, else PyBullet."""
+
+    client: int
+    folder: Path
+    """Where meshes generated for the engine's triangles go (the loader's URDF folder)."""
+    engine: bool
+    bullet: BulletRays = field(init=False)
+    scene: RayScene | None = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.bullet = BulletRays(self.client)
+        self.scene = _engine(self.client, self.folder) if self.engine else None
+
+    def add(self, body: Body) -> None:
+        if self.scene is not None:
+            self.scene.add(body)
+
+    def remove(self, name: str) -> None:
+        """A removed body: out of the engine's scenes, its ray group free for the next robot."""
+        if self.scene is not None:
+            self.scene.remove(name)
+        self.bullet.release(name)
+
+    def moved(self, bodies: Sequence[Body]) -> None:
+        """`bodies` may have moved by other means than stepping (a teleport, a reset)."""
+        if self.scene is not None:
+            for body in bodies:
+                self.scene.touch(body)
+
+    def blind_to(self, body: Body) -> None:
+        """Prepares rays blind to `body`: PyBullet's cast needs a ray group, set before stepping (the
+        engine needs none, so where the groups run out the engine alone casts for it)."""
+        try:
+            self.bullet.blind_to(body)
+        except ValueError:
+            if self.scene is None:
+                raise
+
+    def cast(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
+        """Each batch's fraction of each ray to its first hit, NaN where it hits nothing; every batch
+        in one cast: the engine's, or PyBullet's where the engine is off or the moving parts too many
+        (MOVING_PARTS_MAX) and every blind body has its ray group."""
+        scene = self.scene
+        if scene is not None and (scene.moving_parts() <= MOVING_PARTS_MAX or not self.bullet.has_groups(batches)):
+            return scene.cast([(starts, ends, body.name if body else None) for starts, ends, body in batches])
+        return self.bullet.cast_all(batches)
+
+
+def _engine(client: int, folder: Path) -> RayScene | None:
+    """The ray engine of the world `client`, or None where embreex is not installed."""
+    if not embree_installed():
+        return None
+    from simbot.sim.physics.ray_scene import RayScene
+
+    return RayScene(client, lambda body: body_parts(body, folder))
+
+
+@functools.cache
+def embree_installed() -> bool:
+    """Whether embreex imports; where not, one logged line a process says so."""
+    try:
+        import embreex.rtcore_scene  # noqa: F401
+    except ImportError as exc:
+        log.warning(
+            "ray engine: embreex is not installed (%s; it has no wheel for %s %s): lidars cast through PyBullet",
+            exc, platform.system(), platform.machine(),
+        )  # fmt: skip
+        return False
+    return True
+
+
+@dataclass
+class BulletRays:
+    """PyBullet's cast: the ray groups handed out in the world `client`, and `rayTestBatch`."""
 
     client: int
     _groups: dict[str, int] = field(default_factory=dict)
@@ -54,6 +160,14 @@ class Rays:
         """A removed body's group, free for the next robot."""
         if (group := self._groups.pop(name, None)) is not None:
             self._returned = sorted([*self._returned, group])
+
+    def has_groups(self, batches: Sequence[Batch]) -> bool:
+        """Whether every body the batches are blind to has its ray group already."""
+        return all(body.name in self._groups for _, _, body in batches if body is not None)
+
+    def cast_all(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
+        """`cast` of each batch, blind to its body (given a ray group now if it has none)."""
+        return [self.cast(starts, ends, ~self.blind_to(body) if body else -1) for starts, ends, body in batches]
 
     def cast(
         self, starts: npt.NDArray[np.float64], ends: npt.NDArray[np.float64], mask: int

@@ -1,7 +1,8 @@
-"""Lidar, planar or 3-D (SDF `gpu_lidar`, `lidar`, `ray`, `gpu_ray`): one PyBullet ray batch per scan.
+"""Lidar, planar or 3-D (SDF `gpu_lidar`, `lidar`, `ray`, `gpu_ray`): every lidar due in a step cast together.
 
 Every ray of a scan (horizontal × vertical samples) is cast at the same sim instant from the
-sensor's world pose, starting at range_min so nothing inside the housing is seen. The robot
+sensor's world pose, starting at range_min so nothing inside the housing is seen, against the
+collision geometry (physics.cast_ray_batches: the ray engine, else PyBullet's rayTestBatch). The robot
 carrying the lidar is invisible to its rays (physics.blind_rays_to), as a real lidar's own chassis
 is below or behind its window; every other robot is seen.
 A ray that hits nothing reads +inf (REP-117); a hit reads its range with the SDF's gaussian
@@ -46,6 +47,7 @@ from simbot.description.naming import sensor_frame, sensor_rate
 from simbot.description.sensor_params import Noise
 from simbot.sim.kit.rates import Sampled
 from simbot.sim.loop.system import SystemContext, UpdateInfo
+from simbot.sim.physics.protocols import RayBatch
 from simbot.transform import matmul, quaternion_to_matrix
 
 
@@ -104,10 +106,9 @@ class Lidar(Sampled):
 
     @classmethod
     def post_update_all(cls, lidars: Sequence[Lidar], info: UpdateInfo) -> None:
-        """Every lidar due now scans. Those someone subscribes to cast their rays, their frames read
-        in one query; the others only draw their noise, so that what a subscriber gets does not
-        depend on who listened before. (One ray call for all lidars was measured slower than one
-        each: docs/speed.md, "A fleet".)"""
+        """Every lidar due now scans. Those someone subscribes to cast their rays together, in one
+        cast of the world, their frames read in one query; the others only draw their noise, so that
+        what a subscriber gets does not depend on who listened before."""
         watched = []
         for lidar in lidars:
             if not lidar.due(info):
@@ -118,9 +119,14 @@ class Lidar(Sampled):
             else:
                 _noise(lidar.params.noise, lidar._rng, (lidar._fan.directions[..., 0].size,))
         if watched:
-            frames = watched[0]._physics.frame_motions([lidar._where for lidar in watched])
-            for lidar, position, quat in zip(watched, frames.positions, frames.orientations):
-                lidar._publish(info.sim_time_ns, lidar._scan_from(position, quat))
+            physics = watched[0]._physics
+            frames = physics.frame_motions([lidar._where for lidar in watched])
+            rays = [
+                lidar._rays(position, quat)
+                for lidar, position, quat in zip(watched, frames.positions, frames.orientations)
+            ]
+            for lidar, fractions in zip(watched, physics.cast_ray_batches(rays)):
+                lidar._publish(info.sim_time_ns, lidar._ranges(fractions))
 
     def _publish(self, now_ns: int, ranges: npt.NDArray[np.float64]) -> None:
         spec, fan = self.params, self._fan
@@ -139,15 +145,19 @@ class Lidar(Sampled):
     def scan(self) -> npt.NDArray[np.float64]:
         """The ranges the lidar reads now, a row per ray row of the fan: true distances, noise,
         quantisation, +inf for no return."""
-        return self._scan_from(*self._physics.frame_pose(*self._where))
+        rays = self._rays(*self._physics.frame_pose(*self._where))
+        return self._ranges(self._physics.cast_ray_batches([rays])[0])
 
-    def _scan_from(self, position: npt.ArrayLike, quat: Sequence[float]) -> npt.NDArray[np.float64]:
+    def _rays(self, position: npt.ArrayLike, quat: Sequence[float]) -> RayBatch:
+        """The scan's rays from the sensor's pose: range_min to range_max along each direction, blind to its robot."""
         spec = self.params
         directions = matmul(self._fan.directions.reshape(-1, 3), quaternion_to_matrix(quat).T)
         origin = np.asarray(position, dtype=float)
-        fractions = self._physics.cast_rays(
-            origin + directions * spec.range_min, origin + directions * spec.range_max, blind_to=self._where[0]
-        )
+        return origin + directions * spec.range_min, origin + directions * spec.range_max, self._where[0]
+
+    def _ranges(self, fractions: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """The measured ranges of the cast's fractions, shaped as the fan."""
+        spec = self.params
         ranges = spec.range_min + fractions * (spec.range_max - spec.range_min)
         return self._measured(ranges).reshape(self._fan.directions.shape[:2])
 
