@@ -36,8 +36,8 @@ RAYS_VARIABLE = "SIMBOT_RAYS"
 """`pybullet` casts every ray through PyBullet even where the engine is installed."""
 MOVING_PARTS_MAX = 200
 """Moving parts (links of moving bodies) beyond which PyBullet's cast is the cheaper: measured, the
-engine is 2–3× cheaper with the warehouse's 28 (an env step) and 8× dearer with a hundred tugs'
-1100 (docs/speed.md, "The ray engine"), each part being a cast of its own."""
+engine is 3× cheaper with the warehouse's 28 (an env step) and 1.7–2× dearer with a hundred tugs'
+501 (docs/speed.md, "The ray engine"), where each ray's pieces inside the parts' spheres are millions."""
 Batch = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], "Body | None"]
 """N×3 starts, N×3 ends, and the body the rays pass through (or None)."""
 
