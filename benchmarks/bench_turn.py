@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import numpy as np
 from tables import publish
 
 from simbot.description import load_model, load_world
@@ -22,15 +21,13 @@ from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
-from simbot.sim.physics.steady_turn import Chassis, SteadyTurn, steady_turn
+from simbot.sim.physics.steady_turn import Chassis, Placed, SteadyTurn, steady_turn, turn_centre
 from simbot.sim.systems.diff_drive import wheel_motion
 from simbot.transform import yaw_of
 
 SPEED, RADIUS = 0.5, 3.0
 SEPARATION, WHEEL = 0.4, 0.075
 LEFT, RIGHT = ("front_left_wheel_joint", "back_left_wheel_joint"), ("front_right_wheel_joint", "back_right_wheel_joint")
-Placed = tuple[tuple[float, ...], tuple[float, ...]]
-"""A model's position and quaternion."""
 KNIFE_EDGE_SLIP = 0.01
 """m/s: the slip at which the old friction saturated."""
 
@@ -70,7 +67,7 @@ def measure(model: Model) -> dict[str, float]:
     first, last = truth[0], truth[-1]
     turned = sum(math.remainder(yaw_of(b[1]) - yaw_of(a[1]), math.tau) for a, b in zip(truth, truth[1:]))
     travel = sum(math.dist(a[0][:2], b[0][:2]) for a, b in zip(truth, truth[1:]))
-    pivot = _pivot(first, last)
+    pivot, _ = turn_centre(first, last)
     sim.close()
     return {
         "pivot": pivot,
@@ -90,15 +87,6 @@ def _in_frame(base: Placed, point: Placed) -> tuple[float, float]:
     yaw = yaw_of(base[1])
     dx, dy = point[0][0] - base[0][0], point[0][1] - base[0][1]
     return math.cos(yaw) * dx + math.sin(yaw) * dy, -math.sin(yaw) * dx + math.cos(yaw) * dy
-
-
-def _pivot(before: Placed, after: Placed) -> float:
-    """m ahead of the model frame at `before`: the point a rigid turn from `before` to `after` keeps in place."""
-    turn = yaw_of(after[1]) - yaw_of(before[1])
-    rotation = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
-    p0, p1 = np.asarray(before[0][:2]), np.asarray(after[0][:2])
-    centre = np.linalg.solve(np.eye(2) - rotation, p1 - rotation @ p0)  # p1 = c + R (p0 − c)
-    return _in_frame(before, ((float(centre[0]), float(centre[1])), (0.0, 0.0, 0.0, 1.0)))[0]
 
 
 def main() -> None:

@@ -8,7 +8,6 @@ import math
 from collections.abc import Iterator
 from pathlib import Path
 
-import numpy as np
 import pybullet as pb
 import pytest
 from conftest import ROBOT_SDF, TROLLEY_SDF
@@ -20,7 +19,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
 from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, KinematicStepper, kinematic
-from simbot.sim.physics.steady_turn import Chassis, steady_turn
+from simbot.sim.physics.steady_turn import Chassis, steady_turn, turn_centre
 from simbot.sim.physics.stepping import DynamicStepper, stepper
 from simbot.transform import yaw_of
 
@@ -120,7 +119,7 @@ def test_turns_in_place_despite_four_wheels(physics: Physics) -> None:
         turned += math.remainder(now - heading, math.tau)
         heading = now
     assert turned == pytest.approx(derived.yaw_rate * (4.0 - 0.3), rel=0.05)
-    _, centre_y = _turning_centre(steady, physics.model_pose("flexley_tug"))
+    _, centre_y = turn_centre(steady, physics.model_pose("flexley_tug"))
     assert abs(centre_y) < (0.1 - 0.2 * derived.yaw_rate) / derived.yaw_rate
 
 
@@ -141,7 +140,7 @@ def test_a_turn_is_centred_where_the_loads_put_it(physics: Physics, speed: float
     after = physics.model_pose("flexley_tug")
     wheels = [s[0] - a for s, a in zip(physics.joint_states("flexley_tug", list(WHEELS)), angles)]
     turn = math.remainder(yaw_of(after[1]) - yaw_of(before[1]), math.tau)
-    pivot, _ = _turning_centre(before, after)
+    pivot, _ = turn_centre(before, after)
     chord = math.dist(before[0][:2], after[0][:2])
     odometry_turn = ((wheels[2] + wheels[3]) - (wheels[0] + wheels[1])) / 2 * RADIUS / 0.4
     slip = abs(pivot) * abs(turn) / chord  # the model frame's sideways over forward speed
@@ -151,19 +150,6 @@ def test_a_turn_is_centred_where_the_loads_put_it(physics: Physics, speed: float
     assert odometry_turn / turn == pytest.approx(derived.odom_yaw_ratio, rel=0.10)
     if (speed, radius) == (0.5, 3.0):
         assert slip <= 0.01
-
-
-def _turning_centre(
-    before: tuple[tuple[float, ...], tuple[float, ...]], after: tuple[tuple[float, ...], tuple[float, ...]]
-) -> tuple[float, float]:
-    """The point (in the robot's frame at `before`) that a rigid turn from `before` to `after` keeps in place."""
-    turn = yaw_of(after[1]) - yaw_of(before[1])
-    rotation = np.array([[math.cos(turn), -math.sin(turn)], [math.sin(turn), math.cos(turn)]])
-    p0, p1 = np.asarray(before[0][:2]), np.asarray(after[0][:2])
-    centre = np.linalg.solve(np.eye(2) - rotation, p1 - rotation @ p0)  # p1 = c + R (p0 − c)
-    yaw = yaw_of(before[1])
-    x, y = np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]]) @ (centre - p0)
-    return float(x), float(y)
 
 
 def test_a_wall_pushes_back_and_traction_is_bounded_by_friction(physics: Physics) -> None:
@@ -298,7 +284,7 @@ def test_a_stated_slip_is_the_tyre_the_turn_follows(physics: Physics) -> None:
     _run(physics, 3.0)
     before = physics.model_pose("flexley_tug")
     _run(physics, 4.0)
-    pivot, _ = _turning_centre(before, physics.model_pose("flexley_tug"))
+    pivot, _ = turn_centre(before, physics.model_pose("flexley_tug"))
     assert pivot == pytest.approx(derived.pivot, abs=0.01)
 
 

@@ -9,6 +9,7 @@ hold the simulated tug to. It solves the same tyre curve the physics applies (`t
 
 from __future__ import annotations
 
+import cmath
 import logging
 import math
 from collections.abc import Callable
@@ -22,9 +23,12 @@ from simbot.description.model import Cylinder, Friction, Link, Model, Sphere
 from simbot.description.naming import plugin_named
 from simbot.sim.physics.loading import ball_castors
 from simbot.sim.physics.tyre import G, Tyre
-from simbot.transform import inverse3, matmul
+from simbot.transform import inverse3, matmul, yaw_of
 
 logger = logging.getLogger(__name__)
+
+Placed = tuple[tuple[float, ...], tuple[float, ...]]
+"""A model's position (x, y, z) and quaternion (x, y, z, w), as the physics reports its pose."""
 
 DAMPING = 1e-12
 """Levenberg-Marquardt's damping, relative to the Jacobian's scale: enough to step where it is singular."""
@@ -150,6 +154,16 @@ def skid_error(model: Model, step: float = 0.001) -> SkidError | None:
         logger.info("model %r: no skid error for its odometry's covariance (%s)", model.name, exc)
         return None
     return SkidError(1.0 - turn.yaw_ratio, abs(turn.pivot))
+
+
+def turn_centre(before: Placed, after: Placed) -> tuple[float, float]:
+    """The measured counterpart of `SteadyTurn.pivot`: the point, in the model frame at `before`
+    (x ahead, y to the left), that a rigid planar turn from pose `before` to `after` keeps in place.
+    As complex numbers, p1 − c = e^{iθ}(p0 − c), so c − p0 = (p1 − p0) / (1 − e^{iθ})."""
+    turn = yaw_of(after[1]) - yaw_of(before[1])
+    moved = complex(after[0][0] - before[0][0], after[0][1] - before[0][1])
+    centre = moved / (1.0 - cmath.exp(1j * turn)) * cmath.exp(-1j * yaw_of(before[1]))
+    return centre.real, centre.imag
 
 
 def steady_turn(chassis: Chassis, speed: float, yaw_rate: float, step: float = 0.001) -> SteadyTurn:

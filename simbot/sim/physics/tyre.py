@@ -7,7 +7,7 @@ A tyre's side force grows with its slip angle over several degrees before it sat
 front and rear forces balance only where the slip angles do: about the middle of the loads.
 
 Each direction of the contact (ODE's friction pyramid, as SDF's μ and μ2 mean) is linear, then
-saturating (docs/robot.md, "The tyre"):
+saturating (docs/robot.md, "How the tug turns: a tyre with a slip curve"):
 
     F = −clip(k · u, −μ·N, μ·N)        k = min(C · N / V, N / (g · dt) · STEP_MARGIN)
 
