@@ -3,10 +3,10 @@
 1. one env step's rays: Navigate-v0 in the warehouse with its people, the two lidars' 1440 rays
    cast together, by the engine and by `rayTestBatch` (blind to the robot both ways);
 2. a hundred tugs' lidars due together among the warehouse's racks: the 200 scans' rays in one
-   cast, as the world casts them (beyond MOVING_PARTS_MAX moving parts, PyBullet's) and by PyBullet
-   (one `rayTestBatch` a lidar, as the fallback casts), per scan;
+   cast by the engine, and by PyBullet (one `rayTestBatch` a lidar, as the fallback casts), per scan;
 3. the static structure's build in the warehouse (what a world edit costs again), and the moving
-   parts' in the warehouse with its people (what a body entering or leaving costs again).
+   parts' scenes and instance array in the warehouse with its people (what a world's first cast
+   costs for them; a body entering or leaving later builds only the array).
 
 Each figure is the median of repeated timings on one core; the ratio is PyBullet's over the engine's.
 """

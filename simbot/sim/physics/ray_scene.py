@@ -1,36 +1,34 @@
-"""The ray engine: Intel Embree (through `embreex`) casting against the triangles of what PyBullet
-collides with (`ray_shapes`).
+"""The ray engine: Intel Embree (`embree`) casting against the triangles of what PyBullet collides
+with (`ray_shapes`).
 
-Two structures. The static one holds every body that cannot move (a static model's links: racks,
-walls, pillars, a Gazebo world's static models), placed where PyBullet holds them; it is built on
-the first cast and built again only after a body enters, leaves or is teleported (`touch`). The
-other holds every part of a body that moves (robots, the trolley, carts, the people's legs, dynamic
-models: a link of theirs), each in its link's frame, at a slot of its own: slots lie farther apart
-than any two parts' bounding spheres reach, so a ray cut to the part of it inside one part's sphere
-meets no other part there. Each cast, every ray's piece inside each part's sphere is turned into
-that part's link frame (where PyBullet holds the link now), moved to its slot, and all of them are
-cast in one call. It is built on the first cast after a moving body enters or leaves, never while
-the world runs: a scene of the moving parts posed anew each cast was measured at 14 ms for the
-warehouse's people, robot and trolley, where PyBullet casts an env step's rays in 2–3 ms, and a
-cast of each part's own structure at 0.5 ms in all (docs/speed.md, "The ray engine").
+One scene of two parts. The static part is every body that cannot move (a static model's links:
+racks, walls, pillars, a Gazebo world's static models), placed where PyBullet holds them, one mesh a
+body. The moving part is an array of instances, one a part of a body that moves (a link of a robot,
+the trolley, a cart, a person's legs, a dynamic model), each of a scene of that part's triangles in
+its link frame, built once and shared by every part of the same shape (a hundred tugs: three
+scenes). The scene is built on the first cast, and again only after a body enters or leaves or a
+static one is teleported (`touch`). Each cast writes every part's link pose as PyBullet holds it
+into the array's transforms and commits it: Embree builds the instances' small structure again and
+keeps the static meshes' (docs/speed.md, "The ray engine").
 
-A ray sees every body but the one it is blind to (the lidar's own robot): it is not cast against
-that body's moving parts at all, and where its first hit is on a static body it is blind to, it is
-cast again from just beyond the hit, so it sees what lies behind, as PyBullet's collision masks
-have it. Ranges come back as PyBullet's: the fraction of each ray to its first hit, NaN where none.
+A ray sees every body but the one it is blind to (the lidar's own robot): where its first hit is on
+that body, it is cast again from just beyond the hit, so it sees what lies behind, as PyBullet's
+collision masks have it. Ranges come back as PyBullet's: the fraction of each ray to its first hit,
+NaN where none.
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
-from embreex import mesh_construction, rtcore, rtcore_scene
 
 from simbot.sim.bullet import pb
+from simbot.sim.physics import embree
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.ray_shapes import Part, Triangles
 from simbot.transform import quaternions_to_matrices
@@ -45,73 +43,85 @@ BEYOND_M = 1e-4
 """How far past a hit on the blind body a ray starts again."""
 PASSES = 8
 """At most this many hits on its own body a ray passes through (a lidar inside a cage of its robot)."""
-MARGIN_M = 1e-3
-"""How much larger than a part's farthest corner its sphere is cut at (float32's rounding of the slots)."""
-GROUP_RAYS = 32
-"""Consecutive rays whose bounding box is tested against every part's sphere before each ray is."""
+NOT_BLIND = -2
+"""The code of a body no ray of a cast is blind to."""
+CODES_KEPT = 64
+"""Sets of blind bodies whose codes are kept (a fleet's lidars fall due in a few sets)."""
 
 
 @dataclass
-class _Built:
-    """An Embree scene and which body each of its geometries is."""
+class _Top:
+    """The scene every ray is cast in: the static bodies' scene, instanced once, and the moving parts' array."""
 
-    scene: rtcore_scene.EmbreeScene | None
-    names: list[str]
-    """Each geometry's body, by geometry id."""
-
-
-@dataclass(frozen=True)
-class _Slotted:
-    """Every moving part in one Embree scene, each in its link frame moved to its slot."""
-
-    scene: rtcore_scene.EmbreeScene
+    scene: embree.Scene
+    static_id: int
+    """The static scene's instance id (-1: none)."""
+    static_names: list[str]
+    """Each static mesh's body, by geometry id."""
+    array: embree.InstanceArray | None
     bodies: list[tuple[Body, list[Part]]]
-    slots: Floats
-    """P×3: where each part's link frame origin lies in the scene."""
-    radii: Floats
-    """Each part's sphere: its farthest corner, and MARGIN_M."""
-    first: Ints
-    """Each body's first part."""
-    counts: Ints
-    """Each body's parts."""
+    owners: list[str]
+    """Each instance's body."""
+    _codes: dict[tuple[str, ...], tuple[Ints, Ints]] = field(default_factory=dict)
+
+    def codes(self, names: list[str]) -> tuple[Ints, Ints]:
+        """Each static mesh's and each instance's body as its index in `names` (NOT_BLIND where it
+        is not there), and one NOT_BLIND more, which a miss (-1) reads; kept for the next cast."""
+        key = tuple(names)
+        if key not in self._codes:
+            if len(self._codes) >= CODES_KEPT:
+                self._codes.clear()
+            index = {name: k for k, name in enumerate(names)}
+            self._codes[key] = tuple(  # type: ignore[assignment]
+                np.array([index.get(owner, NOT_BLIND) for owner in owners] + [NOT_BLIND])
+                for owners in (self.static_names, self.owners)
+            )
+        return self._codes[key]
 
 
 @dataclass
 class RayScene:
-    """The world `client`'s bodies as Embree scenes; `parts_of` gives a body's triangles (`ray_shapes`)."""
+    """The world `client`'s bodies as one Embree scene; `parts_of` gives a body's triangles (`ray_shapes`)."""
 
     client: int
     parts_of: Callable[[Body], list[Part]]
-    _device: rtcore.EmbreeDevice = field(default_factory=rtcore.EmbreeDevice)
+    lib: object
+    """Embree's library (`embree.library()`)."""
+    _device: embree.Device = field(init=False)
     _static: dict[str, Triangles] = field(default_factory=dict)
     """Each static body's triangles in the world frame."""
     _static_at: dict[str, tuple[object, ...]] = field(default_factory=dict)
     """Each static body's base pose as PyBullet held it when its triangles were placed."""
+    _static_scene: embree.Scene | None = None
     _moving: dict[str, tuple[Body, list[Part]]] = field(default_factory=dict)
-    _built: _Built | None = None
-    _slotted: _Slotted | None = None
+    _shapes: dict[bytes, embree.Scene] = field(default_factory=dict)
+    """Each part shape's scene, by its triangles' digest."""
+    _top: _Top | None = None
+
+    def __post_init__(self) -> None:
+        self._device = embree.Device(self.lib)  # type: ignore[arg-type]
 
     def add(self, body: Body) -> None:
-        """A body entered the world: a static one into the static structure, the others' parts into the moving one."""
+        """A body entered the world: a static one into the static scene, the others' parts into the array."""
         parts = self.parts_of(body)
         if body.model.static:
             self._static[body.name] = self._placed(body, parts)
             self._static_at[body.name] = self._base_pose(body)
-            self._built = None
+            self._static_scene = self._top = None
         elif parts:
             self._moving[body.name] = (body, parts)
-            self._slotted = None
+            self._top = None
 
     def remove(self, name: str) -> None:
         if self._static.pop(name, None) is not None:
             del self._static_at[name]
-            self._built = None
+            self._static_scene = self._top = None
         if self._moving.pop(name, None) is not None:
-            self._slotted = None
+            self._top = None
 
     def touch(self, body: Body) -> None:
         """`body` may have moved by other means than stepping (a teleport, a reset): placed again
-        if it is static and did move (the structure is built again only for a change)."""
+        if it is static and did move (the scene is built again only for a change)."""
         if body.name in self._static and self._static_at[body.name] != self._base_pose(body):
             self.add(body)
 
@@ -119,15 +129,17 @@ class RayScene:
         return sum(len(parts) for _, parts in self._moving.values())
 
     def moving_build(self) -> int:
-        """Builds the moving parts' structure now (a benchmark times it); returns its triangles' count."""
-        self._slotted = None
-        self._slotted_scene()
+        """Builds the moving parts' scenes and array now, as a body entering a new world costs (a
+        benchmark times it); returns their triangles' count."""
+        self._shapes.clear()
+        self._top = None
+        self._top_scene()
         return sum(len(part.triangles) for _, parts in self._moving.values() for part in parts)
 
     def static_build(self) -> int:
-        """Builds the static structure now (a benchmark times it); returns its triangles' count."""
-        self._built = None
-        self._static_scene()
+        """Builds the static scene now (a benchmark times it); returns its triangles' count."""
+        self._static_scene = self._top = None
+        self._top_scene()
         return sum(len(t) for t in self._static.values())
 
     def cast(self, batches: Sequence[Batch]) -> list[Floats]:
@@ -135,127 +147,96 @@ class RayScene:
         if not batches:
             return []
         starts = np.concatenate([b[0] for b in batches])
-        ends = np.concatenate([b[1] for b in batches])
+        span = np.concatenate([b[1] for b in batches]) - starts
         names = list(dict.fromkeys(b[2] for b in batches if b[2] is not None))
-        blind = np.concatenate([np.full(len(b[0]), names.index(b[2]) if b[2] else -1) for b in batches])
-        static = self._cast_static(starts, ends, blind, names)
-        fractions = np.fmin(static, self._cast_moving(starts, ends, blind, names, np.fmin(static, 1.0)))
-        return np.split(fractions, np.cumsum([len(b[0]) for b in batches])[:-1])
+        sizes = [len(b[0]) for b in batches]
+        blind = np.repeat([names.index(b[2]) if b[2] else -1 for b in batches], sizes)
+        top = self._top_scene()
+        if top.array is not None:
+            top.array.pose(self._poses(top.bodies))
+            top.scene.commit()
+        fractions = self._first_hits(top, starts, span, blind, names)
+        return np.split(fractions, np.cumsum(sizes)[:-1])
 
-    def _static_scene(self) -> _Built:
-        if self._built is None:
-            names = list(self._static)
-            self._built = self._scene([self._static[name] for name in names], names)
-        return self._built
-
-    def _scene(self, pieces: list[Triangles], names: list[str]) -> _Built:
-        """One Embree geometry a piece, each named by its body."""
-        return _Built(self._embree(pieces) if pieces else None, names)
-
-    def _embree(self, pieces: list[Triangles]) -> rtcore_scene.EmbreeScene:
-        scene = rtcore_scene.EmbreeScene(self._device)
-        for triangles in pieces:
-            mesh_construction.TriangleMesh(scene, _f32(triangles))
-        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))  # builds it now, not in the first cast
-        return scene
-
-    def _cast_static(self, starts: Floats, ends: Floats, blind: Ints, names: list[str]) -> Floats:
-        """First hits on the static bodies, passing through each ray's blind body (`blind`: its index
-        in `names`, -1 for none) where that is one of them."""
-        built = self._static_scene()
-        fractions = np.full(len(starts), np.nan)
-        if built.scene is None:
-            return fractions
-        span = ends - starts
-        if not set(names) & set(self._static):  # no ray is blind to a static body: one pass, distances only
-            tfar = built.scene.run(_f32(starts), _f32(span), dists=1.0, query="DISTANCE")
-            return np.where(tfar < 1.0, tfar, np.nan)
-        owners = np.array([names.index(name) if name in names else -2 for name in built.names])
-        todo, travelled = np.arange(len(starts)), np.zeros(len(starts))
-        length = np.linalg.norm(span, axis=1)
+    def _first_hits(self, top: _Top, starts: Floats, span: Floats, blind: Ints, names: list[str]) -> Floats:
+        """Each ray's first hit on a body it is not blind to (`blind`: its index in `names`, -1 for
+        none), cast again from beyond each hit on its blind body (at most PASSES times)."""
+        hits = embree.cast(top.scene, starts, span, 0.0, 1.0)
+        fractions = hits.t
+        todo = np.flatnonzero(self._owners(top, hits, names) == blind)
         for _ in range(PASSES):
-            origin = starts[todo] + travelled[todo, None] * span[todo]
-            hit = built.scene.run(_f32(origin), _f32(span[todo]), dists=_f32(1.0 - travelled[todo]), output=1)
-            geom, tfar = hit["geomID"], hit["tfar"].astype(np.float64)
-            own = (geom >= 0) & (owners[np.maximum(geom, 0)] == blind[todo])
-            seen = (geom >= 0) & ~own
-            fractions[todo[seen]] = travelled[todo[seen]] + tfar[seen]
-            todo = todo[own]
             if not len(todo):
                 break
-            travelled[todo] += tfar[own] + BEYOND_M / np.maximum(length[todo], BEYOND_M)
+            length = np.sqrt(np.sum(span[todo] ** 2, axis=1))
+            hits = embree.cast(
+                top.scene, starts[todo], span[todo], fractions[todo] + BEYOND_M / np.maximum(length, BEYOND_M), 1.0
+            )
+            fractions[todo] = hits.t
+            todo = todo[self._owners(top, hits, names) == blind[todo]]
+        fractions[todo] = np.nan
         return fractions
 
-    def _slotted_scene(self) -> _Slotted | None:
-        """The moving parts' structure: part k's triangles in its link frame, moved to the k-th point
-        of a cubic grid whose spacing is more than any two parts' spheres reach."""
-        if self._slotted is None and self._moving:
+    @staticmethod
+    def _owners(top: _Top, hits: embree.Hits, names: list[str]) -> Ints:
+        """The body each ray hit, as its index in `names` (NOT_BLIND for another body or none)."""
+        static_codes, part_codes = top.codes(names)
+        return np.where(
+            hits.instance == top.static_id,
+            static_codes[np.minimum(hits.geometry, len(static_codes) - 1)],
+            part_codes[np.minimum(hits.index, len(part_codes) - 1)],
+        )
+
+    def _top_scene(self) -> _Top:
+        """The scene, built anew after a body entered or left or a static one was moved: the static
+        part instanced once, then the array of every moving part."""
+        if self._top is None:
+            scene = embree.Scene(self._device)
+            static_names = list(self._static)
+            static_id = scene.instance(self._static_part(static_names)) if static_names else -1
             bodies = list(self._moving.values())
             parts = [part for _, body_parts in bodies for part in body_parts]
-            radii = np.array([part.radius + MARGIN_M for part in parts])
-            side = int(np.ceil(len(parts) ** (1.0 / 3.0) - 1e-9))
-            index = np.arange(len(parts))
-            grid = np.stack([index % side, index // side % side, index // (side * side)], axis=1)
-            slots = (grid - (side - 1) / 2.0) * (2.0 * radii.max() + 0.1)
-            triangles = np.concatenate([part.triangles + slot for part, slot in zip(parts, slots)])
-            counts = np.array([len(body_parts) for _, body_parts in bodies])
-            first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-            self._slotted = _Slotted(self._embree([triangles]), bodies, slots, radii, first, counts)
-        return self._slotted
+            array = None
+            if parts:
+                shapes = [self._shape(part) for part in parts]
+                unique = list({id(shape): shape for shape in shapes}.values())
+                array = scene.instance_array(unique, [unique.index(shape) for shape in shapes])
+            owners = [body.name for body, body_parts in bodies for _ in body_parts]
+            scene.commit()
+            self._top = _Top(scene, static_id, static_names, array, bodies, owners)
+        return self._top
 
-    def _cast_moving(self, starts: Floats, ends: Floats, blind: Ints, names: list[str], limit: Floats) -> Floats:
-        """First hits on the moving parts before each ray's `limit` (its fraction to the static hit):
-        each ray's piece inside each part's sphere (none of its blind body's), in that part's frame at
-        its slot, all in one Embree call. Vectors are held as 3×N (a row a coordinate): numpy's
-        loops then run along the rays, not along three coordinates."""
-        fractions = np.full(len(starts), np.nan)
-        slotted = self._slotted_scene()
-        if slotted is None:
-            return fractions
-        centres, rotations = self._frames(slotted.bodies)
-        origin, span = np.ascontiguousarray(starts.T), np.ascontiguousarray((ends - starts).T)
-        rays, parts, enter, leave = self._crossings(slotted, origin, span, blind, names, limit, centres.T)
-        if not len(rays):
-            return fractions
-        turned, length = np.ascontiguousarray(rotations.transpose(1, 2, 0))[:, :, parts], leave - enter
-        local = _into(turned, origin[:, rays] + enter * span[:, rays] - centres.T[:, parts]) + slotted.slots.T[:, parts]
-        tfar = slotted.scene.run(
-            _f32(local.T), _f32(_into(turned, span[:, rays] * length).T), dists=1.0, query="DISTANCE"
+    def _static_part(self, names: list[str]) -> embree.Scene:
+        """The static bodies' meshes in a scene of their own (geometry ids in `names`' order): in the
+        scene the rays are cast in, committing the moving parts would build them again (measured:
+        1 ms, where the warehouse's env step casts in 0.4)."""
+        if self._static_scene is None:
+            scene = embree.Scene(self._device)
+            for name in names:
+                scene.triangles(self._static[name])
+            scene.commit()
+            self._static_scene = scene
+        return self._static_scene
+
+    def _shape(self, part: Part) -> embree.Scene:
+        """The scene of a part's triangles in its link frame, shared by every part of that shape."""
+        key = hashlib.blake2b(np.ascontiguousarray(part.triangles).tobytes(), digest_size=16).digest()
+        if key not in self._shapes:
+            scene = embree.Scene(self._device)
+            scene.triangles(part.triangles)
+            scene.commit()
+            self._shapes[key] = scene
+        return self._shapes[key]
+
+    def _poses(self, bodies: list[tuple[Body, list[Part]]]) -> Floats:
+        """Every moving part's link frame in the world now: P rows of a position and a quaternion (x, y, z, w)."""
+        return np.array(
+            [
+                (*position, *quat)
+                for body, parts in bodies
+                for position, quat in self._link_poses(body, [part.index for part in parts])
+            ],
+            dtype=float,
         )
-        hit = tfar < 1.0
-        np.fmin.at(fractions, rays[hit], enter[hit] + tfar[hit] * length[hit])
-        return fractions
-
-    def _crossings(
-        self,
-        slotted: _Slotted,
-        origin: Floats,
-        span: Floats,
-        blind: Ints,
-        names: list[str],
-        limit: Floats,
-        centres: Floats,
-    ) -> tuple[Ints, Ints, Floats, Floats]:
-        """Each (ray, part) whose segment up to `limit` passes through the part's sphere, with where it
-        enters and leaves it (fractions of the ray), none of its blind body's parts."""
-        rays, parts = _grouped(origin, origin + span * limit, centres, slotted.radii)
-        codes = np.repeat(
-            [names.index(body.name) if body.name in names else -2 for body, _ in slotted.bodies], slotted.counts
-        )
-        seen = blind[rays] != codes[parts]
-        rays, parts = rays[seen], parts[seen]
-        enter, leave = _through(origin[:, rays], span[:, rays], centres[:, parts], slotted.radii[parts], limit[rays])
-        inside = enter <= leave
-        return rays[inside], parts[inside], enter[inside], leave[inside]
-
-    def _frames(self, bodies: list[tuple[Body, list[Part]]]) -> tuple[Floats, Floats]:
-        """Every moving part's link frame in the world now: positions (P×3) and rotations (P×3×3)."""
-        positions, quats = [], []
-        for body, parts in bodies:
-            for position, quat in self._link_poses(body, [part.index for part in parts]):
-                positions.append(position)
-                quats.append(quat)
-        return np.asarray(positions, dtype=float), quaternions_to_matrices(np.asarray(quats, dtype=float))
 
     def _placed(self, body: Body, parts: list[Part]) -> Triangles:
         """A body's triangles where PyBullet holds it now."""
@@ -289,43 +270,3 @@ class RayScene:
                 state = next(states)
                 poses.append((state[4], state[5]))
         return poses
-
-
-def _grouped(origin: Floats, reached: Floats, centres: Floats, radii: Floats) -> tuple[Ints, Ints]:
-    """(ray, part) pairs to test exactly: every ray of each run of GROUP_RAYS consecutive rays (a
-    lidar's are neighbours) whose bounding box reaches a part's sphere, with that part."""
-    n = origin.shape[1]
-    heads = np.arange(0, n, GROUP_RAYS)
-    low = np.minimum.reduceat(np.minimum(origin, reached), heads, axis=1)[:, :, None]
-    high = np.maximum.reduceat(np.maximum(origin, reached), heads, axis=1)[:, :, None]
-    gap = np.maximum(low - centres[:, None, :], 0.0) + np.maximum(centres[:, None, :] - high, 0.0)
-    group, parts = np.nonzero(_dot3(gap, gap) <= radii * radii)
-    sizes = np.minimum(GROUP_RAYS, n - heads[group])
-    rays = np.repeat(heads[group] - np.cumsum(sizes) + sizes, sizes) + np.arange(int(sizes.sum()))
-    return rays, np.repeat(parts, sizes)
-
-
-def _through(starts: Floats, span: Floats, centres: Floats, radii: Floats, limit: Floats) -> tuple[Floats, Floats]:
-    """Where each segment start + t·span (t in [0, limit]) enters and leaves each sphere (vectors 3×…,
-    broadcast elementwise); it enters after it leaves where it misses the sphere."""
-    rel = starts - centres
-    a, b = np.maximum(_dot3(span, span), 1e-300), _dot3(span, rel)
-    disc = b * b - a * (_dot3(rel, rel) - radii * radii)
-    root = np.sqrt(np.maximum(disc, 0.0))
-    enter = np.maximum((-b - root) / a, 0.0)
-    leave = np.where(disc >= 0.0, np.minimum((-b + root) / a, limit), -1.0)
-    return enter, leave
-
-
-def _dot3(a: Floats, b: Floats) -> Floats:
-    """Dot products of 3-vectors held as 3×…, summed in order (no BLAS)."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _into(rotations: Floats, vectors: Floats) -> Floats:
-    """Each vector (3×M) turned into its frame (rotations 3×3×M): rotationᵀ · vector, summed in order."""
-    return rotations[0] * vectors[0] + rotations[1] * vectors[1] + rotations[2] * vectors[2]
-
-
-def _f32(values: Floats) -> npt.NDArray[np.float32]:
-    return np.ascontiguousarray(values, dtype=np.float32)

@@ -18,26 +18,20 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from operator import itemgetter
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from simbot.sim.bullet import pb
+from simbot.sim.physics import embree
 from simbot.sim.physics.body import Body
+from simbot.sim.physics.ray_scene import RayScene
 from simbot.sim.physics.ray_shapes import body_parts
-
-if TYPE_CHECKING:
-    from simbot.sim.physics.ray_scene import RayScene
 
 log = logging.getLogger(__name__)
 
 RAYS_VARIABLE = "SIMBOT_RAYS"
 """`pybullet` casts every ray through PyBullet even where the engine is installed."""
-MOVING_PARTS_MAX = 200
-"""Moving parts (links of moving bodies) beyond which PyBullet's cast is the cheaper: measured, the
-engine is 3× cheaper with the warehouse's 28 (an env step) and 1.7–2× dearer with a hundred tugs'
-501 (docs/speed.md, "The ray engine"), where each ray's pieces inside the parts' spheres are millions."""
 Batch = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], "Body | None"]
 """N×3 starts, N×3 ends, and the body the rays pass through (or None)."""
 
@@ -103,11 +97,9 @@ class Rays:
 
     def cast(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
         """Each batch's fraction of each ray to its first hit, NaN where it hits nothing; every batch
-        in one cast: the engine's, or PyBullet's where the engine is off or the moving parts too many
-        (MOVING_PARTS_MAX) and every blind body has its ray group."""
-        scene = self.scene
-        if scene is not None and (scene.moving_parts() <= MOVING_PARTS_MAX or not self.bullet.has_groups(batches)):
-            return scene.cast([(starts, ends, body.name if body else None) for starts, ends, body in batches])
+        in one cast: the engine's, or PyBullet's where the engine is off."""
+        if self.scene is not None:
+            return self.scene.cast([(starts, ends, body.name if body else None) for starts, ends, body in batches])
         return self.bullet.cast_all(batches)
 
 
@@ -115,20 +107,16 @@ def _engine(client: int, folder: Path) -> RayScene | None:
     """The ray engine of the world `client`, or None where embreex is not installed."""
     if not embree_installed():
         return None
-    from simbot.sim.physics.ray_scene import RayScene
-
-    return RayScene(client, lambda body: body_parts(body, folder))
+    return RayScene(client, lambda body: body_parts(body, folder), embree.library())
 
 
 @functools.cache
 def embree_installed() -> bool:
-    """Whether embreex imports; where not, one logged line a process says so."""
-    try:
-        import embreex.rtcore_scene  # noqa: F401
-    except ImportError as exc:
+    """Whether Embree's library (the embreex wheel's) loads; where not, one logged line a process says so."""
+    if embree.library() is None:
         log.warning(
-            "ray engine: embreex is not installed (%s; it has no wheel for %s %s): lidars cast through PyBullet",
-            exc, platform.system(), platform.machine(),
+            "ray engine: embreex is not installed (it has no wheel for %s %s): lidars cast through PyBullet",
+            platform.system(), platform.machine(),
         )  # fmt: skip
         return False
     return True
@@ -160,10 +148,6 @@ class BulletRays:
         """A removed body's group, free for the next robot."""
         if (group := self._groups.pop(name, None)) is not None:
             self._returned = sorted([*self._returned, group])
-
-    def has_groups(self, batches: Sequence[Batch]) -> bool:
-        """Whether every body the batches are blind to has its ray group already."""
-        return all(body.name in self._groups for _, _, body in batches if body is not None)
 
     def cast_all(self, batches: Sequence[Batch]) -> list[npt.NDArray[np.float64]]:
         """`cast` of each batch, blind to its body (given a ray group now if it has none)."""
