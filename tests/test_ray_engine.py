@@ -267,3 +267,33 @@ def test_the_engine_reads_what_pybullet_reads_in_the_warehouse_with_people_walki
         assert agreement(np.concatenate(got), np.concatenate(want)) >= (AGREE, IN_RANGE)
     finally:
         env.close()
+
+
+def test_a_fleet_of_tugs_each_blind_to_itself_reads_what_pybullet_reads(tmp_path: Path) -> None:
+    """Forty tugs (two hundred moving parts, the shapes of one tug shared) in rows clear of the test
+    room's boxes, a fan from inside each tug blind to it, all forty in one cast: each ray passes
+    through its own tug's parts (cast again from beyond each hit) and sees every other tug, as
+    PyBullet's collision groups have it. (Clear of the boxes: a ray that starts inside another body
+    sees its inside in the engine and not in PyBullet, docs/sensors.md.)"""
+    from simbot.description.poses import Pose
+    from simbot.description.sdf_reader import load_model
+
+    physics = _loaded(REPO / "tests" / "fixtures" / "lidar_boxes.sdf")
+    try:
+        tug = load_model(REPO / "urdf" / "flexley_tug.sdf")
+        names = [f"tug_{k}" for k in range(40)]
+        for k, name in enumerate(names):
+            row = (-10.5, -7.5, -4.5, 8.5, 11.5)[k // 8]
+            physics.add_model(tug, name, Pose((-12.0 + 3.0 * (k % 8), row, 0.1), (0.0, 0.0, 0.4 * k)))
+        physics.step()
+        batches = [(*fan((*physics.model_pose(name).position[:2], 0.35), 720), name) for name in names]
+        engine = physics.cast_ray_batches(batches)
+        bullet = physics.cast_ray_batches(batches, engine=False)
+        length = np.linalg.norm(batches[0][1] - batches[0][0], axis=1)
+        got, want = (
+            np.concatenate([np.where(np.isnan(f), np.inf, f * length) for f in casts]) for casts in (engine, bullet)
+        )
+        assert agreement(got, want) >= (AGREE, IN_RANGE)
+        assert np.mean(np.isfinite(got) & (got < 3.0)) > 0.2  # the neighbours are seen, not only the room
+    finally:
+        physics.close()

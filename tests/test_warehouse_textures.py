@@ -3,10 +3,10 @@ materials, and what they give a feature detector.
 
 Reproduction is checked on decoded pixels, not bytes: the script is seeded, so the same numpy,
 OpenCV and libjpeg write the same bytes, but another OpenCV may antialias a line or round a resize
-a level differently and another libjpeg may quantise a block differently. A mean absolute
-difference under one level of 255 holds across those, and still fails for any change of
-content: two aisle signs that differ only in their digit differ by 5.6 levels, two seeds of the
-wall panel by 6.6, of the concrete by 21.
+a level differently, another CPU take another SIMD path, and another libjpeg may quantise a block
+differently. A mean absolute difference under MEAN_LEVELS of 255 holds across those, and still
+fails for any change of content: two aisle signs that differ only in their digit differ by 5.6
+levels, two seeds of the wall panel by 6.6, of the concrete by 21.
 """
 
 from __future__ import annotations
@@ -29,8 +29,11 @@ from simbot.description.resources import resolve
 WORLDS = REPO / "worlds"
 SCRIPT = WORLDS / "textures" / "make_textures.py"
 IMAGE = "sensor_msgs/msg/Image"
-MEAN_LEVELS = 1.0
-"""Largest mean absolute difference, in 8-bit levels, between a committed image and the script's."""
+MEAN_LEVELS = 4.0
+"""Largest mean absolute difference, in 8-bit levels, between a committed image and the script's:
+the images were committed from an Intel Xeon, and on an AMD EPYC the same script and wheels write
+them up to 3.37 levels apart (beam.png; the aisle signs 1.09, the cartons 1.49: OpenCV picks other
+SIMD paths for its lines and resizes), where a change of content differs by 5.6 or more."""
 KEYPOINT_RATIO = 1.4
 """Textured over flat ORB keypoints at the start pose: measured 1.8 (2159 against 1197, the
 render deterministic in lockstep); the margin is for another GL driver's rasterisation."""
