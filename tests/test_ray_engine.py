@@ -23,9 +23,9 @@ from conftest import REPO
 from gz_examples import gazebo_example
 
 from simbot.description.sdf_reader import load_world
-from simbot.sim.physics import Physics
+from simbot.sim.physics import Physics, embree
 from simbot.sim.physics.ray_shapes import SAG_M
-from simbot.sim.physics.rays import RAYS_VARIABLE
+from simbot.sim.physics.rays import RAYS_VARIABLE, embree_installed
 from simbot.transform import Transform
 
 RESOLUTION_M = 0.01
@@ -206,6 +206,27 @@ def test_without_the_engine_pybullet_casts_and_says_nothing_is_missing(
     finally:
         fallback.close()
         engine.close()
+
+
+def test_where_embree_is_missing_pybullet_casts_and_one_line_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """No Embree library (as on Linux aarch64, where embreex has no wheel): two worlds cast through
+    PyBullet, the ranges the true surfaces', and one logged line in all names what is missing."""
+    monkeypatch.setattr(embree, "library", lambda: None)
+    embree_installed.cache_clear()
+    try:
+        with caplog.at_level(logging.WARNING, logger="simbot.sim.physics.rays"):
+            worlds = [_physics(tmp_path, SHAPES.format(extra="")) for _ in range(2)]
+        lines = [r.getMessage() for r in caplog.records if r.name == "simbot.sim.physics.rays"]
+        assert len(lines) == 1 and "embreex" in lines[0], lines
+        assert all(world._rays.scene is None for world in worlds)
+        starts, ends = fan((0.0, 0.0, 0.5))
+        assert agreement(ranges(worlds[0], starts, ends), analytic(starts, ends)) >= (AGREE, 0.99)
+        for world in worlds:
+            world.close()
+    finally:
+        embree_installed.cache_clear()
 
 
 def _compared(physics: Physics, origins: list[tuple[float, float, float]]) -> tuple[float, float]:

@@ -63,10 +63,7 @@ def library() -> ctypes.CDLL | None:
         for pattern in ("libembree4*", "embree4*.dll")
         for path in folder.glob(pattern)
     )
-    if not found:
-        log.warning("ray engine: embreex is installed but its Embree library is not in %s", package)
-        return None
-    return _typed(ctypes.CDLL(str(found[0])))
+    return _typed(ctypes.CDLL(str(found[0]))) if found else None
 
 
 def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:

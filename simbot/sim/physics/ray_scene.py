@@ -125,9 +125,6 @@ class RayScene:
         if body.name in self._static and self._static_at[body.name] != self._base_pose(body):
             self.add(body)
 
-    def moving_parts(self) -> int:
-        return sum(len(parts) for _, parts in self._moving.values())
-
     def moving_build(self) -> int:
         """Builds the moving parts' scenes and array now, as a body entering a new world costs (a
         benchmark times it); returns their triangles' count."""

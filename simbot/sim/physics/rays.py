@@ -1,9 +1,9 @@
 """Rays cast in the world, each robot's ray sensors blind to the robot itself: through the ray engine
 (`ray_scene`, Intel Embree) where `embreex` is installed, else through PyBullet's `rayTestBatch`.
 
-Both give the same ranges, within a centimetre (tests/test_ray_engine.py). The engine is blind to a
-body by passing through its triangles; PyBullet by collision groups, of which there are enough for
-210 robots (`ray_groups`). `SIMBOT_RAYS=pybullet` (or `Physics(ray_engine=False)`) asks for
+Both give the same ranges, within a centimetre (tests/test_ray_engine.py). The engine is blind to
+a body by casting again from beyond each hit on it; PyBullet by collision groups, of which there
+are enough for 210 robots (`ray_groups`). `SIMBOT_RAYS=pybullet` (or `Physics(ray_engine=False)`) asks for
 PyBullet's cast where the engine is installed.
 """
 
@@ -115,7 +115,7 @@ def embree_installed() -> bool:
     """Whether Embree's library (the embreex wheel's) loads; where not, one logged line a process says so."""
     if embree.library() is None:
         log.warning(
-            "ray engine: embreex is not installed (it has no wheel for %s %s): lidars cast through PyBullet",
+            "ray engine: embreex (Intel Embree) is not installed (it has no wheel for %s %s): lidars cast through PyBullet",
             platform.system(), platform.machine(),
         )  # fmt: skip
         return False
