@@ -21,7 +21,7 @@ import zenoh
 from server_helpers import CLOCK, ODOMETRY, SimServer, running_server, stamp_ns, wait_until
 
 from simbot.bus import messages
-from simbot.sim.loop.simulation import MAX_LAG_S
+from simbot.sim.loop.simulation import MAX_LAG_S, RTF_WINDOW_S
 
 SCHEDULE: list[tuple[tuple[float, float] | None, int]] = [
     (None, 100),
@@ -94,7 +94,10 @@ CLOCK_PERIOD_S = 0.01
 
 def test_realtime_clock_follows_the_wall(realtime: SimServer) -> None:
     """Over 10 s of wall time the sim clock advances as much (within the pacer's catch-up bound),
-    strictly increasing, every 10 ms of sim time published."""
+    strictly increasing, every 10 ms of sim time published. The server's real-time factor is the
+    clock's pace over its last second, as the test hears it (within delivery and the request's
+    time): 1.0 when it keeps up, and up to MAX_LAG_S a second off while it catches up after a stall
+    (measured 1.055 once on a loaded 2-core AMD EPYC, where a fixed 5 % failed)."""
     clock = realtime.subscribe("clock", CLOCK)
 
     def spanned() -> bool:
@@ -114,9 +117,17 @@ def test_realtime_clock_follows_the_wall(realtime: SimServer) -> None:
     assert len(samples) >= 0.95 * published, (
         f"{len(samples)} clock messages of {published} over {sim:.2f} s of sim time"
     )
+    asked = time.monotonic()
     state = realtime.state()
+    answered = time.monotonic()
     assert state["mode"] == "realtime" and state["paused"] is False
-    assert state["real_time_factor"] == pytest.approx(1.0, rel=0.05)
+    last = [(t, m) for t, m in clock.timed() if asked - RTF_WINDOW_S <= t <= answered]
+    heard = _rate(last)  # the clock's pace over the second the server's figure spans
+    slack = (2 * DELIVERY_S + answered - asked) / RTF_WINDOW_S
+    assert state["real_time_factor"] == pytest.approx(heard, abs=slack), (
+        f"server RTF {state['real_time_factor']:.3f}, the clock's pace over its last second {heard:.3f}"
+    )
+    assert 1.0 - MAX_LAG_S / RTF_WINDOW_S - slack <= state["real_time_factor"] <= 1.0 + MAX_LAG_S / RTF_WINDOW_S + slack
     print(f"\nmeasured real time: {sim:.4f} s of sim time in {wall:.4f} s of wall time (RTF {sim / wall:.4f}), "
           f"{len(samples) / wall:.1f} clock messages/s, server RTF {state['real_time_factor']:.4f}")  # fmt: skip
 
