@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib import util
@@ -25,15 +24,12 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-log = logging.getLogger(__name__)
-
 Floats = npt.NDArray[np.float64]
 GEOMETRY_TRIANGLE, GEOMETRY_INSTANCE, GEOMETRY_INSTANCE_ARRAY = 0, 121, 122
 BUFFER_INDEX, BUFFER_VERTEX, BUFFER_TRANSFORM = 0, 1, 23
 FORMAT_UINT, FORMAT_UINT3, FORMAT_FLOAT3, FORMAT_FLOAT3X4_COLUMN_MAJOR = 0x5001, 0x5003, 0x9003, 0x9234
 FORMAT_QUATERNION_DECOMPOSITION = 0xB001
 """16 floats: scale (3), skew (3), shift (3), the rotation as w, x, y, z, the translation (3)."""
-BUILD_QUALITY_MEDIUM = 1
 SCENE_FLAG_ROBUST = 1 << 2
 """Watertight: a ray through a shared edge or corner meets one of its triangles (the pole of a sphere)."""
 INVALID = 0xFFFFFFFF
@@ -43,7 +39,7 @@ LANES = 16
 ROWS = 21
 """A packet's rows of 16: the ray's origin (3), tnear, direction (3), time, tfar, mask, id, flags;
 the hit's normal (3), u, v, primID, geomID, instID, instPrimID."""
-ORIGIN, TNEAR, DIRECTION, TFAR, MASK, FLAGS = 0, 3, 4, 8, 9, 11
+ORIGIN, TNEAR, DIRECTION, TFAR, MASK = 0, 3, 4, 8, 9
 GEOM_ID, INST_ID, INST_PRIM_ID = 18, 19, 20
 _PACKET_BYTES = ROWS * LANES * 4
 _ALIGN = 64
@@ -76,10 +72,8 @@ def _typed(lib: ctypes.CDLL) -> ctypes.CDLL:
         "rtcNewScene": (p, [p]),
         "rtcReleaseScene": (None, [p]),
         "rtcSetSceneFlags": (None, [p, i]),
-        "rtcSetSceneBuildQuality": (None, [p, i]),
         "rtcCommitScene": (None, [p]),
         "rtcNewGeometry": (p, [p, i]),
-        "rtcSetGeometryBuildQuality": (None, [p, i]),
         "rtcSetSharedGeometryBuffer": (None, [p, i, u, i, p, s, s, s]),
         "rtcUpdateGeometryBuffer": (None, [p, i, u]),
         "rtcSetGeometryInstancedScene": (None, [p, p]),
@@ -131,7 +125,6 @@ class Scene:
     def __post_init__(self) -> None:
         self.handle = self.device.lib.rtcNewScene(self.device.handle)
         self.device.lib.rtcSetSceneFlags(self.handle, SCENE_FLAG_ROBUST)
-        self.device.lib.rtcSetSceneBuildQuality(self.handle, BUILD_QUALITY_MEDIUM)
 
     def triangles(self, triangles: Floats) -> int:
         """A mesh of K×3×3 corners (no shared vertices); returns its geometry id."""
@@ -140,7 +133,6 @@ class Scene:
         indices = np.arange(len(triangles) * 3, dtype=np.uint32).reshape(-1, 3)
         geometry = self._geometry(GEOMETRY_TRIANGLE)
         lib = self.device.lib
-        lib.rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_MEDIUM)
         lib.rtcSetSharedGeometryBuffer(
             geometry, BUFFER_VERTEX, 0, FORMAT_FLOAT3, vertices.ctypes.data, 0, 12, len(indices) * 3
         )

@@ -19,8 +19,8 @@ NaN where none.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
-import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -32,8 +32,6 @@ from simbot.sim.physics import embree
 from simbot.sim.physics.body import Body
 from simbot.sim.physics.ray_shapes import Part, Triangles
 from simbot.transform import quaternions_to_matrices
-
-log = logging.getLogger(__name__)
 
 Floats = npt.NDArray[np.float64]
 Ints = npt.NDArray[np.int64]
@@ -85,7 +83,7 @@ class RayScene:
 
     client: int
     parts_of: Callable[[Body], list[Part]]
-    lib: object
+    lib: ctypes.CDLL
     """Embree's library (`embree.library()`)."""
     _device: embree.Device = field(init=False)
     _static: dict[str, Triangles] = field(default_factory=dict)
@@ -96,10 +94,12 @@ class RayScene:
     _moving: dict[str, tuple[Body, list[Part]]] = field(default_factory=dict)
     _shapes: dict[bytes, embree.Scene] = field(default_factory=dict)
     """Each part shape's scene, by its triangles' digest."""
+    _shapes_of: dict[str, list[embree.Scene]] = field(default_factory=dict)
+    """Each moving body's parts' scenes, found when it entered (its triangles hashed once)."""
     _top: _Top | None = None
 
     def __post_init__(self) -> None:
-        self._device = embree.Device(self.lib)  # type: ignore[arg-type]
+        self._device = embree.Device(self.lib)
 
     def add(self, body: Body) -> None:
         """A body entered the world: a static one into the static scene, the others' parts into the array."""
@@ -110,6 +110,7 @@ class RayScene:
             self._static_scene = self._top = None
         elif parts:
             self._moving[body.name] = (body, parts)
+            self._shapes_of[body.name] = [self._shape(part) for part in parts]
             self._top = None
 
     def remove(self, name: str) -> None:
@@ -117,6 +118,7 @@ class RayScene:
             del self._static_at[name]
             self._static_scene = self._top = None
         if self._moving.pop(name, None) is not None:
+            del self._shapes_of[name]
             self._top = None
 
     def touch(self, body: Body) -> None:
@@ -129,6 +131,7 @@ class RayScene:
         """Builds the moving parts' scenes and array now, as a body entering a new world costs (a
         benchmark times it); returns their triangles' count."""
         self._shapes.clear()
+        self._shapes_of = {name: [self._shape(part) for part in parts] for name, (_, parts) in self._moving.items()}
         self._top = None
         self._top_scene()
         return sum(len(part.triangles) for _, parts in self._moving.values() for part in parts)
@@ -191,10 +194,9 @@ class RayScene:
             static_names = list(self._static)
             static_id = scene.instance(self._static_part(static_names)) if static_names else -1
             bodies = list(self._moving.values())
-            parts = [part for _, body_parts in bodies for part in body_parts]
+            shapes = [shape for body, _ in bodies for shape in self._shapes_of[body.name]]
             array = None
-            if parts:
-                shapes = [self._shape(part) for part in parts]
+            if shapes:
                 unique = list({id(shape): shape for shape in shapes}.values())
                 array = scene.instance_array(unique, [unique.index(shape) for shape in shapes])
             owners = [body.name for body, body_parts in bodies for _ in body_parts]

@@ -3,8 +3,8 @@
 
 Both give the same ranges, within a centimetre (tests/test_ray_engine.py). The engine is blind to
 a body by casting again from beyond each hit on it; PyBullet by collision groups, of which there
-are enough for 210 robots (`ray_groups`). `SIMBOT_RAYS=pybullet` (or `Physics(ray_engine=False)`) asks for
-PyBullet's cast where the engine is installed.
+are enough for 210 robots (`ray_groups`). `SIMBOT_RAYS=pybullet` (or `Physics(ray_engine=False)`)
+asks for PyBullet's cast where the engine is installed.
 """
 
 from __future__ import annotations
@@ -105,9 +105,8 @@ class Rays:
 
 def _engine(client: int, folder: Path) -> RayScene | None:
     """The ray engine of the world `client`, or None where embreex is not installed."""
-    if not embree_installed():
-        return None
-    return RayScene(client, lambda body: body_parts(body, folder), embree.library())
+    lib = embree.library() if embree_installed() else None
+    return RayScene(client, lambda body: body_parts(body, folder), lib) if lib is not None else None
 
 
 @functools.cache
