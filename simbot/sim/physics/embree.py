@@ -18,6 +18,7 @@ import ctypes
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 from importlib import util
 from pathlib import Path
 
@@ -268,11 +269,17 @@ class _Packets:
 
 @functools.lru_cache(maxsize=8)
 def _packets(count: int) -> _Packets:
-    raw = np.zeros(count * ROWS * LANES + _ALIGN // 4, np.float32)
-    shift = (-raw.ctypes.data % _ALIGN) // 4
-    rays = raw[shift : shift + count * ROWS * LANES].reshape(count, ROWS, LANES)
+    rays = _aligned(count * ROWS * LANES, np.float32).reshape(count, ROWS, LANES)
     rays.view(np.uint32)[:, MASK, :] = INVALID
-    return _Packets(rays, np.zeros(count * LANES, np.int32))
+    return _Packets(rays, _aligned(count * LANES, np.int32))
+
+
+def _aligned(size: int, dtype: type[np.float32] | type[np.int32]) -> npt.NDArray[Any]:
+    """`size` zeros at a 64-byte boundary: Embree loads a packet's rays and its valid flags with
+    aligned vector loads (AVX-512 faults on a misaligned one; AVX2 had hidden it)."""
+    raw = np.zeros(size + _ALIGN // 4, dtype)
+    shift = (-raw.ctypes.data % _ALIGN) // 4
+    return raw[shift : shift + size]
 
 
 def _fill(rays: npt.NDArray[np.float32], row: int, values: Floats | float, count: int) -> None:
