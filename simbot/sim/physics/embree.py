@@ -18,9 +18,9 @@ import ctypes
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 from importlib import util
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
