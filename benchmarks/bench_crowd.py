@@ -14,6 +14,9 @@ ratio to the scripted, and the crowd's own cost per person per step (the differe
 number of people). Then the six cameras' frame sets (bench_actors' `frame_sets`: the robot's
 cameras drawn in-process by the OpenGL renderer, `--frame-steps` steps between sets) with the
 scripted rigid workers and with the animated crowd-driven ones, interleaved, medians and their ratio.
+Last, what one think of the social force costs a person when a world's crowd of CROWDS people thinks
+in one pass (the forces, the detours round robots, the hard constraint and what each sees: the
+system's `_think`, timed alone), against one person thinking alone in the same run.
 
     python benchmarks/bench_crowd.py [--actors N] [--steps S] [--repeats R]
 """
@@ -22,16 +25,21 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import timeit
 from contextlib import ExitStack
 
 from bench_actors import FRAME_SIZE, ms_per_step, paired_frame_costs, server
 from tables import publish
 
 from simbot.description.crowd_params import Crowd
+from simbot.sim.kit.crowd_view import Poses
+from simbot.sim.systems import crowd as crowd_system
 
 PLUGIN = '<plugin name="simbot::systems::SocialForce" filename="simbot-social-force-system">{}</plugin>'
 RATES = (Crowd().update_rate, 100.0, 1000.0)
 """Hz: the plugin's forces updated at its default, every 10 ms and at every 1 ms step."""
+CROWDS = (1, 3, 10, 30)
+"""People thinking in one pass (the warehouse with its people has three)."""
 
 
 def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
@@ -56,6 +64,22 @@ def frame_costs(actors: int, seconds: float, frame_steps: int) -> tuple[float, f
         return paired_frame_costs(scripted, crowd, frame_steps, seconds)
 
 
+def think_cost(people: int, repeats: int) -> float:
+    """Median µs a person for one think of a crowd of `people` in one pass (100 thinks a timing)."""
+    with server(people, animated=True, plugin=PLUGIN.format("")) as one:
+        ms_per_step(one, 200)
+        crowd = [system for system in one.sim.systems if isinstance(system, crowd_system.SocialForce)]
+        physics, period = one.sim.physics, round(1e9 / Crowd().update_rate)
+        clock = [one.sim.clock.now_ns]
+
+        def think() -> None:
+            clock[0] += period
+            crowd_system._think(crowd, clock[0], Poses(physics))
+
+        timings = timeit.repeat(think, number=100, repeat=repeats)
+    return statistics.median(timings) / 100 / people * 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--actors", type=int, default=10)
@@ -66,6 +90,7 @@ def main() -> None:
     args = parser.parse_args()
     scripted, *crowd = step_costs(args.actors, args.steps, args.repeats)
     rigid, walking = frame_costs(args.actors, args.seconds, args.frame_steps)
+    thinks = [think_cost(people, args.repeats) for people in CROWDS]
     table = [
         f"| warehouse, tug standing, {args.actors} workers | ms per server step | ratio | ms per person per step over scripted |",
         "| --- | --- | --- | --- |",
@@ -79,6 +104,14 @@ def main() -> None:
         f"| six cameras {FRAME_SIZE[0]}×{FRAME_SIZE[1]} (GL, one llvmpipe thread), scripted rigid workers "
         f"| {rigid:.1f} ms a set | 1.00 | — |",
         f"| the same, animated crowd-driven workers | {walking:.1f} ms a set | {walking / rigid:.2f} | — |",
+        "",
+        "| a crowd thinking in one pass (the warehouse, the tug standing) | µs a person a think | "
+        "against one person alone |",
+        "| --- | --- | --- |",
+        *(
+            f"| {people} {'person' if people == 1 else 'people'} | {cost:.0f} | {cost / thinks[0]:.2f} |"
+            for people, cost in zip(CROWDS, thinks, strict=True)
+        ),
     ]
     publish("crowd", table)
 

@@ -24,7 +24,17 @@ import pytest
 from server_helpers import REPO, SimServer, running_server
 
 from simbot.description.crowd_params import Crowd
-from simbot.sim.kit.social_force import Boxes, Route, Surroundings, Walker, acceleration, advance, kept_clear
+from simbot.sim.kit.social_force import (
+    Boxes,
+    Params,
+    People,
+    Route,
+    Surroundings,
+    accelerations,
+    outside,
+    steered,
+    turned,
+)
 
 WORLD = REPO / "tests" / "fixtures" / "crowd.sdf"
 DT = 1 / Crowd().update_rate
@@ -42,66 +52,98 @@ STRAIGHT_M = 0.01
 STEP_TRAVEL = 0.5 * 0.001
 """Metres the tug driven at 0.5 m/s moves in one physics step (1 ms), after the person was placed."""
 NONE = Boxes.of([])
+NOBODY = np.zeros(0, np.int64)
 
 
-def _walk(crowd: Crowd, walkers: list[Walker], goals: list[np.ndarray], steps: int) -> list[list[Walker]]:
-    """`steps` steps of the kit's model for every walker, each seeing the others; every step's states."""
+def _among(people: People, obstacles: Boxes = NONE) -> Surroundings:
+    """Everyone sees everyone else as they stand, moving as they do; `obstacles` near each of them."""
+    count = len(people.positions)
+    owners = np.repeat(np.arange(count), len(obstacles))
+    return Surroundings(
+        people.positions,
+        np.broadcast_to(people.velocities, (count, count, 2)),
+        ~np.eye(count, dtype=bool),
+        Boxes.joined([obstacles] * count),
+        owners,
+        NONE,
+        NOBODY,
+    )
+
+
+def _walk(crowd: Crowd, people: People, goals: np.ndarray, steps: int) -> list[People]:
+    """`steps` steps of the kit's model for everyone at once, each seeing the others; every step's states."""
     rng = np.random.default_rng(3)
+    params = Params.of((crowd,) * len(goals))
+    arriving = np.zeros(len(goals), bool)
     track = []
     for _ in range(steps):
-        moved = []
-        for i, walker in enumerate(walkers):
-            others = [w for j, w in enumerate(walkers) if j != i]
-            around = Surroundings(
-                np.array([w.position for w in others]).reshape(-1, 2),
-                np.array([w.velocity for w in others]).reshape(-1, 2),
-                NONE,
-                NONE,
-                NONE,
-            )
-            accel = acceleration(crowd, walker, goals[i], False, around)
-            moved.append(advance(crowd, walker, accel, DT, rng.standard_normal(2) * crowd.noise * math.sqrt(DT)))
-        walkers = moved
-        track.append(walkers)
+        accel = accelerations(params, people, goals, arriving, _among(people))
+        kicks = rng.standard_normal((len(goals), 2)) * crowd.noise * math.sqrt(DT)
+        velocities = steered(params, people.velocities, accel, DT, kicks)
+        people = People(people.positions + velocities * DT, velocities, turned(params, people.yaws, velocities, DT))
+        track.append(people)
     return track
+
+
+def _standing(*positions: tuple[float, float], yaws: tuple[float, ...] = ()) -> People:
+    count = len(positions)
+    return People(np.array(positions, float), np.zeros((count, 2)), np.array(yaws or (0.0,) * count, float))
 
 
 def test_two_people_walking_head_on_pass_each_other_two_radii_apart() -> None:
     crowd = Crowd()
-    a, b = Walker(np.array([-5.0, 0.0]), np.zeros(2), 0.0), Walker(np.array([5.0, 0.0]), np.zeros(2), math.pi)
-    track = _walk(crowd, [a, b], [np.array([6.0, 0.0]), np.array([-6.0, 0.0])], round(14 / DT))
-    nearest = min(float(np.hypot(*(x.position - y.position))) for x, y in track)
+    start = _standing((-5.0, 0.0), (5.0, 0.0), yaws=(0.0, math.pi))
+    track = _walk(crowd, start, np.array([(6.0, 0.0), (-6.0, 0.0)]), round(14 / DT))
+    nearest = min(float(np.hypot(*(state.positions[0] - state.positions[1]))) for state in track)
     assert nearest >= 2 * crowd.radius, f"they came {nearest:.3f} m apart"
     print(f"\nmeasured: they passed {nearest:.2f} m apart")
-    a, b = track[-1]
-    assert a.position == pytest.approx((6.0, 0.0), abs=0.05) and b.position == pytest.approx((-6.0, 0.0), abs=0.05)
+    a, b = track[-1].positions
+    assert a == pytest.approx((6.0, 0.0), abs=0.05) and b == pytest.approx((-6.0, 0.0), abs=0.05)
 
 
 def test_a_person_alone_takes_up_its_desired_speed_and_reaches_its_goal() -> None:
     crowd = Crowd()
-    track = _walk(crowd, [Walker(np.zeros(2), np.zeros(2), 0.0)], [np.array([20.0, 0.0])], round(16 / DT))
-    after = track[int(3 * crowd.relaxation_time / DT)][0]
-    assert float(np.hypot(*after.velocity)) == pytest.approx(crowd.desired_speed, rel=0.06)
-    assert min(float(np.hypot(*(w.position - (20.0, 0.0)))) for (w,) in track) < crowd.waypoint_tolerance
+    track = _walk(crowd, _standing((0.0, 0.0)), np.array([(20.0, 0.0)]), round(16 / DT))
+    after = track[int(3 * crowd.relaxation_time / DT)]
+    assert float(np.hypot(*after.velocities[0])) == pytest.approx(crowd.desired_speed, rel=0.06)
+    assert min(float(np.hypot(*(state.positions[0] - (20.0, 0.0)))) for state in track) < crowd.waypoint_tolerance
 
 
 def test_a_wall_beyond_the_cutoff_leaves_a_person_on_its_line_and_a_nearer_one_pushes_it_off() -> None:
     crowd = Crowd()
-    walker, goal = Walker(np.zeros(2), np.array([crowd.desired_speed, 0.0]), 0.0), np.array([10.0, 0.0])
-    alone = acceleration(crowd, walker, goal, False, Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), NONE, NONE, NONE))
+    params, goal, arriving = Params.of((crowd,)), np.array([(10.0, 0.0)]), np.zeros(1, bool)
+    walker = People(np.zeros((1, 2)), np.array([(crowd.desired_speed, 0.0)]), np.zeros(1))
+    alone = accelerations(params, walker, goal, arriving, _among(walker))
     for gap, pushed in ((crowd.obstacle_cutoff + 1e-3, False), (crowd.obstacle_cutoff / 2, True)):
         wall = Boxes.of([(0.0, crowd.radius + gap + 0.1, 0.0, 5.0, 0.1)])  # its face `gap` beyond the radius
-        around = Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), wall, NONE, NONE)
-        push = acceleration(crowd, walker, goal, False, around) - alone
+        push = (accelerations(params, walker, goal, arriving, _among(walker, wall)) - alone)[0]
         assert (push[1] < 0) == pushed and push[0] == pytest.approx(0.0, abs=1e-12), (gap, push)
+
+
+def test_people_thinking_together_feel_what_each_feels_thinking_alone() -> None:
+    """One pass for a crowd is the sum of its people's own: each person's force among the others
+    equals the force on it computed for it alone, seeing the same others and obstacles."""
+    crowd = Crowd()
+    rng = np.random.default_rng(7)
+    people = People(rng.uniform(-2, 2, (6, 2)), rng.uniform(-1, 1, (6, 2)), np.zeros(6))
+    goals, arriving = rng.uniform(-8, 8, (6, 2)), np.array([True, False] * 3)
+    wall = Boxes.of([(0.0, 2.6, 0.2, 3.0, 0.1), (2.4, 0.0, 0.0, 0.1, 3.0)])
+    together = accelerations(Params.of((crowd,) * 6), people, goals, arriving, _among(people, wall))
+    for k in range(6):
+        others = np.delete(people.positions, k, axis=0)
+        motions = np.delete(people.velocities, k, axis=0)[None]
+        alone = Surroundings(others, motions, np.ones((1, 5), bool), wall, np.zeros(2, np.int64), NONE, NOBODY)
+        one = People(people.positions[k : k + 1], people.velocities[k : k + 1], np.zeros(1))
+        force = accelerations(Params.of((crowd,)), one, goals[k : k + 1], arriving[k : k + 1], alone)
+        assert together[k] == pytest.approx(force[0], rel=1e-12, abs=1e-12)
 
 
 def test_the_hard_constraint_puts_a_person_outside_a_footprint_grown_by_its_radius() -> None:
     crowd = Crowd()
     tug = Boxes.of([(0.0, 0.0, 0.3, 1.05, 0.25)])
     for inside in ((0.0, 0.1), (1.0, -0.2), (0.2, 0.4)):
-        point = kept_clear(crowd, np.array(inside), Surroundings(np.zeros((0, 2)), np.zeros((0, 2)), NONE, tug, tug))
-        assert tug.nearest(point)[0][0] == pytest.approx(crowd.radius, abs=1e-9)
+        point = outside(np.array([crowd.radius]), np.array([inside]), tug, np.zeros(1, np.int64))
+        assert tug.nearest(point[0])[0][0] == pytest.approx(crowd.radius, abs=1e-9)
 
 
 # --- the running world ---------------------------------------------------------------------

@@ -10,7 +10,8 @@ never another system but the camera a camera of another kind specialises):
   covers (`rendered_sensor.py`), a body as the render workers get it (`scene_bodies.py`), a
   camera's `<save>` (`camera_save.py`);
 - actors: the system that moves an actor in place of its script (`actor_driver.py`), the social
-  force by which people walk (`social_force.py`), the waypoints a plugin states (`waypoints.py`);
+  force by which people walk, every person of a world in one pass (`social_force.py`), what they
+  see of the world (`crowd_view.py`), the waypoints a plugin states (`waypoints.py`);
 - a latched message put on the bus from a thread of its own (`latest_sender.py`).
 
 The parameters of a `<plugin>` or a `<sensor>`, and the typed parameters other layers read too

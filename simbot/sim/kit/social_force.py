@@ -1,4 +1,5 @@
-"""Helbing & Molnár's social-force model of people walking, in the plane: the arithmetic alone.
+"""Helbing & Molnár's social-force model of people walking, in the plane: the arithmetic alone, for
+every person of a crowd in one pass (arrays, a row a person), however many there are.
 
 A person is a disc of `radius` at a position with a velocity. Its acceleration is the sum of
 
@@ -14,21 +15,26 @@ A person is a disc of `radius` at a position with a velocity. Its acceleration i
   range, without a cutoff, from each body that moves by itself (a robot, a cart), from the one
   rectangle holding its footprint (its outline: one force a body, however many shapes it has).
 
-Integrated by semi-implicit Euler (the velocity first, its speed clamped to `max_speed_factor`·v0,
-then the position with it: `steered`, then `turned` and the position at each of the caller's
-steps), after which a hard constraint holds: the person is put back outside
-every other person (2·radius between centres), obstacle and robot grown by its radius, robots
-last, so that a person the tug drives at steps aside rather than being walked through. Numpy, no
-physics: the same inputs give the same outputs, bit for bit, on one machine.
+Integrated by semi-implicit Euler (the velocity first, its speed clamped to `max_speed_factor`·v0:
+`steered`; then the heading, `turned`, and the position at each of the caller's steps), after which
+a hard constraint holds: the person is put back outside every other person (2·radius between
+centres) and obstacle grown by its radius (`kept_clear`), and outside the robots' footprints at
+every step (`outside`), so that a person the tug drives at steps aside rather than being walked
+through. Numpy, no physics: the same inputs give the same outputs, bit for bit, on one machine.
+
+Everyone thinks at once (`accelerations`): people against people as an n × m table, obstacles and
+robots' outlines as pairs (a shadow and the person it is near), their forces summed per person.
+Each person keeps its own parameters (`Params`: v0 is each script's own speed).
 
 Shadows are rectangles (`Boxes`): a collision's box, or the box holding a round or tilted shape.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import numpy.typing as npt
@@ -36,6 +42,8 @@ import numpy.typing as npt
 from simbot.description.crowd_params import Crowd
 
 Floats = npt.NDArray[np.float64]
+Bools = npt.NDArray[np.bool_]
+Ints = npt.NDArray[np.int64]
 
 RESTING_SPEED = 0.05
 """m/s: below this a person keeps its heading (a standing person does not spin with the jitter)."""
@@ -79,251 +87,307 @@ class Boxes:
     def __len__(self) -> int:
         return len(self.centres)
 
+    def take(self, index: Ints | Bools) -> Boxes:
+        """The rectangles `index` picks (indices or a mask)."""
+        return Boxes(self.centres[index], self.axes[index], self.halves[index])
+
     def placed(self, x: float, y: float, yaw: float) -> Boxes:
         """These rectangles, given in a body's frame, where the body stands at (x, y, yaw)."""
         c, s = math.cos(yaw), math.sin(yaw)
         rotation = np.array([[c, -s], [s, c]])
         return Boxes(self.centres @ rotation.T + (x, y), self.axes @ rotation.T, self.halves)
 
-    def within(self, point: Floats, reach: float) -> Boxes:
-        """Those whose nearest point may lie within `reach` of `point` (by their bounding circles)."""
-        far = np.hypot(*(self.centres - point).T) - np.hypot(*self.halves.T)
-        keep = far <= reach
-        return Boxes(self.centres[keep], self.axes[keep], self.halves[keep])
+    def posed(self, frames: Floats) -> Boxes:
+        """Each rectangle, given in its own body's frame, where that body stands (frames: n × (x, y, yaw))."""
+        cos, sin = np.cos(frames[:, 2]), np.sin(frames[:, 2])
+        (cx, cy), (ax, ay) = self.centres.T, self.axes.T
+        centres = np.stack([cos * cx - sin * cy + frames[:, 0], sin * cx + cos * cy + frames[:, 1]], axis=1)
+        return Boxes(centres, np.stack([cos * ax - sin * ay, sin * ax + cos * ay], axis=1), self.halves)
 
-    def nearest(self, point: Floats) -> tuple[Floats, Floats]:
-        """(distance, normal) of `point` from each rectangle: the distance to its nearest point (negative
-        inside, by the depth to its nearest side) and the unit vector from there out towards `point`.
-        In plain floats, rectangle by rectangle: a person has a handful near it, where numpy's
-        per-call cost is most of the work."""
-        px, py = float(point[0]), float(point[1])
-        rows = [
-            _from_rectangle(px - cx, py - cy, cos, sin, hx, hy)
-            for (cx, cy), (cos, sin), (hx, hy) in zip(self.centres.tolist(), self.axes.tolist(), self.halves.tolist())
-        ]
-        table = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
-        return table[:, 0].copy(), table[:, 1:].copy()
+    def within(self, point: Floats, reach: Floats | float) -> Bools:
+        """Which may have their nearest point within `reach` of `point` (by their bounding circles;
+        one point and reach for all, or one each)."""
+        offset = self.centres - point
+        far = np.hypot(offset[:, 0], offset[:, 1]) - np.hypot(self.halves[:, 0], self.halves[:, 1])
+        near: Bools = far <= reach
+        return near
 
+    def local(self, points: Floats) -> Floats:
+        """`points` (… × 2, broadcast against the rectangles) in each rectangle's own frame."""
+        offset = points - self.centres
+        cos, sin = self.axes[:, 0], self.axes[:, 1]
+        return np.stack([offset[..., 0] * cos + offset[..., 1] * sin, offset[..., 1] * cos - offset[..., 0] * sin], -1)
 
-def _from_rectangle(dx: float, dy: float, cos: float, sin: float, hx: float, hy: float) -> tuple[float, float, float]:
-    """(distance, normal x, normal y) of the offset (dx, dy) from a rectangle's centre (see `Boxes.nearest`)."""
-    lx, ly = dx * cos + dy * sin, dy * cos - dx * sin
-    ox, oy = lx - max(-hx, min(hx, lx)), ly - max(-hy, min(hy, ly))
-    distance = math.hypot(ox, oy)
-    if distance > 0.0:
-        nx, ny = ox / distance, oy / distance
-    else:  # inside: out through the nearest side
-        depth_x, depth_y = hx - abs(lx), hy - abs(ly)
-        if depth_y < depth_x:
-            distance, nx, ny = -depth_y, 0.0, (-1.0 if ly < 0 else 1.0)
-        else:
-            distance, nx, ny = -depth_x, (-1.0 if lx < 0 else 1.0), 0.0
-    return distance, nx * cos - ny * sin, nx * sin + ny * cos
+    def nearest(self, points: Floats) -> tuple[Floats, Floats]:
+        """(distance, normal) of `points` (one point, a point a rectangle, or … × 1 × 2 against all)
+        from each rectangle: the distance to its nearest point (negative inside, by the depth to its
+        nearest side) and the unit vector from there out towards the point."""
+        at = self.local(points)
+        lx, ly = at[..., 0], at[..., 1]
+        hx, hy = self.halves[:, 0], self.halves[:, 1]
+        ox, oy = lx - np.clip(lx, -hx, hx), ly - np.clip(ly, -hy, hy)
+        distance = np.hypot(ox, oy)
+        out = distance > 0.0
+        safe = np.where(out, distance, 1.0)
+        depth_x, depth_y = hx - np.abs(lx), hy - np.abs(ly)
+        by_y = depth_y < depth_x  # inside: out through the nearest side
+        nx = np.where(out, ox / safe, np.where(by_y, 0.0, np.where(lx < 0, -1.0, 1.0)))
+        ny = np.where(out, oy / safe, np.where(by_y, np.where(ly < 0, -1.0, 1.0), 0.0))
+        distance = np.where(out, distance, -np.where(by_y, depth_y, depth_x))
+        cos, sin = self.axes[:, 0], self.axes[:, 1]
+        return distance, np.stack([nx * cos - ny * sin, nx * sin + ny * cos], -1)
 
 
 @dataclass(frozen=True)
-class Walker:
-    """A person's state: position and velocity (m, m/s, in the world's plane) and heading (rad)."""
+class Params:
+    """Each of `Crowd`'s parameters as an array, a value a person (`Params.of`), and each one's
+    `reach` and `obstacle_reach`: people of one crowd may differ (v0 is each script's own speed)."""
 
-    position: Floats
-    velocity: Floats
-    yaw: float
+    values: dict[str, Floats]
+
+    @staticmethod
+    @functools.lru_cache(maxsize=64)
+    def of(crowds: tuple[Crowd, ...]) -> Params:
+        """The parameters of `crowds`, a person each (kept: a crowd thinks with the same people again)."""
+        names = [item.name for item in fields(Crowd)] + ["reach", "obstacle_reach"]
+        return Params({name: np.array([getattr(c, name) for c in crowds], dtype=np.float64) for name in names})
+
+    def __getattr__(self, name: str) -> Floats:
+        if name == "values":  # not yet set (a copy being made)
+            raise AttributeError(name)
+        try:
+            return self.values[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def take(self, index: Ints) -> Params:
+        """The parameters of the people `index` picks, one a row of `index`."""
+        return Params({name: values[index] for name, values in self.values.items()})
+
+
+@dataclass(frozen=True)
+class People:
+    """n people's state: positions and velocities (n × 2: m, m/s, in the world's plane), headings (n, rad)."""
+
+    positions: Floats
+    velocities: Floats
+    yaws: Floats
 
 
 @dataclass(frozen=True)
 class Surroundings:
-    """What a person keeps its distance from, at one step."""
+    """What n people keep their distance from, at one step."""
 
-    people: Floats
-    """k × 2: the other people's positions."""
+    others: Floats
+    """m × 2: where everyone who may push stands (the n among them, or other people too)."""
     motions: Floats
-    """k × 2: their velocities."""
+    """n × m × 2: each one's velocity as each person saw it."""
+    seen: Bools
+    """n × m: whom each person looks at (not itself)."""
     obstacles: Boxes
-    robots: Boxes
+    """The static shadows near the people, a rectangle a pair (the same rectangle again for another person)."""
+    obstacle_of: Ints
+    """The person each of `obstacles` is near."""
     outlines: Boxes
-    """One rectangle per robot, holding its footprint: what a person walks round (`detour`)."""
+    """The robots' outlines (one rectangle holding a robot's footprint) near the people, a pair each."""
+    outline_of: Ints
 
 
-def driving(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool) -> tuple[Floats, Floats]:
-    """(the driving acceleration, e): towards `goal` at the desired speed, slowing into it when `arriving`."""
-    to_goal = goal - walker.position
-    distance = float(np.hypot(*to_goal))
-    direction = to_goal / distance if distance > 0 else np.zeros(2)
-    speed = crowd.desired_speed
-    if arriving:
-        speed = min(speed, distance / crowd.relaxation_time)
-    return (speed * direction - walker.velocity) / crowd.relaxation_time, direction
+def driving(p: Params, people: People, goals: Floats, arriving: Bools) -> tuple[Floats, Floats]:
+    """(the driving accelerations, e): towards `goals` at the desired speed, slowing into those `arriving`."""
+    to_goal = goals - people.positions
+    distance = np.hypot(to_goal[:, 0], to_goal[:, 1])
+    direction = to_goal / np.where(distance > 0, distance, 1.0)[:, None]
+    speed = np.where(arriving, np.minimum(p.desired_speed, distance / p.relaxation_time), p.desired_speed)
+    return (speed[:, None] * direction - people.velocities) / p.relaxation_time[:, None], direction
 
 
 def _repulsion(
-    strength: float, reach: float, gaps: Floats, normals: Floats, weights: Floats, cutoff: float = math.inf
+    strength: Floats, reach: Floats, gaps: Floats, normals: Floats, weights: Floats, cutoff: Floats | float = math.inf
 ) -> Floats:
-    """Σ strength·(exp(−gap/reach) − exp(−cutoff/reach))·w·n over the gaps under `cutoff`."""
-    if len(gaps) == 0:
-        return np.zeros(2)
-    magnitude = strength * np.maximum(np.exp(-gaps / reach) - math.exp(-cutoff / reach), 0.0) * weights
-    total: Floats = (normals * magnitude[:, None]).sum(axis=0)
-    return total
+    """strength·(exp(−gap/reach) − exp(−cutoff/reach))·w·n for each gap (none past `cutoff`)."""
+    magnitude = strength * np.maximum(np.exp(-gaps / reach) - np.exp(-cutoff / reach), 0.0) * weights
+    pushed: Floats = normals * magnitude[..., None]
+    return pushed
 
 
-def _anisotropy(crowd: Crowd, direction: Floats, normals: Floats) -> Floats:
+def _anisotropy(anisotropy: Floats, direction: Floats, normals: Floats) -> Floats:
     """λ + (1 − λ)(1 + cos φ)/2, φ between the walking direction and the way to each other (−n)."""
-    cos = -(normals @ direction)
-    weights: Floats = crowd.anisotropy + (1 - crowd.anisotropy) * (1 + cos) / 2
+    cos = -(normals * direction).sum(axis=-1)
+    weights: Floats = anisotropy + (1 - anisotropy) * (1 + cos) / 2
     return weights
 
 
-def _look_ahead(offset: Floats, distance: Floats, motion: Floats, step: float) -> tuple[Floats, Floats]:
+def _look_ahead(offset: Floats, distance: Floats, motion: Floats, step: Floats) -> tuple[Floats, Floats]:
     """Helbing & Molnár's ellipse through me with foci at each other person and where it will be `step`
     seconds on: (its semi-minor axis b, 2b = √((|r| + |r − v·Δt|)² − |v·Δt|²), and the direction b
     grows fastest, the bisector of r and r − v·Δt). Someone walking towards me is nearer than they
     stand, and pushes me aside of their path rather than back along it."""
-    ahead = motion * step
+    ahead = motion * step[..., None]
     later = offset - ahead
-    gone = np.hypot(*later.T) if len(later) else np.zeros(0)
-    semi: Floats = 0.5 * np.sqrt(np.maximum((distance + gone) ** 2 - (ahead**2).sum(axis=1), 0.0))
-    bisector = offset / np.maximum(distance, 1e-9)[:, None] + later / np.maximum(gone, 1e-9)[:, None]
-    length = np.hypot(*bisector.T) if len(bisector) else np.zeros(0)
+    gone = np.hypot(later[..., 0], later[..., 1])
+    semi: Floats = 0.5 * np.sqrt(np.maximum((distance + gone) ** 2 - (ahead**2).sum(axis=-1), 0.0))
+    bisector = offset / np.maximum(distance, 1e-9)[..., None] + later / np.maximum(gone, 1e-9)[..., None]
+    length = np.hypot(bisector[..., 0], bisector[..., 1])
     normal: Floats = np.where(
-        (length > 1e-9)[:, None],
-        bisector / np.maximum(length, 1e-9)[:, None],
-        offset / np.maximum(distance, 1e-9)[:, None],
+        (length > 1e-9)[..., None],
+        bisector / np.maximum(length, 1e-9)[..., None],
+        offset / np.maximum(distance, 1e-9)[..., None],
     )
     return semi, normal
 
 
-def _from_people(point: Floats, people: Floats) -> tuple[Floats, Floats]:
-    """(distance between centres, unit vector from each person to `point`)."""
-    offset = point - people
-    distance = np.hypot(*offset.T) if len(people) else np.zeros(0)
-    safe = np.where(distance > 0, distance, 1.0)
-    normal = np.where((distance > 0)[:, None], offset / safe[:, None], np.array([1.0, 0.0]))
-    return distance, normal
+def _per_person(count: int, owners: Ints, forces: Floats) -> Floats:
+    """The pairs' `forces` (k × 2) summed for each of `count` people (`owners`: each pair's person)."""
+    return np.stack([np.bincount(owners, forces[:, axis], minlength=count) for axis in range(2)], axis=1)
 
 
-def acceleration(crowd: Crowd, walker: Walker, goal: Floats, arriving: bool, around: Surroundings) -> Floats:
-    """The social force on `walker` per unit mass (see the module docstring)."""
-    drive, direction = driving(crowd, walker, goal, arriving)
-    distance, normal = _from_people(walker.position, around.people)
-    semi, normal = _look_ahead(walker.position - around.people, distance, around.motions, crowd.look_ahead)
-    people = _repulsion(
-        crowd.people_strength,
-        crowd.people_range,
-        semi - 2 * crowd.radius,
+def _people_near(p: Params, positions: Floats, around: Surroundings) -> tuple[Floats, Floats, Bools]:
+    """(offsets from each other person, n × m × 2; distances; whom each person sees within its reach)."""
+    offset = positions[:, None, :] - around.others[None, :, :]
+    distance = np.hypot(offset[..., 0], offset[..., 1])
+    return offset, distance, around.seen & (distance <= p.reach[:, None])
+
+
+def accelerations(p: Params, people: People, goals: Floats, arriving: Bools, around: Surroundings) -> Floats:
+    """The social force on each person per unit mass (see the module docstring)."""
+    drive, direction = driving(p, people, goals, arriving)
+    offset, distance, seen = _people_near(p, people.positions, around)
+    semi, normal = _look_ahead(offset, distance, around.motions, p.look_ahead[:, None])
+    row = (slice(None), None)
+    pushed = _repulsion(
+        p.people_strength[row],
+        p.people_range[row],
+        semi - 2 * p.radius[row],
         normal,
-        _anisotropy(crowd, direction, normal),
+        _anisotropy(p.anisotropy[row], direction[:, None, :], normal) * seen,
     )
-    distance, normal = around.obstacles.nearest(walker.position)
-    walls = _repulsion(
-        crowd.obstacle_strength,
-        crowd.obstacle_range,
-        distance - crowd.radius,
-        normal,
-        _anisotropy(crowd, direction, normal),
-        crowd.obstacle_cutoff,
-    )
-    distance, normal = around.outlines.nearest(walker.position)
-    robots = _repulsion(
-        crowd.robot_strength, crowd.robot_range, distance - crowd.radius, normal, _anisotropy(crowd, direction, normal)
-    )
-    total: Floats = drive + people + walls + robots
+    total: Floats = drive + pushed.sum(axis=1)
+    for boxes, owner, kind in (
+        (around.obstacles, around.obstacle_of, "obstacle"),
+        (around.outlines, around.outline_of, "robot"),
+    ):
+        if not len(boxes):
+            continue
+        gap, normal = boxes.nearest(people.positions[owner])
+        cutoff = p.obstacle_cutoff[owner] if kind == "obstacle" else math.inf
+        forces = _repulsion(
+            p.values[f"{kind}_strength"][owner],
+            p.values[f"{kind}_range"][owner],
+            gap - p.radius[owner],
+            normal,
+            _anisotropy(p.anisotropy[owner], direction[owner], normal),
+            cutoff,
+        )
+        total = total + _per_person(len(total), owner, forces)
     return total
 
 
-def steered(crowd: Crowd, velocity: Floats, accel: Floats, dt: float, kick: Floats) -> Floats:
-    """The velocity after `dt` s of `accel`, plus the random `kick`: the speed no more than `max_speed_factor`·v0."""
-    velocity = velocity + accel * dt + kick
-    speed = float(np.hypot(*velocity))
-    top = crowd.max_speed_factor * crowd.desired_speed
-    if speed > top:
-        velocity = velocity * (top / speed)
-    return velocity
+def steered(p: Params, velocities: Floats, accel: Floats, dt: Floats | float, kicks: Floats) -> Floats:
+    """The velocities after `dt` s of `accel`, plus the random `kicks`: no speed over `max_speed_factor`·v0."""
+    velocities = velocities + accel * np.reshape(dt, (-1, 1)) + kicks
+    speed = np.hypot(velocities[:, 0], velocities[:, 1])
+    top = p.max_speed_factor * p.desired_speed
+    scale: Floats = np.where(speed > top, top / np.where(speed > 0, speed, 1.0), 1.0)
+    return velocities * scale[:, None]
 
 
-def advance(crowd: Crowd, walker: Walker, accel: Floats, dt: float, kick: Floats) -> Walker:
-    """One semi-implicit Euler step of `dt` s (`steered`, then the position with the new velocity),
-    the heading turned towards the velocity."""
-    velocity = steered(crowd, walker.velocity, accel, dt, kick)
-    return Walker(walker.position + velocity * dt, velocity, turned(crowd, walker.yaw, velocity, dt))
+def turned(p: Params, yaws: Floats, velocities: Floats, dt: Floats | float) -> Floats:
+    """The headings turned towards the velocities at no more than `turn_rate`; kept when barely moving."""
+    wanted = np.arctan2(velocities[:, 1], velocities[:, 0])
+    error = np.arctan2(np.sin(wanted - yaws), np.cos(wanted - yaws))
+    limit = p.turn_rate * dt
+    turn = yaws + np.clip(error, -limit, limit)
+    moving = np.hypot(velocities[:, 0], velocities[:, 1]) >= RESTING_SPEED
+    result: Floats = np.where(moving, np.arctan2(np.sin(turn), np.cos(turn)), yaws)
+    return result
 
 
-def turned(crowd: Crowd, yaw: float, velocity: Floats, dt: float) -> float:
-    """The heading turned towards the velocity at no more than `turn_rate`; kept when barely moving."""
-    vx, vy = float(velocity[0]), float(velocity[1])
-    if math.hypot(vx, vy) < RESTING_SPEED:
-        return yaw
-    wanted = math.atan2(vy, vx)
-    error = math.atan2(math.sin(wanted - yaw), math.cos(wanted - yaw))
-    limit = crowd.turn_rate * dt
-    turned = yaw + max(-limit, min(limit, error))
-    return math.atan2(math.sin(turned), math.cos(turned))
+def crosses(start: Floats, end: Floats, half: Floats) -> Bools:
+    """Whether each segment start → end (… × 2, in a rectangle's frame) passes through the rectangle
+    of `half` extents (… × 2)."""
+    span = end - start
+    flat = np.abs(span) < 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a, b = (-half - start) / span, (half - start) / span
+    clear = np.abs(start) >= half  # parallel to a side: in its slab or never
+    low = np.where(flat, np.where(clear, np.inf, -np.inf), np.minimum(a, b))
+    high = np.where(flat, np.where(clear, -np.inf, np.inf), np.maximum(a, b))
+    through: Bools = np.maximum(low.max(axis=-1), 0.0) < np.minimum(high.min(axis=-1), 1.0)
+    return through
 
 
-def _crosses(start: Floats, end: Floats, half: Floats) -> bool:
-    """Whether the segment start → end (in a rectangle's frame) passes through the rectangle of `half` extents."""
-    enter, leave = 0.0, 1.0
-    for axis in range(2):
-        span = end[axis] - start[axis]
-        if abs(span) < 1e-12:
-            if abs(start[axis]) >= half[axis]:
-                return False
-            continue
-        a, b = (-half[axis] - start[axis]) / span, (half[axis] - start[axis]) / span
-        enter, leave = max(enter, min(a, b)), min(leave, max(a, b))
-    return enter < leave
+CORNERS = np.array([(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)])
 
 
-def detour(crowd: Crowd, point: Floats, goal: Floats, robots: Boxes) -> Floats:
-    """Where to head for on the way to `goal`: round the nearest robot whose footprint, grown by the
-    radius and as far again as its repulsion is half the drive, lies across the straight way, by its
-    corner that makes the way round shortest (one not yet reached; from a corner reached, those seen
-    along the sides from it); the goal itself when the way is clear. The forces alone would hold a
-    person still before a long machine across its way (the social-force model's local minimum)."""
-    margin = crowd.radius + crowd.robot_range * math.log(
-        max(1.0, 2 * crowd.robot_strength * crowd.relaxation_time / crowd.desired_speed)
+def detours(p: Params, positions: Floats, goals: Floats, outlines: Boxes, outline_of: Ints) -> tuple[Floats, Bools]:
+    """(where each person heads for on the way to its goal, whether that is round a robot): round the nearest robot whose footprint,
+    grown by the radius and as far again as its repulsion is half the drive, lies across the straight
+    way, by its corner that makes the way round shortest (one not yet reached; from a corner reached,
+    those seen along the sides from it); the goal itself when the way is clear. The forces alone would
+    hold a person still before a long machine across its way (the social-force model's local minimum).
+    Every pair is tested at once; the corners are chosen for the few whose way is crossed."""
+    margin = p.radius + p.robot_range * np.log(
+        np.maximum(1.0, 2 * p.robot_strength * p.relaxation_time / p.desired_speed)
     )
-    best: tuple[float, Floats] | None = None
-    for index in range(len(robots)):
-        (cos, sin), half = robots.axes[index], robots.halves[index] + margin
-        rotation = np.array([[cos, -sin], [sin, cos]])
-        start, end = (point - robots.centres[index]) @ rotation, (goal - robots.centres[index]) @ rotation
-        if np.all(np.abs(start) < half) or not _crosses(start, end, half):
-            continue
-        corners = [np.array((sx * half[0], sy * half[1])) for sx in (-1, 1) for sy in (-1, 1)]
-        reached = next((c for c in corners if np.hypot(*(c - start)) <= crowd.waypoint_tolerance), None)
-        origin = start if reached is None else reached  # on at a corner: what lies along the side from it
-        seen = [c for c in corners if c is not reached and not _crosses(origin, c, half * (1 - 1e-6))]
-        if not seen:
-            continue
-        corner = min(seen, key=lambda c: float(np.hypot(*(c - start)) + np.hypot(*(end - c))))
-        away = float(np.hypot(*(corner - start)))
-        if best is None or away < best[0]:
-            best = (away, rotation @ corner + robots.centres[index])
-    return goal if best is None else best[1]
+    headings = goals.copy()
+    best = np.full(len(positions), np.inf)
+    if not len(outlines):
+        return headings, best < np.inf
+    half = outlines.halves + margin[outline_of][:, None]
+    start = outlines.local(positions[outline_of])
+    end = outlines.local(goals[outline_of])
+    across = ~np.all(np.abs(start) < half, axis=1) & crosses(start, end, half)
+    for pair in np.flatnonzero(across):
+        person = int(outline_of[pair])
+        found = _corner(p.waypoint_tolerance[person], start[pair], end[pair], half[pair])
+        if found is not None and found[0] < best[person]:
+            (cos, sin), centre = outlines.axes[pair], outlines.centres[pair]
+            best[person] = found[0]
+            headings[person] = np.array([[cos, -sin], [sin, cos]]) @ found[1] + centre
+    return headings, best < np.inf
 
 
-def kept_clear(crowd: Crowd, point: Floats, around: Surroundings) -> Floats:
-    """`point` moved out of every other person (2·radius), then every obstacle and robot grown by the
-    radius, robots last: the hard constraint after the force step."""
-    distance, normal = _from_people(point, around.people)
-    for gap, n in zip(2 * crowd.radius - distance, normal):
-        if gap > 0:
-            point = point + gap * n
-    return outside(crowd, outside(crowd, point, around.obstacles), around.robots)
+def _corner(tolerance: float, start: Floats, end: Floats, half: Floats) -> tuple[float, Floats] | None:
+    """(how far, which) corner of the rectangle of `half` extents the way from `start` to `end` goes
+    round (its frame), or None where no corner is seen from where the person stands."""
+    corners = CORNERS * half
+    distances = np.hypot(*(corners - start).T)
+    reached = np.flatnonzero(distances <= tolerance)
+    origin = start if not len(reached) else corners[reached[0]]  # on at a corner: what lies along the side from it
+    seen = ~crosses(np.broadcast_to(origin, corners.shape), corners, np.broadcast_to(half * (1 - 1e-6), corners.shape))
+    if len(reached):
+        seen[reached[0]] = False
+    if not seen.any():
+        return None
+    ways = np.where(seen, distances + np.hypot(*(end - corners).T), np.inf)
+    chosen = int(np.argmin(ways))
+    return float(distances[chosen]), corners[chosen]
 
 
-def outside(crowd: Crowd, point: Floats, boxes: Boxes) -> Floats:
-    """`point` moved out of each of `boxes` grown by the radius, in turn."""
-    if len(boxes):
-        distance, _ = boxes.nearest(point)
-        for index in np.flatnonzero(distance < crowd.radius):  # rare: only these are looked at again
-            one = Boxes(
-                boxes.centres[index : index + 1], boxes.axes[index : index + 1], boxes.halves[index : index + 1]
-            )
-            gap, normal = one.nearest(point)
-            if gap[0] < crowd.radius:
-                point = point + (crowd.radius - gap[0]) * normal[0]
-    return point
+def kept_clear(p: Params, positions: Floats, around: Surroundings) -> Floats:
+    """`positions` moved out of every other person (2·radius), then every obstacle grown by the
+    radius: the hard constraint after the force step."""
+    offset, distance, seen = _people_near(p, positions, around)
+    normal = np.where((distance > 0)[..., None], offset / np.where(distance > 0, distance, 1.0)[..., None], (1.0, 0.0))
+    gap = np.where(seen, 2 * p.radius[:, None] - distance, 0.0)
+    moved: Floats = positions + (normal * np.maximum(gap, 0.0)[..., None]).sum(axis=1)
+    return outside(p.radius, moved, around.obstacles, around.obstacle_of)
+
+
+def outside(radius: Floats, positions: Floats, boxes: Boxes, owners: Ints) -> Floats:
+    """`positions` moved out of the `boxes` grown by each one's `radius`, in turn (`owners`: the
+    person each box is for)."""
+    if not len(boxes):
+        return positions
+    positions = positions.copy()
+    gaps, _ = boxes.nearest(positions[owners])
+    for pair in np.flatnonzero(gaps < radius[owners]):  # rare: only these are looked at again
+        person = owners[pair]
+        gap, normal = boxes.take(np.array([pair])).nearest(positions[person])
+        if gap[0] < radius[person]:
+            positions[person] = positions[person] + (radius[person] - gap[0]) * normal[0]
+    return positions
 
 
 @dataclass(frozen=True)

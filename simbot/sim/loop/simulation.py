@@ -19,6 +19,7 @@ from enum import Enum
 
 from simbot.sim.loop.system import (
     BatchedPostUpdate,
+    BatchedPreUpdate,
     Closable,
     Periodic,
     PostUpdate,
@@ -124,6 +125,14 @@ class Scheduled:
     priority: int
 
 
+def _joined(batches: dict[tuple[type, int], list[System]], system: System, priority: int) -> list[System] | None:
+    """Adds `system` to its class's batch of `priority`; the batch where it is the first (it runs in
+    its place), else None."""
+    batch = batches.setdefault((type(system), priority), [])
+    batch.append(system)
+    return batch if len(batch) == 1 else None
+
+
 @dataclass
 class Simulation:
     """The world, its systems, and the loop that advances them."""
@@ -134,7 +143,7 @@ class Simulation:
     clock: SimClock = field(init=False)
     paused: bool = False
     rtf: RealTimeFactor = field(default_factory=RealTimeFactor)
-    _pre: list[PreUpdate] = field(init=False)
+    _pre: list[Callable[[UpdateInfo], None]] = field(init=False)
     _post: list[tuple[Callable[[UpdateInfo], None], Periodic | None]] = field(init=False)
     """Each post-update call, and what says when it is next due (None: every step)."""
     _steps: deque[StepRequest] = field(default_factory=deque)
@@ -153,17 +162,19 @@ class Simulation:
         """The per-phase lists; a batched class's instances of one priority run as one call, in
         the place of the first of them."""
         ordered = sorted(self.scheduled, key=lambda entry: entry.priority)
-        self._pre = [entry.system for entry in ordered if isinstance(entry.system, PreUpdate)]
-        self._post = []
-        batches: dict[tuple[type, int], list[System]] = {}
+        self._pre, self._post = [], []
+        pre: dict[tuple[type, int], list[System]] = {}
+        post: dict[tuple[type, int], list[System]] = {}
         for entry in ordered:
             system = entry.system
+            if isinstance(system, BatchedPreUpdate):
+                if batch := _joined(pre, system, entry.priority):
+                    self._pre.append(functools.partial(type(system).pre_update_all, batch))
+            elif isinstance(system, PreUpdate):
+                self._pre.append(system.pre_update)
             if isinstance(system, BatchedPostUpdate):
-                batch = (type(system), entry.priority)
-                if batch not in batches:
-                    batches[batch] = []
-                    self._post.append((functools.partial(type(system).post_update_all, batches[batch]), None))
-                batches[batch].append(system)
+                if batch := _joined(post, system, entry.priority):
+                    self._post.append((functools.partial(type(system).post_update_all, batch), None))
             elif isinstance(system, PostUpdate):
                 self._post.append((system.post_update, system if isinstance(system, Periodic) else None))
 
@@ -183,7 +194,7 @@ class Simulation:
         self.clock.advance()
         info = self.clock.info(self.paused)
         for before in self._pre:
-            before.pre_update(info)
+            before(info)
         self.physics.step()
         with self.physics.reading():
             now_ns = info.sim_time_ns

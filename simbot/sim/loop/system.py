@@ -7,6 +7,8 @@ has a `name`, and implements only the phases it needs, each a small Protocol giv
 `UpdateInfo` (sim time, step size, iterations, paused: Gazebo's UpdateInfo):
 
 - `pre_update(info)`: before the physics step; drain commands, write joint targets.
+- `pre_update_all(systems, info)`, a classmethod, in place of `pre_update`: the class steps all its
+  instances of one priority at once (`BatchedPreUpdate`): a world's people think in one pass.
 - `post_update(info)`: after the step; read state, publish at its own rate. The physics is
   read-only here (`PhysicsReadOnly` if a system tries to change it), as Gazebo's PostUpdate
   sees a const entity-component manager: every system reads the same, finished step.
@@ -83,6 +85,15 @@ class PreUpdate(Protocol):
 @runtime_checkable
 class PostUpdate(Protocol):
     def post_update(self, info: UpdateInfo) -> None: ...
+
+
+@runtime_checkable
+class BatchedPreUpdate(Protocol):
+    """A pre-update system whose class steps all its instances of one priority in one call, where the
+    first of them would have run (as `BatchedPostUpdate`, before the physics step)."""
+
+    @classmethod
+    def pre_update_all(cls, systems: Sequence[Any], info: UpdateInfo) -> None: ...
 
 
 @runtime_checkable

@@ -50,33 +50,42 @@ lowest point of its proxy or legs, up PROXY_HEIGHT), each as the rectangle holdi
 the obstacles' reach kept until the person has walked CACHE_SLACK. Bodies that move but have no
 plugin of their own (a trolley) are obstacles too, read where they stand at each update. Robots,
 the moving bodies with plugins (not actors): the same shadows, moved with the body; the force
-from the one rectangle holding them. Other people are discs of this person's radius, read from the physics. The jitter is
-drawn from this system's own random stream: lockstep runs repeat bit for bit. `set_pose` on the
-actor moves its route with it (its start where it was put); `reset` takes it back to its start.
+from the one rectangle holding them (`simbot.sim.kit.crowd_view` sorts them). Other people are
+discs of this person's radius, read from the physics, their velocities from where they stood at this
+person's last update (none at the first after a model entered or left). The jitter is drawn from
+this system's own random stream: lockstep runs repeat bit for bit.
+
+A world's people are stepped together (`pre_update_all`): the bodies are read once a step for all
+of them, and those due update their forces in one pass of the kit's arrays, each with its own
+parameters, so that what a person costs falls as the crowd grows (docs/speed.md, "The crowd").
+`set_pose` on the actor moves its route with it (its start where it was put); `reset` takes it
+back to its start.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from collections.abc import Sequence
 
 import numpy as np
 
 from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import PROXY_HEIGHT, ActorModel, Script, is_actor
 from simbot.description.crowd_params import read_crowd
-from simbot.description.footprints import collision_boxes, reaches_into
+from simbot.description.footprints import collision_boxes
 from simbot.description.model import Model
 from simbot.description.plugin_params import bool_param
+from simbot.sim.kit.crowd_view import Band, Poses, View
 from simbot.sim.kit.social_force import (
     Boxes,
-    Crowd,
     Floats,
+    Ints,
+    Params,
+    People,
     Route,
     Surroundings,
-    Walker,
-    acceleration,
-    detour,
+    accelerations,
+    detours,
     kept_clear,
     outside,
     steered,
@@ -85,7 +94,6 @@ from simbot.sim.kit.social_force import (
 from simbot.sim.kit.waypoints import waypoints
 from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
-from simbot.sim.physics.protocols import WorldAccess
 from simbot.transform import Transform, yaw_quaternion
 
 MOVED_TOLERANCE = 1e-4
@@ -109,104 +117,6 @@ def script_route(script: Script, frame: Transform) -> tuple[list[tuple[float, fl
     return [(p[0], p[1]) for p in points], (length / duration if duration > 0 and length > 0 else None)
 
 
-def shadows(model: Model, low: float, high: float) -> Boxes:
-    """The rectangles holding the shadows of the model's collisions that reach from `low` to `high`
-    (heights in the model's frame), in the model's frame."""
-    rectangles = []
-    for _, _, corners in collision_boxes(model):
-        if not reaches_into(corners, low, high):
-            continue
-        along, across = corners[4] - corners[0], corners[2] - corners[0]
-        if abs(along[2]) < 1e-9 and abs(across[2]) < 1e-9:  # upright: its own rectangle
-            centre = corners.mean(axis=0)
-            yaw = math.atan2(along[1], along[0])
-            rectangles.append((centre[0], centre[1], yaw, np.hypot(*along[:2]) / 2, np.hypot(*across[:2]) / 2))
-        else:  # tilted (a wheel): the axis-aligned box holding it
-            (x0, y0), (x1, y1) = corners[:, :2].min(axis=0), corners[:, :2].max(axis=0)
-            rectangles.append(((x0 + x1) / 2, (y0 + y1) / 2, 0.0, (x1 - x0) / 2, (y1 - y0) / 2))
-    return Boxes.of(rectangles)
-
-
-def _planar(pose: Transform) -> tuple[float, float, float]:
-    return pose.position[0], pose.position[1], pose.yaw
-
-
-class _World:
-    """What one person sees of the others: their names by kind, the static shadows, the robots' own."""
-
-    def __init__(self, physics: WorldAccess, me: str, low: float, high: float) -> None:
-        self._physics, self._me, self._low, self._high = physics, me, low, high
-        self._names: tuple[str, ...] = ()
-        self.people: list[str] = []
-        self.robots: dict[str, Boxes] = {}
-        self.movables: dict[str, Boxes] = {}
-        self.obstacles = Boxes.of([])
-        self._seen: dict[str, Floats] = {}
-        self._outlines: dict[str, Boxes] = {}
-        self._near = self.obstacles
-        self._near_at: Floats | None = None
-
-    def refresh(self) -> bool:
-        """Sorts the bodies again when the world's set of them has changed (a model created or
-        removed): whether it had."""
-        names = tuple(self._physics.body_names())
-        if names == self._names:
-            return False
-        self._names, self._near_at = names, None
-        moving = set(self._physics.moving_bodies())
-        self.people, self.robots, self.movables, self._outlines, static = [], {}, {}, {}, []
-        for name in names:
-            model = self._physics.model_of(name)
-            if isinstance(model, ActorModel):
-                if name != self._me:
-                    self.people.append(name)
-                continue
-            pose = self._physics.model_pose(name)
-            boxes = shadows(model, self._low - pose.position[2], self._high - pose.position[2])
-            if name in moving and model.plugins and len(boxes):  # moves by itself, at the person's height
-                self.robots[name], self._outlines[name] = boxes, boxes.outline()
-            elif name in moving:
-                self.movables[name] = boxes
-            else:
-                static.append(boxes.placed(*_planar(pose)))
-        self.obstacles = Boxes.joined(static)
-        return True
-
-    def obstacles_near(self, point: Floats, reach: float) -> Boxes:
-        """The static shadows within `reach` of `point` (those within `reach` + CACHE_SLACK of where
-        they were last sorted, sorted again once the person is CACHE_SLACK from there), and the
-        movable bodies' where they stand now."""
-        if self._near_at is None or float(np.hypot(*(point - self._near_at))) > CACHE_SLACK:
-            self._near, self._near_at = self.obstacles.within(point, reach + CACHE_SLACK), point.copy()
-        if not self.movables:
-            return self._near
-        placed = [boxes.placed(*_planar(self._physics.model_pose(name))) for name, boxes in self.movables.items()]
-        return Boxes.joined([self._near, *(boxes.within(point, reach) for boxes in placed)])
-
-    def robots_at(self, names: list[str]) -> Boxes:
-        """The footprints of the robots `names` where they stand now."""
-        return Boxes.joined([self.robots[n].placed(*_planar(self._physics.model_pose(n))) for n in names])
-
-    def outlines_at(self, names: list[str]) -> Boxes:
-        """The outlines of the robots `names` where they stand now."""
-        return Boxes.joined([self._outlines[n].placed(*_planar(self._physics.model_pose(n))) for n in names])
-
-    def around(self, point: Floats, crowd: Crowd, dt: float, margin: float) -> tuple[Surroundings, list[str]]:
-        """The people (their velocities from where they were `dt` s ago), the obstacles and the robots'
-        outlines near `point` (no footprints: the robots within `margin` of it, the names returned,
-        are kept clear at every step), and the robots whose outlines lie within `margin` of it."""
-        reach = crowd.reach
-        now = {name: np.array(self._physics.model_pose(name).position[:2]) for name in self.people}
-        close = [name for name, at in now.items() if float(np.hypot(*(at - point))) <= reach]
-        people = np.array([now[name] for name in close]).reshape(-1, 2)
-        motions = np.array([(now[n] - self._seen[n]) / dt if n in self._seen else np.zeros(2) for n in close])
-        self._seen = now
-        outlines = self.outlines_at(list(self.robots))
-        touching = [name for name, gap in zip(self.robots, outlines.nearest(point)[0]) if gap < margin]
-        near = self.obstacles_near(point, crowd.obstacle_reach)
-        return Surroundings(people, motions.reshape(-1, 2), near, Boxes.of([]), outlines.within(point, reach)), touching
-
-
 def _height(model: Model, frame: Transform) -> tuple[float, float]:
     """The world heights a person takes up: from its soles (the lowest point of its collisions, the
     proxy's or the legs' of an animated skin, as they stand in the SDF; else its frame) up PROXY_HEIGHT."""
@@ -216,7 +126,8 @@ def _height(model: Model, frame: Transform) -> tuple[float, float]:
 
 
 class SocialForce:
-    """See the module docstring."""
+    """See the module docstring. The loop steps a world's people together (`pre_update_all`): they
+    think in one pass of the kit's arrays, each with its own parameters, route and random stream."""
 
     name = "SocialForce"
     drives_actor = True
@@ -240,62 +151,98 @@ class SocialForce:
             raise SystemConfigError(f"actor {self._actor!r}: {exc}; it walks its script") from None
         self._initial_route = Route.of(listed or points or [start.position[:2]], loop)
         self._height = self._initial_height = start.position[2]
-        self._initial = Walker(np.array(start.position[:2]), np.zeros(2), start.yaw)
-        self._initial_goal = self._initial_route.ahead(self._initial.position, self._crowd.waypoint_tolerance)
+        self._start = (np.array(start.position[:2]), start.yaw)
+        self._initial_goal = self._initial_route.ahead(self._start[0], self._crowd.waypoint_tolerance)
         self._physics, self._rng = ctx.physics, ctx.rng
-        self._world = _World(ctx.physics, self._actor, *_height(model, frame))
-        self._route, self._walker, self._goal, self._last_ns = self._initial_route, self._initial, self._initial_goal, 0
+        self._band = _height(model, frame)
+        self._view = View(ctx.physics)
+        """The world as its people see it: the first person's serves them all (`pre_update_all`)."""
         self._period_ns = max(1, round(1e9 / self._crowd.update_rate))
-        self._anchor, self._touching = self._initial.position, list[str]()
+        self._seen: tuple[tuple[str, ...], Floats] = ((), np.zeros((0, 2)))
+        """Whom it saw at its last think, and where."""
+        self._near: Ints = np.zeros(0, np.int64)
+        """The static shadows of its band within the obstacles' reach and CACHE_SLACK of `_near_at`."""
+        self._near_at: Floats | None = None
+        self._touching: list[str] = []
+        self._dt = 0.0
         self._thought_ns: int | None = None
+        self._restart(0)
+
+    def _restart(self, now_ns: int) -> None:
+        """At its start, at rest, its route as the SDF gives it."""
+        self._route, self._goal = self._initial_route, self._initial_goal
+        self._position, self._yaw = self._start[0].copy(), self._start[1]
+        self._velocity = np.zeros(2)
+        self._height, self._last_ns = self._initial_height, now_ns
+        self._anchor, self._thought_ns, self._touching = self._position, None, []
         self._put = self._place()
 
     def pre_update(self, info: UpdateInfo) -> None:
-        """One physics step: the forces again where an update is due (or the world changed), then
-        the position moved on with the velocity, kept clear of the robots, and the actor put there."""
-        dt = (info.sim_time_ns - self._last_ns) / 1e9
-        if info.paused or dt <= 0:
-            return
-        self._last_ns = info.sim_time_ns
-        self._follow_teleport()
-        changed = self._world.refresh()
-        if changed or self._thought_ns is None or info.sim_time_ns - self._thought_ns >= self._period_ns:
-            self._think(info.sim_time_ns)
-        walker, crowd = self._walker, self._crowd
-        position = walker.position + walker.velocity * dt
-        if self._touching:
-            position = outside(crowd, position, self._world.robots_at(self._touching))
-        self._walker = Walker(position, walker.velocity, turned(crowd, walker.yaw, walker.velocity, dt))
-        self._put = self._place()
+        type(self).pre_update_all([self], info)
 
-    def _think(self, now_ns: int) -> None:
-        """The social force from where everyone stands now, the velocity steered by it over the update
-        period (semi-implicit Euler), the person put back outside people and obstacles."""
-        crowd, period = self._crowd, self._period_ns / 1e9
-        span = period if self._thought_ns is None else (now_ns - self._thought_ns) / 1e9
+    @classmethod
+    def pre_update_all(cls, people: Sequence[SocialForce], info: UpdateInfo) -> None:
+        """One physics step of a world's people: the forces again for those due (or all, where the
+        world changed), in one pass; then every position moved on with its velocity, kept clear of
+        the robots, and each actor put there."""
+        walking = [person for person in people if person._ticked(info)]
+        if not walking:
+            return
+        view, physics = walking[0]._view, walking[0]._physics
+        for person in walking:
+            person._view = view
+            person._follow_teleport()
+        poses = Poses(physics)
+        changed = view.refresh(tuple(physics.body_names()))
+        if changed:
+            for person in walking:
+                person._near_at = None
+        due = [person for person in walking if changed or person._due(info.sim_time_ns)]
+        if due:
+            _think(due, info.sim_time_ns, poses)
+        _walk(walking, poses)
+
+    def _ticked(self, info: UpdateInfo) -> bool:
+        """Whether sim time moved on since this person's last step (its `_dt`, s)."""
+        self._dt = (info.sim_time_ns - self._last_ns) / 1e9
+        if info.paused or self._dt <= 0:
+            return False
+        self._last_ns = info.sim_time_ns
+        return True
+
+    def _due(self, now_ns: int) -> bool:
+        return self._thought_ns is None or now_ns - self._thought_ns >= self._period_ns
+
+    def _span(self, now_ns: int) -> float:
+        """Seconds since its last think (an update period at the first), now its last."""
+        span = self._period_ns / 1e9 if self._thought_ns is None else (now_ns - self._thought_ns) / 1e9
         self._thought_ns = now_ns
-        walker = replace(self._walker, velocity=(self._walker.position - self._anchor) / span)
-        around, self._touching = self._world.around(walker.position, crowd, span, crowd.radius + CLOSING_SPEED * period)
-        self._goal = self._route.after(self._goal, walker.position, crowd.waypoint_tolerance)
-        goal = self._route.points[self._goal]
-        heading = detour(crowd, walker.position, goal, around.outlines)
-        arriving = self._route.arriving(self._goal) and heading is goal
-        accel = acceleration(crowd, walker, heading, arriving, around)
-        kick = self._rng.standard_normal(2) * (crowd.noise * math.sqrt(span))
-        velocity = steered(crowd, walker.velocity, accel, span, kick)
-        position = kept_clear(crowd, walker.position, around)
-        self._walker, self._anchor = replace(walker, position=position, velocity=velocity), position
+        return span
+
+    def _static_near(self, band: Band) -> Boxes:
+        """The static shadows near it: those within the obstacles' reach and CACHE_SLACK of where they
+        were last sorted, sorted again once it has walked CACHE_SLACK from there."""
+        point = self._position
+        if self._near_at is None or float(np.hypot(*(point - self._near_at))) > CACHE_SLACK:
+            reach = self._crowd.obstacle_reach + CACHE_SLACK
+            self._near, self._near_at = np.flatnonzero(band.obstacles.within(point, reach)), point.copy()
+        return band.obstacles.take(self._near)
+
+    def _motions(self, names: tuple[str, ...], at: Floats, span: float) -> Floats:
+        """Each of `names`' velocity since this person last looked, where they stand `at` now (none
+        at its first look, or the first after a model entered or left)."""
+        motions = (at - self._seen[1]) / span if self._seen[0] == names else np.zeros_like(at)
+        self._seen = (names, at)
+        return motions
 
     def reset(self, info: UpdateInfo) -> None:
         """Back at its start, at rest, its route as the SDF gives it."""
-        self._route, self._walker, self._goal = self._initial_route, self._initial, self._initial_goal
-        self._height, self._last_ns = self._initial_height, info.sim_time_ns
-        self._anchor, self._thought_ns, self._touching = self._initial.position, None, []
-        self._put = self._place()
+        self._seen, self._near_at = ((), np.zeros((0, 2))), None
+        self._restart(info.sim_time_ns)
 
     def _place(self) -> Transform:
-        (x, y), yaw = self._walker.position, self._walker.yaw
-        pose = Transform((float(x), float(y), self._height), yaw_quaternion(yaw))
+        (x, y), yaw = self._position, self._yaw
+        pose = Transform((float(x), float(y), self._height), yaw_quaternion(float(yaw)))
         self._physics.set_model_pose(self._actor, pose)
         return pose
 
@@ -304,7 +251,87 @@ class SocialForce:
         now = self._physics.model_pose(self._actor)
         if math.dist(now.position, self._put.position) <= MOVED_TOLERANCE:
             return
-        shift = np.array(now.position[:2]) - self._walker.position
+        shift = np.array(now.position[:2]) - self._position
         self._route = Route(self._route.points + shift, self._route.loop)
-        self._walker = Walker(np.array(now.position[:2]), np.zeros(2), now.yaw)
-        self._anchor, self._thought_ns, self._height = self._walker.position, None, now.position[2]
+        self._position, self._velocity, self._yaw = np.array(now.position[:2]), np.zeros(2), now.yaw
+        self._anchor, self._thought_ns, self._height = self._position, None, now.position[2]
+        self._near_at = None
+
+
+def _pairs(parts: list[Boxes]) -> tuple[Boxes, Ints]:
+    """The rectangles of every person's `parts` in one, and the person each is for."""
+    return Boxes.joined(parts), np.repeat(np.arange(len(parts)), [len(part) for part in parts])
+
+
+def _surroundings(people: list[SocialForce], positions: Floats, spans: Floats, poses: Poses) -> Surroundings:
+    """What each of `people` keeps its distance from: the others (their velocities since each last
+    looked), the shadows near it and the robots' outlines within its reach; each one's robots within
+    the radius and CLOSING_SPEED for an update period are kept clear at every step (`_touching`)."""
+    view = people[0]._view
+    bands = [view.band(*person._band) for person in people]
+    placed = {
+        key: (band.outlines_at(poses), band.movables_at(poses)) for key, band in {id(b): b for b in bands}.items()
+    }
+    names = view.people
+    others = poses.frames(list(names))[:, :2]
+    motions = np.stack([person._motions(names, others, span) for person, span in zip(people, spans)])
+    seen = np.ones((len(people), len(names)), bool)
+    seen[np.arange(len(people)), [names.index(person._actor) for person in people]] = False
+    statics, static_of = _pairs([person._static_near(band) for person, band in zip(people, bands)])
+    movables, movable_of = _pairs([placed[id(band)][1] for band in bands])
+    reach = np.array([person._crowd.obstacle_reach for person in people])
+    movables = movables.take(keep := movables.within(positions[movable_of], reach[movable_of]))
+    outlines, outline_of = _pairs([placed[id(band)][0] for band in bands])
+    gaps, _ = outlines.nearest(positions[outline_of])
+    margins = np.array([p._crowd.radius + CLOSING_SPEED * p._period_ns / 1e9 for p in people])[outline_of]
+    robots = [name for band in bands for name in band.robots]
+    for k, person in enumerate(people):
+        person._touching = [robots[i] for i in np.flatnonzero((outline_of == k) & (gaps < margins))]
+    near = outlines.within(positions[outline_of], np.array([p._crowd.reach for p in people])[outline_of])
+    return Surroundings(
+        others,
+        motions,
+        seen,
+        Boxes.joined([statics, movables]),
+        np.concatenate([static_of, movable_of[keep]]),
+        outlines.take(near),
+        outline_of[near],
+    )
+
+
+def _think(people: list[SocialForce], now_ns: int, poses: Poses) -> None:
+    """The social force on each of `people` from where everyone stands now, each velocity steered by
+    it over its update period (semi-implicit Euler), each put back outside people and obstacles."""
+    params = Params.of(tuple(person._crowd for person in people))
+    spans = np.array([person._span(now_ns) for person in people])
+    positions = np.array([person._position for person in people])
+    velocities = (positions - np.array([person._anchor for person in people])) / spans[:, None]
+    around = _surroundings(people, positions, spans, poses)
+    for person in people:
+        person._goal = person._route.after(person._goal, person._position, person._crowd.waypoint_tolerance)
+    goals = np.array([person._route.points[person._goal] for person in people])
+    headings, detoured = detours(params, positions, goals, around.outlines, around.outline_of)
+    arriving = np.array([person._route.arriving(person._goal) for person in people]) & ~detoured
+    accel = accelerations(params, People(positions, velocities, np.zeros(len(people))), headings, arriving, around)
+    kicks = np.array([p._rng.standard_normal(2) * (p._crowd.noise * math.sqrt(span)) for p, span in zip(people, spans)])
+    velocities = steered(params, velocities, accel, spans, kicks)
+    positions = kept_clear(params, positions, around)
+    for person, position, velocity in zip(people, positions, velocities):
+        person._position, person._velocity, person._anchor = position, velocity, position
+
+
+def _walk(people: list[SocialForce], poses: Poses) -> None:
+    """Each of `people` on by its velocity over its step, out of the robots it is near, turned
+    towards its velocity, and put there."""
+    params = Params.of(tuple(person._crowd for person in people))
+    dts = np.array([person._dt for person in people])
+    velocities = np.array([person._velocity for person in people])
+    positions = np.array([person._position for person in people]) + velocities * dts[:, None]
+    yaws = turned(params, np.array([person._yaw for person in people]), velocities, dts)
+    for k, person in enumerate(people):
+        position = positions[k : k + 1]
+        if person._touching:
+            footprints = person._view.band(*person._band).footprints_at(person._touching, poses)
+            position = outside(params.radius[k : k + 1], position, footprints, np.zeros(len(footprints), np.int64))
+        person._position, person._yaw = position[0], float(yaws[k])
+        person._put = person._place()
