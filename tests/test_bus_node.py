@@ -452,3 +452,32 @@ def test_a_request_sees_every_subscriber_declared_before_it() -> None:
             subscriber.close()
         control.undeclare()
     assert seen == [True] * 50
+
+
+def _threads() -> int:
+    """Every thread of this process, Zenoh's and Python's alike."""
+    return len(os.listdir("/proc/self/task"))
+
+
+def test_a_fleets_publishers_and_inboxes_start_no_thread_each_and_still_hear_their_peers() -> None:
+    """A server's publisher learns of subscribers through a matching listener and its inbox only
+    queues: both run on Zenoh's own threads, so a hundred of them start no thread of their own
+    (zenoh-python's default starts one a callback: 28 a tug, 28 000 for a thousand). The news
+    still arrives: a subscriber makes the publishers match, and a put reaches every inbox."""
+    with node_pair() as pair:
+        before = _threads()
+        publishers = [pair.server.publisher(f"tug_{k}/odom", TWIST) for k in range(100)]
+        inboxes = [pair.server.inbox(f"tug_{k}/cmd_vel", TWIST) for k in range(100)]
+        latched = [pair.server.publisher(f"tug_{k}/robot_description", STRING, latched=True) for k in range(10)]
+        assert _threads() - before <= 2, f"{_threads() - before} threads for 210 declarations"
+        pair.client.subscribe("tug_7/odom", TWIST, lambda msg: None)
+        wait_until(lambda: publishers[7].refresh() and publishers[7].has_subscribers, what="tug_7's subscriber")
+        assert not publishers[8].has_subscribers
+        senders = [pair.client.publisher(f"tug_{k}/cmd_vel", TWIST) for k in (3, 99)]
+        for sender in senders:
+            wait_until(lambda sender=sender: sender.has_subscribers, what="the server's inbox")
+            sender.put(m.twist((0.5, 0.0, 0.0), (0.0, 0.0, 0.0)))
+        wait_until(lambda: inboxes[3].received == 1 and inboxes[99].received == 1, what="both commands")
+        latched[4].put(m.string("<robot/>"))
+        replies = list(pair.client.session.get(latched[4].data_key, timeout=2.0))
+        assert [reply.ok is not None for reply in replies] == [True]

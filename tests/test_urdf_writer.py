@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from pathlib import Path
@@ -139,3 +140,17 @@ def test_a_link_that_names_its_sensor_frame_has_its_urdf_frame_at_the_sensor(tmp
         cylinder = frame @ _origin(urdf.link_map[name].collisions[0])
         sdf_link = model.link(name)
         assert np.allclose(cylinder, sdf_link.pose.matrix() @ sdf_link.collisions[0].pose.matrix(), atol=1e-9), name
+
+
+def test_a_fleets_tugs_share_one_writing_of_their_model_and_a_changed_model_is_written_anew() -> None:
+    """A thousand tugs are one Model object: its URDF is written once (simbot.description.model_memo)
+    and handed to each; an equal model read again, or one changed, is written for itself."""
+    tug = load_model(ROBOT_SDF)
+    first = model_to_urdf(tug, mesh_uris=True)
+    assert model_to_urdf(tug, mesh_uris=True) is first
+    assert model_to_urdf(tug) is not first, "other arguments: another writing"
+    again = load_model(ROBOT_SDF)
+    assert again is not tug and model_to_urdf(again, mesh_uris=True) == first
+    other = dataclasses.replace(tug, name="tug_other")
+    assert '<robot name="tug_other">' in model_to_urdf(other, mesh_uris=True)
+    assert '<robot name="tug_other">' not in first

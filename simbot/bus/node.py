@@ -44,7 +44,7 @@ from simbot.bus.forks import check_fork_safe, zenoh_starts
 from simbot.bus.graph import Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
-from simbot.bus.publisher import Publisher, Route
+from simbot.bus.publisher import Publisher, Route, direct
 from simbot.bus.rmw import AttachmentError, EntityKind, NodeName, Qos, parse_attachment
 from simbot.bus.services import (
     JSON_ENCODING,
@@ -192,7 +192,7 @@ class Inbox:
         self._foreign: set[str] = set()
         self._queue: deque[bytes | Refused] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
-        self._subscriber = session.declare_subscriber(pattern, self._on_sample)
+        self._subscriber = session.declare_subscriber(pattern, direct(self._on_sample))  # it only queues
         self._announcement = Announcement(session, route.token) if route.token else None
 
     def _on_sample(self, sample: zenoh.Sample) -> None:

@@ -9,6 +9,7 @@ states (`urdf_writer` rounds to 12 digits): what PyBullet and a ROS host read.
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from collections.abc import Collection
 from dataclasses import dataclass
@@ -49,7 +50,9 @@ class KinematicTree:
     joints: tuple[UrdfJoint, ...]
 
     @staticmethod
+    @functools.lru_cache(maxsize=64)
     def of_urdf(urdf: str) -> KinematicTree:
+        """The tree of a URDF's text (kept: a fleet's tugs share one)."""
         root = ET.fromstring(urdf)
         return KinematicTree(
             tuple(link.get("name", "") for link in root.iter("link")),

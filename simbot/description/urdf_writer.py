@@ -67,6 +67,7 @@ from simbot.description.model import (
     Sphere,
     Visual,
 )
+from simbot.description.model_memo import per_model
 from simbot.description.poses import IDENTITY, Pose, Vec3
 from simbot.description.stand_in_meshes import needs_stand_in, stand_in
 from simbot.transform import matmul, matrix_to_rpy, norm
@@ -436,6 +437,7 @@ def sdf_joint(urdf_joint: str) -> str:
     return urdf_joint.split("__", 1)[0]
 
 
+@per_model
 def model_to_urdf(
     model: Model, mesh_dir: Path | None = None, generated_dir: Path | None = None, *, mesh_uris: bool = False
 ) -> str:
@@ -447,6 +449,7 @@ def model_to_urdf(
     return _text(model, _build(model, mesh_dir, generated_dir, mesh_uris))
 
 
+@per_model
 def model_to_urdf_held(model: Model, held: Collection[str], generated_dir: Path | None = None) -> tuple[str, str]:
     """(URDF text of `model`, the same with the joints `held` (SDF names) written fixed), from one
     writing of it: every part of a held joint keeps its name, links and axis, so a simulator loads

@@ -41,6 +41,7 @@ from simbot.description.model import (
     Polyline,
     Sphere,
 )
+from simbot.description.model_memo import per_model
 from simbot.description.poses import IDENTITY, Pose
 from simbot.description.stand_in_meshes import needs_stand_in, stand_in
 from simbot.description.urdf_writer import in_urdf_link, plane_box, shape_origin
@@ -71,21 +72,40 @@ class Part:
 
 def body_parts(body: Body, folder: Path) -> list[Part]:
     """The triangles of every collision of the body's model, grouped by PyBullet link (each in the
-    URDF frame of its host, `Body.hosts`); meshes generated for them go to `folder`."""
+    URDF frame of its host, `Body.hosts`); meshes generated for them go to `folder`. Worked out once
+    for every body of one model loaded alike (a fleet's tugs), the arrays shared and read-only."""
+    links = tuple(sorted(body.links.items()))
+    hosts = tuple(sorted(body.hosts.items()))
+    return [
+        Part(body.name, index, triangles, radius)
+        for index, triangles, radius in _parts(body.model, body.tree, links, hosts, folder)
+    ]
+
+
+@per_model
+def _parts(
+    model: Model,
+    tree: KinematicTree,
+    links: tuple[tuple[str, int], ...],
+    hosts: tuple[tuple[str, str], ...],
+    folder: Path,
+) -> list[tuple[int, Triangles, float]]:
+    """(PyBullet link index, triangles, bounding radius) of each link with collisions (`body_parts`)."""
+    index_of, host_of = dict(links), dict(hosts)
     by_index: dict[int, list[Triangles]] = {}
-    model = body.model
     for link in model.links:
-        if link.name not in body.links:
+        if link.name not in index_of:
             continue
-        host = _fixed_chain(body.tree, body.hosts.get(link.name, link.name), link.name) @ in_urdf_link(link)
+        host = _fixed_chain(tree, host_of.get(link.name, link.name), link.name) @ in_urdf_link(link)
         for collision in link.collisions:
             local = _collision_triangles(model, link, collision, folder)
             if local is not None and len(local):
-                by_index.setdefault(body.links[link.name], []).append(placed(local, host @ _origin(collision)))
+                by_index.setdefault(index_of[link.name], []).append(placed(local, host @ _origin(collision)))
     parts = []
     for index, pieces in sorted(by_index.items()):
         triangles = np.concatenate(pieces)
-        parts.append(Part(body.name, index, triangles, float(np.linalg.norm(triangles, axis=2).max())))
+        triangles.flags.writeable = False
+        parts.append((index, triangles, float(np.linalg.norm(triangles, axis=2).max())))
     return parts
 
 
