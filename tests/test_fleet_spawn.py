@@ -220,17 +220,39 @@ def test_duplicate_name_renamed_when_allowed_and_unknown_remove(fleet: SimServer
     assert reply["ok"] is False and reply["error"].startswith("name")
 
 
+def _graph_tokens(fleet: SimServer) -> list[list[str]]:
+    """Every rmw_zenoh liveliness token on the bus, split into its chunks."""
+    replies = fleet.node.session.liveliness().get("@ros2_lv/0/**", timeout=2.0)
+    return [str(reply.ok.key_expr).split("/") for reply in replies if reply.ok is not None]
+
+
+def _robot_node(fleet: SimServer, robot: str) -> tuple[str, list[str]] | None:
+    """(the node id, the topics it announces) of the node `robot` runs on the graph, or None."""
+    tokens = _graph_tokens(fleet)
+    scope = f"%{fleet.namespace}%{robot}"
+    nodes = [chunks[3] for chunks in tokens if chunks[5] == "NN" and chunks[7] == scope and chunks[8] == "simbot"]
+    if not nodes:
+        return None
+    return nodes[0], [chunks[9] for chunks in tokens if chunks[3] == nodes[0] and chunks[5] != "NN"]
+
+
 def test_remove_takes_its_keys_off_the_graph(fleet: SimServer) -> None:
-    """tug_9 removed: no key under tug_9/ nor its model/tug_9/pose is left; tug_8's keys are all there."""
+    """tug_9 removed: no key under tug_9/ nor its model/tug_9/pose is left, nor its node on the
+    graph (each tug is a node of its own, `/<ns>/tug_9/simbot`, announcing its topics); tug_8's
+    keys and node are all there."""
 
     def under(prefix: str) -> set[str]:
         return {e.key for e in discover(fleet.node.session, fleet.namespace) if f"/{prefix}/" in f"/{e.key}"}
 
     assert f"{fleet.namespace}/tug_9/cmd_vel" in under("tug_9")
+    node = _robot_node(fleet, "tug_9")
+    assert node is not None and f"%{fleet.namespace}%tug_9%cmd_vel" in node[1], node
     tug_8 = under("tug_8")
     assert fleet.call("remove", {"name": "tug_9"}) == {"ok": True, "name": "tug_9"}
     assert under("tug_9") == set()
+    assert _robot_node(fleet, "tug_9") is None
     assert under("tug_8") == tug_8
+    assert _robot_node(fleet, "tug_8") is not None
     assert "tug_9" not in fleet.state()["models"]
     fleet.step(10)
 

@@ -27,6 +27,7 @@ from simbot.bus.frames import with_frame_prefix
 from simbot.bus.keys import topic_key
 from simbot.bus.node import Inbox, Node, Publisher, Subscription
 from simbot.bus.options import BusOptions
+from simbot.bus.rmw import NodeName
 from simbot.bus.services import Queryable, Request, RosRequest, RosService
 
 log = logging.getLogger(__name__)
@@ -184,6 +185,7 @@ class LocalNode(Node):
         frame_prefix: str = "",
         announced: bool = True,
         watched_only: bool = False,
+        ros_node: NodeName | None = None,
     ) -> LocalPublisher:
         return LocalPublisher(self.hub, self.key(topic), checked_typename(msgtype), latched, frame_prefix)
 
@@ -196,15 +198,24 @@ class LocalNode(Node):
         message_type(typename)
         return LocalSubscription(self.hub, self.key(topic), callback)
 
-    def inbox(self, topic: str, typename: str, maxlen: int = 64) -> LocalInbox:
+    def inbox(self, topic: str, typename: str, maxlen: int = 64, ros_node: NodeName | None = None) -> LocalInbox:
         message_type(typename)
         return LocalInbox(self.hub, self.key(topic), maxlen)
 
     def queryable(self, key_suffix: str, capacity: int = 64) -> LocalQueryable:
         return LocalQueryable(self.key("/" + key_suffix.lstrip("/")))
 
-    def ros_service(self, name: str, typename: str, capacity: int = 64) -> LocalRosService:
+    def ros_service(
+        self, name: str, typename: str, capacity: int = 64, ros_node: NodeName | None = None
+    ) -> LocalRosService:
         return LocalRosService(self.key(name), typename)
+
+    def robot_node(self, namespace: str) -> NodeName:
+        """A name alone: nothing in one process is on a graph."""
+        return NodeName("local", 0, "/" + namespace, "simbot")
+
+    def release_robot_node(self, namespace: str) -> None:
+        """Nothing was announced."""
 
     def answering(self, key_suffix: str) -> None:
         """A lockstep barrier's key: no helper process can call it."""

@@ -265,6 +265,7 @@ class Node:
         namespace = "/" + "/".join(part for part in (self.namespace.strip("/"), self.robot_namespace) if part)
         self.ros_node = NodeName(str(self.session.info.zid()), 0, namespace, name or _node_name(role))
         self._node_token = Announcement(self.session, self.ros_node.token(self.graph))
+        self._robot_nodes: dict[str, tuple[NodeName, Announcement]] = {}
 
     def key(self, topic: str) -> str:
         """The Zenoh key of `topic` in this node's namespace. With a robot namespace, as ROS resolves
@@ -278,13 +279,34 @@ class Node:
         """The Zenoh key of `topic`'s samples of `typename`, for a plain Zenoh subscriber or put."""
         return self.graph.data_key(self.key(topic), typename)
 
-    def route(self, name: str, typename: str, kind: EntityKind | None, qos: Qos | None = None) -> Route:
-        """The route of an entity on topic or service `name` (as `key` gives it), announced as `kind` (None: not)."""
+    def route(
+        self, name: str, typename: str, kind: EntityKind | None, qos: Qos | None = None, node: NodeName | None = None
+    ) -> Route:
+        """The route of an entity on topic or service `name` (as `key` gives it), announced as `kind`
+        (None: not) by `node` (default: this session's own node on the graph)."""
         token = None
         if kind is not None:
             self._entity_ids += 1
-            token = self.ros_node.entity_token(self.graph, self._entity_ids, kind, name, typename, qos or Qos())
+            owner = node or self.ros_node
+            token = owner.entity_token(self.graph, self._entity_ids, kind, name, typename, qos or Qos())
         return Route(name, self.graph.data_key(name, typename), typename, token)
+
+    def robot_node(self, namespace: str) -> NodeName:
+        """A node of its own on the graph for the robot in `namespace` (`/tug_7/simbot`), announced
+        from the first call until `release_robot_node`: a fleet's entities grouped by robot, as each
+        robot would run its own node. (Zenoh declares a token in time that grows with its siblings:
+        measured, 1.7 ms for the 14 000th entity of one node, 0.04 ms with 28 a node.)"""
+        if namespace not in self._robot_nodes:
+            self._entity_ids += 1
+            scope = "/".join(part for part in (self.ros_node.namespace.strip("/"), namespace.strip("/")) if part)
+            node = NodeName(self.ros_node.zid, self._entity_ids, "/" + scope, self.ros_node.name)
+            self._robot_nodes[namespace] = (node, Announcement(self.session, node.token(self.graph)))
+        return self._robot_nodes[namespace][0]
+
+    def release_robot_node(self, namespace: str) -> None:
+        """The robot in `namespace` left: its node leaves the graph."""
+        if (held := self._robot_nodes.pop(namespace, None)) is not None:
+            held[1].close()
 
     def _keep(self, entity: _T) -> _T:
         self._entities.append(entity)
@@ -300,15 +322,17 @@ class Node:
         frame_prefix: str = "",
         announced: bool = True,
         watched_only: bool = False,
+        ros_node: NodeName | None = None,
     ) -> Publisher:
         """A publisher on `topic` of `msgtype` (a `messages` class or a ROS 2 type name); `latched`
         serves the latest message to late joiners (TRANSIENT_LOCAL), `drop=False` blocks (RELIABLE);
         `frame_prefix` puts the frames of what it sends under a robot's namespace; `announced=False`:
         the key's owner announces it (a server's render worker puts what the server announces);
-        `watched_only`: a put no subscriber matches is neither encoded nor sent (the server's)."""
+        `watched_only`: a put no subscriber matches is neither encoded nor sent (the server's);
+        `ros_node`: the node on the graph that announces it (default: this session's)."""
         typename = checked_typename(msgtype)
         qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
-        route = self.route(self.key(topic), typename, "MP" if announced else None, qos)
+        route = self.route(self.key(topic), typename, "MP" if announced else None, qos, ros_node)
         publisher = Publisher(
             self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix, watched_only=watched_only
         )
@@ -339,11 +363,12 @@ class Node:
         self._heard(route.name)
         return self._keep(subscription)
 
-    def inbox(self, topic: str, typename: str, maxlen: int = 64) -> Inbox:
-        """Raw payloads of `topic` (announced as `typename`), for a loop that decodes and counts them itself."""
+    def inbox(self, topic: str, typename: str, maxlen: int = 64, ros_node: NodeName | None = None) -> Inbox:
+        """Raw payloads of `topic` (announced as `typename` by `ros_node`, default this session's
+        node), for a loop that decodes and counts them itself."""
         message_type(typename)
         name = self.key(topic)
-        route = self.route(name, typename, "MS")
+        route = self.route(name, typename, "MS", node=ros_node)
         inbox = Inbox(self.session, route, self.graph.type_suffix(typename), self.graph.any_type_key(name), maxlen)
         self._heard(name)
         return self._keep(inbox)
@@ -352,10 +377,11 @@ class Node:
         """A JSON service at `key_suffix` (in the namespace), polled by the simulation loop."""
         return self._keep(Queryable(self.session, self.key("/" + key_suffix.lstrip("/")), capacity))
 
-    def ros_service(self, name: str, typename: str, capacity: int = 64) -> RosService:
+    def ros_service(self, name: str, typename: str, capacity: int = 64, ros_node: NodeName | None = None) -> RosService:
         """A ROS 2 service `name` (in the namespace) of service type `typename` (`std_srvs/srv/Empty`),
-        on rmw_zenoh's key and the graph, polled by the simulation loop."""
-        route = self.route(self.key("/" + name.lstrip("/")), typename, "SS")
+        on rmw_zenoh's key and the graph (announced by `ros_node`, default this session's node),
+        polled by the simulation loop."""
+        route = self.route(self.key("/" + name.lstrip("/")), typename, "SS", node=ros_node)
         assert route.token is not None  # announced: kind SS
         return self._keep(RosService(self.session, route.name, route.key, typename, route.token, capacity))
 

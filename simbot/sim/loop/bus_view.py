@@ -17,6 +17,7 @@ from typing import Any
 from simbot.bus import DecodeError, Node, Publisher, RosService, decode
 from simbot.bus.frames import prefixed_frame
 from simbot.bus.node import Refused, WarningPolicy
+from simbot.bus.rmw import NodeName
 
 log = logging.getLogger(__name__)
 
@@ -50,9 +51,17 @@ Check = Callable[[Any], "str | None"]
 class Input:
     """Commands on one key: queued by the bus, decoded and checked in the loop; bad ones dropped and counted."""
 
-    def __init__(self, node: Node, drops: Drops, topic: str, typename: str, check: Check | None = None) -> None:
+    def __init__(
+        self,
+        node: Node,
+        drops: Drops,
+        topic: str,
+        typename: str,
+        check: Check | None = None,
+        ros_node: NodeName | None = None,
+    ) -> None:
         self.key = node.key(topic)
-        self._inbox = node.inbox(topic, typename)
+        self._inbox = node.inbox(topic, typename, ros_node=ros_node)
         self._drops = drops
         self._typename = typename
         self._check = check
@@ -103,12 +112,16 @@ class SimBus:
     drops: Drops = field(default_factory=Drops)
     inputs: list[Input] = field(default_factory=list)
     namespace: str = ""
+    ros_node: NodeName | None = None
+    """The robot's own node on the graph, which announces what this view declares (None: the server's)."""
     _declared: list[Publisher | Input | RosService] = field(default_factory=list)
 
     def scoped(self, namespace: str) -> SimBus:
-        """A view for one model's systems (`namespace` empty: the world's keys and frames); shares
-        the dropped-input counters and the list of inputs world state reports."""
-        return SimBus(self.node, self.drops, self.inputs, namespace)
+        """A view for one model's systems (`namespace` empty: the world's keys and frames; else a
+        robot's, announced by a node of its own); shares the dropped-input counters and the list of
+        inputs world state reports."""
+        robot = self.node.robot_node(namespace) if namespace else None
+        return SimBus(self.node, self.drops, self.inputs, namespace, robot)
 
     def topic(self, topic: str) -> str:
         return f"{self.namespace}/{topic}" if self.namespace else topic
@@ -123,19 +136,24 @@ class SimBus:
         that encodes and sends nothing while no subscriber matches it (its system can ask
         `has_subscribers` before it builds a message)."""
         publisher = self.node.publisher(
-            self.topic(topic), msgtype, latched=latched, frame_prefix=self.namespace, watched_only=True
+            self.topic(topic),
+            msgtype,
+            latched=latched,
+            frame_prefix=self.namespace,
+            watched_only=True,
+            ros_node=self.ros_node,
         )
         self._declared.append(publisher)
         return publisher
 
     def ros_service(self, name: str, typename: str) -> RosService:
         """A ROS 2 service (`std_srvs/srv/Empty`...) at `name` in this view, polled by its system."""
-        service = self.node.ros_service(self.topic(name), typename)
+        service = self.node.ros_service(self.topic(name), typename, ros_node=self.ros_node)
         self._declared.append(service)
         return service
 
     def input(self, topic: str, typename: str, check: Check | None = None) -> Input:
-        self.inputs.append(Input(self.node, self.drops, self.topic(topic), typename, check))
+        self.inputs.append(Input(self.node, self.drops, self.topic(topic), typename, check, self.ros_node))
         self._declared.append(self.inputs[-1])
         return self.inputs[-1]
 
@@ -146,3 +164,5 @@ class SimBus:
             if isinstance(entity, Input):
                 self.inputs.remove(entity)
         self._declared.clear()
+        if self.ros_node is not None:
+            self.node.release_robot_node(self.namespace)
