@@ -17,9 +17,10 @@ overridden and no Zenoh session behind it, so that code typed for the bus takes 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from simbot.bus.codec import checked_typename, decode, message_type
@@ -191,6 +192,11 @@ class LocalNode(Node):
 
     def refresh_subscribers(self) -> None:
         """A local listener is known the moment it listens."""
+
+    @contextlib.contextmanager
+    def listening_later(self) -> Iterator[None]:
+        """Nothing to put off: a local listener is known the moment it listens."""
+        yield
 
     def subscribe(
         self, topic: str, typename: str, callback: Callable[[Any], None], *, latched: bool = False

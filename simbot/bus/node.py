@@ -25,6 +25,7 @@ loop, which drains them between steps.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -32,7 +33,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, Literal, Protocol, TypeVar
 
@@ -266,6 +267,8 @@ class Node:
         self.ros_node = NodeName(str(self.session.info.zid()), 0, namespace, name or _node_name(role))
         self._node_token = Announcement(self.session, self.ros_node.token(self.graph))
         self._robot_nodes: dict[str, tuple[NodeName, Announcement]] = {}
+        self._unheard: list[Publisher] | None = None
+        """Publishers that listen for subscribers at the end of `listening_later`."""
 
     def key(self, topic: str) -> str:
         """The Zenoh key of `topic` in this node's namespace. With a robot namespace, as ROS resolves
@@ -334,11 +337,31 @@ class Node:
         qos = Qos(reliable=not drop or latched, transient_local=latched, depth=1 if latched else 10)
         route = self.route(self.key(topic), typename, "MP" if announced else None, qos, ros_node)
         publisher = Publisher(
-            self.session, route, latched=latched, drop=drop, frame_prefix=frame_prefix, watched_only=watched_only
+            self.session,
+            route,
+            latched=latched,
+            drop=drop,
+            frame_prefix=frame_prefix,
+            watched_only=watched_only,
+            listening=self._unheard is None,
         )
+        if self._unheard is not None:
+            self._unheard.append(publisher)
         self._publishers.append(publisher)
         self._by_name.setdefault(route.name, []).append(publisher)
         return self._keep(publisher)
+
+    @contextlib.contextmanager
+    def listening_later(self) -> Iterator[None]:
+        """The publishers declared within follow who subscribes from its end (`Publisher.listen`):
+        a server builds its world's thousand tugs, then listens."""
+        self._unheard = []
+        try:
+            yield
+        finally:
+            unheard, self._unheard = self._unheard, None
+            for publisher in unheard:
+                publisher.listen()
 
     def refresh_subscribers(self) -> None:
         """Every publisher that knows of no subscriber asks Zenoh again (`Publisher.refresh`): world

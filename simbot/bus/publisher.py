@@ -60,7 +60,11 @@ class Publisher:
         drop: bool,
         frame_prefix: str = "",
         watched_only: bool = False,
+        listening: bool = True,
     ) -> None:
+        """`listening=False`: who listens is followed only after `listen`, taken to be someone
+        until then (a server declares its world's publishers first, then listens:
+        `Node.listening_later`)."""
         self.key = route.name
         self.data_key = route.key
         self.typename = route.typename
@@ -94,8 +98,18 @@ class Publisher:
             self._publisher = session.declare_publisher(
                 route.key, encoding=self._encoding, congestion_control=congestion
             )
-            self._listener = self._publisher.declare_matching_listener(direct(self._on_matching))
-            self._matching = _matching(self._publisher.matching_status)
+            if listening:
+                self.listen()
+
+    def listen(self) -> None:
+        """From now on Zenoh's matching listener says when a first subscriber comes and the last one
+        leaves (a plain publisher's; a latched one always serves). Zenoh matches every subscriber
+        declared later against every listener: a thousand tugs' publishers listening while their
+        inboxes are declared cost 7 ms an inbox, listening after them 0.2 ms a publisher (measured)."""
+        if self._listener is not None or not isinstance(self._publisher, zenoh.Publisher):
+            return
+        self._listener = self._publisher.declare_matching_listener(direct(self._on_matching))
+        self._matching = _matching(self._publisher.matching_status)
 
     def _on_matching(self, status: zenoh.MatchingStatus) -> None:
         """Zenoh thread: a first subscriber came, or the last one left. The news can come late, after

@@ -16,6 +16,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
+from typing import cast
 
 from simbot.sim.loop.system import (
     BatchedPostUpdate,
@@ -125,6 +126,21 @@ class Scheduled:
     priority: int
 
 
+_PHASES: dict[type, frozenset[type]] = {}
+"""Each system class's phase Protocols, looked at once a class."""
+
+
+def _phases(system: System) -> frozenset[type]:
+    """The phase Protocols `system`'s class implements, checked on its first instance: a runtime
+    Protocol's isinstance looks at every member, and a thousand tugs' 13 000 systems are ordered
+    again at each create."""
+    kind = type(system)
+    if kind not in _PHASES:
+        phases = (PreUpdate, BatchedPreUpdate, PostUpdate, BatchedPostUpdate, Periodic)
+        _PHASES[kind] = frozenset(phase for phase in phases if isinstance(system, phase))
+    return _PHASES[kind]
+
+
 def _joined(batches: dict[tuple[type, int], list[System]], system: System, priority: int) -> list[System] | None:
     """Adds `system` to its class's batch of `priority`; the batch where it is the first (it runs in
     its place), else None."""
@@ -167,16 +183,20 @@ class Simulation:
         post: dict[tuple[type, int], list[System]] = {}
         for entry in ordered:
             system = entry.system
-            if isinstance(system, BatchedPreUpdate):
+            phases = _phases(system)
+            if BatchedPreUpdate in phases:
                 if batch := _joined(pre, system, entry.priority):
-                    self._pre.append(functools.partial(type(system).pre_update_all, batch))
-            elif isinstance(system, PreUpdate):
-                self._pre.append(system.pre_update)
-            if isinstance(system, BatchedPostUpdate):
+                    self._pre.append(functools.partial(type(cast(BatchedPreUpdate, system)).pre_update_all, batch))
+            elif PreUpdate in phases:
+                self._pre.append(cast(PreUpdate, system).pre_update)
+            if BatchedPostUpdate in phases:
                 if batch := _joined(post, system, entry.priority):
-                    self._post.append((functools.partial(type(system).post_update_all, batch), None))
-            elif isinstance(system, PostUpdate):
-                self._post.append((system.post_update, system if isinstance(system, Periodic) else None))
+                    self._post.append(
+                        (functools.partial(type(cast(BatchedPostUpdate, system)).post_update_all, batch), None)
+                    )
+            elif PostUpdate in phases:
+                paced = cast(Periodic, system) if Periodic in phases else None
+                self._post.append((cast(PostUpdate, system).post_update, paced))
 
     def add_systems(self, systems: list[Scheduled]) -> None:
         """Systems join the loop (a created model's between steps: world control calls it from `poll`)."""

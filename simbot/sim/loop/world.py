@@ -151,7 +151,12 @@ class SimWorld:
 
     def _load(self, robot: Model | None, placements: list[Placement]) -> None:
         """The world's models and the robots into the physics, then every system into the loop;
-        the world systems hear of every model."""
+        the world systems hear of every model. Publishers follow who listens once all are built
+        (`Node.listening_later`)."""
+        with self.bus.node.listening_later():
+            self._load_all(robot, placements)
+
+    def _load_all(self, robot: Model | None, placements: list[Placement]) -> None:
         for model in self.description.models:
             self._place(model, model.name)
         if robot is not None:
