@@ -207,6 +207,20 @@ def test_bad_create_changes_nothing(fleet: SimServer, request_body: dict[str, An
     assert discover(fleet.node.session, fleet.namespace) == keys
 
 
+def test_a_tug_created_on_another_is_refused_naming_both_and_beside_it_is_made(fleet: SimServer) -> None:
+    """A create whose tug would stand on ground tug_5 takes up (0.3 m off it, its 2.1 × 0.5 m
+    chassis and wheels overlapping) is answered with an error naming both, and nothing is made;
+    one a metre beside tug_5 (half the spacing; the outline is the chassis, 2.1 × 0.5 m) is made, then removed."""
+    x, y, _ = fleet.pose("tug_5")[0]
+    request = {"sdf_filename": str(TUG_SDF), "name": "tug_over", "namespace": "tug_over", "pose": _pose(x + 0.3, y)}
+    reply = fleet.call("create", request, timeout=60.0)
+    assert reply["ok"] is False and "tug_over" in reply["error"] and "tug_5" in reply["error"], reply
+    assert "tug_over" not in fleet.state()["models"]
+    request["pose"] = _pose(x, y + SPACING / 2)
+    assert fleet.call("create", request, timeout=60.0) == {"ok": True, "name": "tug_over"}
+    assert fleet.call("remove", {"name": "tug_over"}) == {"ok": True, "name": "tug_over"}
+
+
 def test_duplicate_name_renamed_when_allowed_and_unknown_remove(fleet: SimServer) -> None:
     """allow_renaming gives mast_1 beside mast; remove of a name not in the world: ok false naming the field."""
     first = fleet.call("create", {"sdf": MAST, "name": "mast", "pose": _pose(-5.0, 0.0, MAST_HALF)})

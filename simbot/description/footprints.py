@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.model import Box, Capsule, Collision, Cone, Cylinder, Ellipsoid, Geometry, Link, Model, Sphere
+from simbot.description.model_memo import per_model
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
@@ -76,6 +77,21 @@ def collision_boxes(model: Model, placed: Floats | None = None) -> list[tuple[Li
             if corners is not None:
                 found.append((link, collision, corners))
     return found
+
+
+@per_model
+def outline(model: Model) -> Floats:
+    """The convex hull on the floor (k × 2, the model's frame) of the boxes holding its collisions:
+    the ground it takes up, which no other robot may be created on."""
+    corners = [corners[:, :2] for _, _, corners in collision_boxes(model)]
+    return convex_hull(np.concatenate(corners)) if corners else np.zeros((0, 2))
+
+
+def in_world(points: Floats, pose: Planar) -> Floats:
+    """`points` (k × 2, a body's frame) in the world with the body at `pose` (x, y, yaw)."""
+    x, y, yaw = pose
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.stack([x + c * points[:, 0] - s * points[:, 1], y + s * points[:, 0] + c * points[:, 1]], axis=1)
 
 
 def reaches_into(corners: Floats, low: float, high: float) -> bool:
@@ -143,10 +159,7 @@ class Rectangle:
 
     def placed(self, pose: Planar) -> Floats:
         """The corners (4 × 2, counter-clockwise) in the world with the body at `pose`."""
-        x, y, yaw = pose
-        c, s = math.cos(yaw), math.sin(yaw)
-        local = self.corners()
-        return np.stack([x + c * local[:, 0] - s * local[:, 1], y + s * local[:, 0] + c * local[:, 1]], axis=1)
+        return in_world(self.corners(), pose)
 
     @property
     def radius(self) -> float:

@@ -25,6 +25,8 @@ from typing import Any
 import numpy as np
 
 from simbot.description import DescriptionError, load_description
+from simbot.description.actor_scripts import is_actor
+from simbot.description.footprints import in_world, outline, overlap
 from simbot.description.model import Model, World
 from simbot.description.naming import scoped_key
 from simbot.description.poses import Pose
@@ -48,6 +50,11 @@ def load_robot(path: Path) -> Model:
     if not isinstance(description, Model):
         raise DescriptionError(path, "expected a robot model, found a world", "sdf")
     return description
+
+
+def _is_robot(model: Model) -> bool:
+    """A model that moves by plugins of its own (a tug), not a person."""
+    return bool(model.plugins) and not model.static and not is_actor(model)
 
 
 def _load_requested(request: CreateRequest) -> Model:
@@ -245,6 +252,8 @@ class SimWorld:
         field, with the world as it was."""
         model = _load_requested(request)
         name = self._free_name(request.name or model.name, request.allow_renaming)
+        if _is_robot(model):
+            self._check_clear(name, model, request.pose or model.pose)
         try:
             placed = self._place(model, name, request.pose, request.namespace)
         except (DescriptionError, ValueError) as exc:
@@ -260,6 +269,18 @@ class SimWorld:
         self._tell_added(placed)
         log.info("created %s%s", name, f" in namespace {request.namespace}" if request.namespace else "")
         return name
+
+    def _check_clear(self, name: str, model: Model, pose: Pose) -> None:
+        """ValueError naming both where the robot `name` at `pose` would stand on ground another
+        robot takes up (their collisions' outlines on the floor overlap)."""
+        mine = in_world(outline(model), (pose.xyz[0], pose.xyz[1], pose.rpy[2]))
+        for other in self.physics.body_names():
+            there = self.physics.model_of(other)
+            if _is_robot(there):
+                at = self.physics.model_pose(other)
+                if overlap(mine, in_world(outline(there), (at.position[0], at.position[1], at.yaw))):
+                    x, y = pose.xyz[0], pose.xyz[1]
+                    raise ValueError(f"pose: {name!r} at ({x:.2f}, {y:.2f}) would overlap the robot {other!r}")
 
     def _free_name(self, name: str, allow_renaming: bool) -> str:
         """`name`, or with allow_renaming the first free `name_1`, `name_2`, ... (as Gazebo renames)."""
