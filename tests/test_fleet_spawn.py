@@ -44,7 +44,9 @@ from server_helpers import (
 
 from simbot.bus import messages
 from simbot.bus.graph import discover
+from simbot.description.fleet import TUG_BYTES, WORLD_BYTES, too_many_for_memory
 from simbot.description.model import Scene
+from simbot.sim import server
 from simbot.transform import quaternion_to_matrix
 
 SCAN = "sensor_msgs/msg/LaserScan"
@@ -353,6 +355,26 @@ def test_robots_without_a_robot_is_a_usage_error() -> None:
         server_command("--robots", "2", "--robot", "none"), capture_output=True, text=True, timeout=60
     )
     assert result.returncode == 2 and "--robots" in result.stderr and "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("count", ["0", "-3"])
+def test_robots_zero_or_negative_is_one_line_naming_the_option(count: str) -> None:
+    result = subprocess.run(server_command("--robots", count), capture_output=True, text=True, timeout=60)
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and "--robots" in lines[-1] and "Traceback" not in result.stderr, result.stderr
+
+
+def test_robots_past_what_memory_allows_is_one_line_and_nothing_starts(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A thousand tugs need about 3 GiB (TUG_BYTES each, measured); with 1 GiB available the server
+    says so in one line, how many would fit, and exits 2 before it opens a bus or loads a model."""
+    assert too_many_for_memory(1000, 8 << 30) is None
+    monkeypatch.setattr(server, "available_memory", lambda: 1 << 30)
+    code = server.main(["--world", "empty", "--robots", "1000", "--physics", "kinematic", "--mode", "lockstep"])
+    err = capsys.readouterr().err.strip().splitlines()
+    fits = ((1 << 30) - WORLD_BYTES) // TUG_BYTES
+    assert code == 2 and len(err) == 1 and "--robots 1000" in err[0] and f"{fits} fit" in err[0], err
 
 
 # --- cameras while the world changes: a robot's front camera watched, then a tug and a box created

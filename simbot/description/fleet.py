@@ -27,6 +27,11 @@ COLUMN_SPACING = 5.0
 (over the boundary of two zones between them) stops short of the tug standing there."""
 MAX_FLEET = 1000
 """`--robots N` at most: a bound on a mistyped number, not a measured limit."""
+TUG_BYTES = 3 << 20
+"""Memory a kinematic tug with its full sensor set takes in its server (measured: 2.9 MB a tug
+between 20 and 220 tugs, AMD EPYC, 2026-12-03)."""
+WORLD_BYTES = 200 << 20
+"""A server's own memory before its robots (measured: 187 MB with 20 tugs in the empty world)."""
 NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
 """A zone's name: ROS name tokens joined by `/`, a prefix of keys."""
 
@@ -121,3 +126,15 @@ def check_zones(zones: Sequence[Zone], spots: Sequence[Spot]) -> None:
 def in_zone(spots: Sequence[Spot], band: Zone | None) -> list[Spot]:
     """The robots a zone server holds: those standing in its band (all of them without one)."""
     return [spot for spot in spots if band is None or band.holds(spot.x)]
+
+
+def too_many_for_memory(robots: int, available: int) -> str | None:
+    """Why `robots` tugs do not fit in `available` bytes (WORLD_BYTES and TUG_BYTES each), or None."""
+    needed = WORLD_BYTES + robots * TUG_BYTES
+    if needed <= available:
+        return None
+    fits = max(0, (available - WORLD_BYTES) // TUG_BYTES)
+    return (
+        f"--robots {robots}: a server needs about {needed / 2**30:.1f} GiB for them "
+        f"({TUG_BYTES >> 20} MiB a tug), and {available / 2**30:.1f} GiB is available: {fits} fit"
+    )
