@@ -481,3 +481,18 @@ def test_a_fleets_publishers_and_inboxes_start_no_thread_each_and_still_hear_the
         latched[4].put(m.string("<robot/>"))
         replies = list(pair.client.session.get(latched[4].data_key, timeout=2.0))
         assert [reply.ok is not None for reply in replies] == [True]
+
+
+def test_publishers_declared_while_a_world_loads_follow_who_listens_from_its_end() -> None:
+    """Within `listening_later` a publisher is taken to be watched (nothing publishes while a world
+    loads) and stays among those a step request refreshes; from its end it follows its subscribers:
+    none at first, then the one a client declares."""
+    with node_pair() as pair:
+        with pair.server.listening_later():
+            odom = pair.server.publisher("tug_1/odom", TWIST, watched_only=True)
+            assert odom.has_subscribers
+            pair.server.refresh_subscribers()
+        assert odom in pair.server._publishers, "dropped from the refresh before it listened"
+        wait_until(lambda: not odom.has_subscribers, what="no subscriber once it listens")
+        pair.client.subscribe("tug_1/odom", TWIST, lambda msg: None)
+        wait_until(lambda: odom.refresh() and odom.has_subscribers, what="the client's subscriber")

@@ -82,6 +82,7 @@ class Publisher:
         self._listener: zenoh.MatchingListener[None] | None = None
         self._matching = True
         self._recheck = False
+        self._closed = False
         self._watched_only = watched_only and not latched
         self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
         if latched:  # rmw_zenoh's TRANSIENT_LOCAL: an advanced publisher with a cache, and a plain `get`'s answer
@@ -124,9 +125,12 @@ class Publisher:
         """Asks Zenoh now whether a subscriber came: the listener hears of it a little after the
         session does (14 of 100 times measured, after a query that followed the declaration on the
         same link), and a step request must see every subscriber declared before it. False once
-        closed, and for a latched publisher (it always serves)."""
-        if self._listener is None:
+        closed, and for a latched publisher (it always serves); True for one not listening yet
+        (`listening=False`: taken to be watched until `listen`)."""
+        if self._closed or self.latched:
             return False
+        if self._listener is None:
+            return True
         return self._matching or self._ask()
 
     def _ask(self) -> bool:
@@ -195,6 +199,7 @@ class Publisher:
 
     def close(self) -> None:
         """Undeclare the publisher (and the latched queryable)."""
+        self._closed = True
         if self._announcement is not None:
             self._announcement.close()
         undeclare(self._listener)
