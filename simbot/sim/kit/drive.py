@@ -118,16 +118,21 @@ class Encoders:
 
     def __init__(self, physics: WorldReader, model: str, joints: tuple[str, ...]) -> None:
         self._physics, self._model, self._joints = physics, model, list(joints)
-        self._last: list[float] | None = None
+        self._last = self._read()
 
     def deltas(self) -> list[float]:
-        """Radians (or metres) each joint moved since the last call; zeros on the first."""
-        now = [state[0] for state in self._physics.joint_states(self._model, self._joints)]
-        last, self._last = self._last or now, now
+        """Radians (or metres) each joint moved since the last call (or since the encoders were
+        made or restarted: the first step's turn counts, as a real encoder's would)."""
+        now = self._read()
+        last, self._last = self._last, now
         return [a - b for a, b in zip(now, last)]
 
     def restart(self) -> None:
-        self._last = None
+        """Counting from where the joints stand now (a reset put them back)."""
+        self._last = self._read()
+
+    def _read(self) -> list[float]:
+        return [state[0] for state in self._physics.joint_states(self._model, self._joints)]
 
 
 @dataclass
@@ -278,7 +283,7 @@ class DeadReckoning:
         self._output.put_planar(now_ns, self.pose, twist[:2], twist[2], self._covariance(twist))
 
     def restart(self, now_ns: int) -> None:
-        """From the origin again, the encoders read afresh at the next update."""
+        """From the origin again, the encoders counting from where the wheels stand."""
         self.pose = PlanarPose()
         self._encoders.restart()
         self.every.restart()
