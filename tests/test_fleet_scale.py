@@ -10,9 +10,10 @@ ones turning at 0.1 rad/s. The tug's DiffDrive states no acceleration limit, so 
 the command holds from the first step: after t seconds a straight tug is v·t ahead, a turning one
 on the arc (v/ω)(sin ωt, 1 − cos ωt), which its wheel odometry reads to a millimetre (a step's
 midpoint heading integrates an arc exactly; the encoders turn by the commanded velocity). The
-tugs stand 5 m apart along x and 1.5 m along y, among pillars (0.2 m radius) between the columns,
-a pillar every other row (the empty world and them): nothing of a tug reaches its neighbours' scan
-plane (0.356 m up; the chassis top is at 0.205 m), so the pillars are what the lidars see.
+tugs stand 5 m apart along x and 1.5 m along y, among square pillars 0.4 m wide between the
+columns, a pillar every other row (the empty world and them; square, so that both casts meet true
+faces, not a cylinder's hull): nothing of a tug reaches its neighbours' scan plane (0.356 m up;
+the chassis top is at 0.205 m), so the pillars are what the lidars see.
 Its scan, taken at the last step (5 Hz: t = 1 s is a scan), is the engine's cast (Embree where
 embreex installs); the reference is PyBullet's `rayTestBatch` of the same rays from where the lidar
 stands: hit or miss agree on ≥ 99.9 % of the rays, and the ranges of those both hit within the
@@ -42,7 +43,7 @@ STEPS = 200
 ARGS = ["--robots", str(TUGS), "--columns", str(COLUMNS), "--spawn", "0", "0", "0.1", "0"]
 ARGS += ["--physics", "kinematic", "--mode", "lockstep", "--seed", "5"]
 PILLAR = """<model name="pillar_{i}_{j}"><static>true</static><pose>{x} {y} 1 0 0 0</pose><link name="link">
-<collision name="c"><geometry><cylinder><radius>0.2</radius><length>2</length></cylinder></geometry></collision>
+<collision name="c"><geometry><box><size>0.4 0.4 2</size></box></geometry></collision>
 </link></model>"""
 ODOMETRY, SCAN = "nav_msgs/msg/Odometry", "sensor_msgs/msg/LaserScan"
 ODOMETRY_TOLERANCE_M = 1e-3
