@@ -492,6 +492,7 @@ def test_publishers_declared_while_a_world_loads_follow_who_listens_from_its_end
             odom = pair.server.publisher("tug_1/odom", TWIST, watched_only=True)
             assert odom.has_subscribers
             pair.server.refresh_subscribers()
+            pair.server.publisher("tug_2/odom", TWIST, watched_only=True).close()  # its model failed to build
         assert odom in pair.server._publishers, "dropped from the refresh before it listened"
         wait_until(lambda: not odom.has_subscribers, what="no subscriber once it listens")
         pair.client.subscribe("tug_1/odom", TWIST, lambda msg: None)
