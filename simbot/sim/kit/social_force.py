@@ -40,6 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from simbot.description.crowd_params import Crowd
+from simbot.description.footprints import in_world
 
 Floats = npt.NDArray[np.float64]
 Bools = npt.NDArray[np.bool_]
@@ -93,9 +94,7 @@ class Boxes:
 
     def placed(self, x: float, y: float, yaw: float) -> Boxes:
         """These rectangles, given in a body's frame, where the body stands at (x, y, yaw)."""
-        c, s = math.cos(yaw), math.sin(yaw)
-        rotation = np.array([[c, -s], [s, c]])
-        return Boxes(self.centres @ rotation.T + (x, y), self.axes @ rotation.T, self.halves)
+        return Boxes(in_world(self.centres, (x, y, yaw)), in_world(self.axes, (0.0, 0.0, yaw)), self.halves)
 
     def posed(self, frames: Floats) -> Boxes:
         """Each rectangle, given in its own body's frame, where that body stands (frames: n × (x, y, yaw))."""
@@ -159,10 +158,6 @@ class Params:
             return self.values[name]
         except KeyError:
             raise AttributeError(name) from None
-
-    def take(self, index: Ints) -> Params:
-        """The parameters of the people `index` picks, one a row of `index`."""
-        return Params({name: values[index] for name, values in self.values.items()})
 
 
 @dataclass(frozen=True)

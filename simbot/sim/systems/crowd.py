@@ -312,7 +312,8 @@ def _think(people: list[SocialForce], now_ns: int, poses: Poses) -> None:
     goals = np.array([person._route.points[person._goal] for person in people])
     headings, detoured = detours(params, positions, goals, around.outlines, around.outline_of)
     arriving = np.array([person._route.arriving(person._goal) for person in people]) & ~detoured
-    accel = accelerations(params, People(positions, velocities, np.zeros(len(people))), headings, arriving, around)
+    yaws = np.array([person._yaw for person in people])
+    accel = accelerations(params, People(positions, velocities, yaws), headings, arriving, around)
     kicks = np.array([p._rng.standard_normal(2) * (p._crowd.noise * math.sqrt(span)) for p, span in zip(people, spans)])
     velocities = steered(params, velocities, accel, spans, kicks)
     positions = kept_clear(params, positions, around)
