@@ -16,7 +16,9 @@ cameras drawn in-process by the OpenGL renderer, `--frame-steps` steps between s
 scripted rigid workers and with the animated crowd-driven ones, interleaved, medians and their ratio.
 Last, what one think of the social force costs a person when a world's crowd of CROWDS people thinks
 in one pass (the forces, the detours round robots, the hard constraint and what each sees: the
-system's `_think`, timed alone), against one person thinking alone in the same run.
+system's `_think`, timed alone), against one person thinking alone in the same run; and the same
+for WORLDS worlds of three people thinking in one pass, each seeing only its own world (a vector
+env's sub-envs, stepped together), against one such world alone.
 
     python benchmarks/bench_crowd.py [--actors N] [--steps S] [--repeats R]
 """
@@ -40,6 +42,9 @@ RATES = (Crowd().update_rate, 100.0, 1000.0)
 """Hz: the plugin's forces updated at its default, every 10 ms and at every 1 ms step."""
 CROWDS = (1, 3, 10, 30)
 """People thinking in one pass (the warehouse with its people has three)."""
+PEOPLE_A_WORLD = 3
+WORLDS = (1, 4, 8)
+"""Worlds of PEOPLE_A_WORLD people each thinking in one pass, as a vector env's sub-envs do."""
 
 
 def step_costs(actors: int, steps: int, repeats: int) -> list[float]:
@@ -64,20 +69,28 @@ def frame_costs(actors: int, seconds: float, frame_steps: int) -> tuple[float, f
         return paired_frame_costs(scripted, crowd, frame_steps, seconds)
 
 
-def think_cost(people: int, repeats: int) -> float:
-    """Median µs a person for one think of a crowd of `people` in one pass (100 thinks a timing)."""
-    with server(people, animated=True, plugin=PLUGIN.format("")) as one:
-        ms_per_step(one, 200)
-        crowd = [system for system in one.sim.systems if isinstance(system, crowd_system.SocialForce)]
-        physics, period = one.sim.physics, round(1e9 / Crowd().update_rate)
-        clock = [one.sim.clock.now_ns]
+def think_cost(people: int, repeats: int, worlds: int = 1) -> float:
+    """Median µs a person for one think of `worlds` worlds' crowds of `people` each in one pass
+    (100 thinks a timing), as a vector env's sub-envs think."""
+    with ExitStack() as stack:
+        built = [stack.enter_context(server(people, animated=True, plugin=PLUGIN.format(""))) for _ in range(worlds)]
+        for one in built:
+            ms_per_step(one, 200)
+        crowds = [[s for s in one.sim.systems if isinstance(s, crowd_system.SocialForce)] for one in built]
+        period = round(1e9 / Crowd().update_rate)
+        clock = [max(one.sim.clock.now_ns for one in built)]
 
         def think() -> None:
             clock[0] += period
-            crowd_system._think(crowd, clock[0], Poses(physics))
+            crowd_system._think(
+                [
+                    crowd_system.WorldStep(crowd, clock[0], Poses(one.sim.physics), False)
+                    for one, crowd in zip(built, crowds, strict=True)
+                ]
+            )
 
         timings = timeit.repeat(think, number=100, repeat=repeats)
-    return statistics.median(timings) / 100 / people * 1e6
+    return statistics.median(timings) / 100 / (people * worlds) * 1e6
 
 
 def main() -> None:
@@ -91,6 +104,7 @@ def main() -> None:
     scripted, *crowd = step_costs(args.actors, args.steps, args.repeats)
     rigid, walking = frame_costs(args.actors, args.seconds, args.frame_steps)
     thinks = [think_cost(people, args.repeats) for people in CROWDS]
+    together = [think_cost(PEOPLE_A_WORLD, args.repeats, worlds) for worlds in WORLDS]
     table = [
         f"| warehouse, tug standing, {args.actors} workers | ms per server step | ratio | ms per person per step over scripted |",
         "| --- | --- | --- | --- |",
@@ -111,6 +125,14 @@ def main() -> None:
         *(
             f"| {people} {'person' if people == 1 else 'people'} | {cost:.0f} | {cost / thinks[0]:.2f} |"
             for people, cost in zip(CROWDS, thinks, strict=True)
+        ),
+        "",
+        f"| worlds of {PEOPLE_A_WORLD} people thinking in one pass (a vector env's sub-envs) | µs a person a think | "
+        "against one world alone |",
+        "| --- | --- | --- |",
+        *(
+            f"| {worlds} {'world' if worlds == 1 else 'worlds'} | {cost:.0f} | {cost / together[0]:.2f} |"
+            for worlds, cost in zip(WORLDS, together, strict=True)
         ),
     ]
     publish("crowd", table)

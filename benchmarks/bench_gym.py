@@ -164,6 +164,7 @@ CASES: list[tuple[str, int, str, Callable[[], Any]]] = [
     ("the same, native vector env", 4, "this one", native(4, 0)),
     ("the same, native vector env", 4, "2 simulation", native(4, 2)),
     ("the same, native vector env", 8, "2 simulation", native(8, 2)),
+    ("the same, native vector env", 16, "2 simulation", native(16, 2)),
     (
         f"the same with {CAMERA} {CAMERA_SIZE[0]}×{CAMERA_SIZE[1]}: native vector env",
         2,

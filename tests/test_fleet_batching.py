@@ -18,6 +18,7 @@ import pytest
 from simbot.bus import decode, encode, messages
 from simbot.bus.local import LocalNode
 from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.simulation import Slot
 from simbot.sim.loop.system import PostUpdate
 from simbot.sim.server import build_world, parse_config
 
@@ -48,7 +49,7 @@ def run(robot: Path, *, batched: bool, listen_from: int) -> Recording:
     world = build_world(parse_config([*ARGS, "--robot", str(robot)]), SimBus(node))
     sim = world.sim
     if not batched:  # each system alone and asked every step, as before systems could batch
-        sim._post = [(system.post_update, None) for system in sim.systems if isinstance(system, PostUpdate)]
+        sim._post = [Slot(system.post_update) for system in sim.systems if isinstance(system, PostUpdate)]
     got: Recording = defaultdict(list)
     command = node.publisher("tug_2/cmd_vel", messages.Twist)
     try:

@@ -144,6 +144,33 @@ def test_each_sub_env_is_the_single_env_with_its_seed_through_autoreset(walled: 
         single.close()
 
 
+def test_sub_envs_among_people_are_the_single_env_though_their_people_think_together() -> None:
+    """The warehouse with its people: the sub-envs' worlds step together (each world's people in the
+    same pass of the crowd's arrays, seeing only their own world), and each sub-env still gives the
+    single env's episode for its seed."""
+    steps, seed, count = 8, 21, 2
+    envs = gymnasium.make_vec(
+        "simbot/Navigate-v0", num_envs=count, vectorization_mode="vector_entry_point", processes=0, **KINEMATIC_PEOPLE
+    )
+    try:
+        obs, _ = envs.reset(seed=seed)
+        vector = [[{k: v[i] for k, v in obs.items()}] for i in range(count)]
+        for step in range(steps):
+            obs, *_ = envs.step(np.stack([actions(step, i) for i in range(count)]))
+            for i in range(count):
+                vector[i].append({k: v[i] for k, v in obs.items()})
+    finally:
+        envs.close()
+    single = gymnasium.make("simbot/Navigate-v0", **KINEMATIC_PEOPLE)
+    try:
+        for i in range(count):
+            expected = run_single(single, seed + i, steps, i)
+            for step, (a, b) in enumerate(zip(vector[i], expected, strict=True)):
+                assert_same(a, b[0], f"env {i} step {step}")
+    finally:
+        single.close()
+
+
 def test_same_step_autoreset_gives_the_final_observation_in_the_info(walled: dict[str, Any]) -> None:
     """`autoreset_mode="SameStep"` (what Stable-Baselines3 runs on): the step that ends an episode
     returns the next episode's first observation, the last one in `info["final_obs"]`."""

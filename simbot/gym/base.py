@@ -286,12 +286,20 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
         return obs, self._info(view, False)
 
     def step(self, action: npt.NDArray[np.float32]) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        self.step_begin(action)
+        return self.step_end(self._session.step(self.physics_steps))
+
+    def step_begin(self, action: npt.NDArray[np.float32]) -> None:
+        """The first half of `step`: the action checked and sent. A vector env steps its sub-envs'
+        worlds together between the halves."""
         if self._episode["seed"] is None:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
-        clipped = self._clip(action)
-        self._session.send(self._commands(clipped))
-        before = self._time
-        self._time = self._session.step(self.physics_steps)
+        self._session.send(self._commands(self._clip(action)))
+
+    def step_end(self, reached: int) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
+        """The second half of `step`, once the world has stepped a control period to `reached` (ns):
+        the observation, the reward and whether the episode ended."""
+        before, self._time = self._time, reached
         obs, view = self._observe(after=before)
         self._episode["steps"] += 1
         collided = bool(view.touched)

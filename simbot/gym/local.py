@@ -23,6 +23,7 @@ from typing import Any
 
 from simbot.bus.local import LocalNode, LocalPublisher
 from simbot.gym.session import ServerSpec
+from simbot.sim.loop import simulation
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.loop.world_control import model_states, unit_quaternion
 from simbot.sim.server import build_world, parse_config
@@ -57,10 +58,7 @@ class LocalSession:
 
     def step(self, steps: int) -> int:
         """`steps` physics steps; the sim time reached, in nanoseconds."""
-        sim = self.sim_world.sim
-        for _ in range(steps):
-            sim.step()
-        return sim.clock.now_ns
+        return step_together([self], steps)[0]
 
     def reset(self, seed: int | None = None) -> None:
         self.sim_world.reset(seed)
@@ -83,3 +81,12 @@ class LocalSession:
         self.sim_world.close()
         self.node.close()
         shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def step_together(sessions: Sequence[LocalSession], steps: int) -> list[int]:
+    """`steps` physics steps of each session's world, the worlds stepped phase by phase together (a
+    vector env's sub-envs: each batched system called once for all); each one's sim time reached, ns."""
+    sims = [session.sim_world.sim for session in sessions]
+    for _ in range(steps):
+        simulation.step_together(sims)
+    return [sim.clock.now_ns for sim in sims]

@@ -7,8 +7,9 @@ returns a `SimbotVectorEnv`: N sub-environments, each the single environment wit
 stepping its own world off the bus (simbot.gym.local), split over `processes` simulation processes
 (default: one per core, where there are several envs and cores; else all in this process). No
 server process, no Zenoh, no CDR: a step sends each process its envs' actions, and each steps
-its worlds one after the other and sends back their observations as arrays. docs/learning.md has
-the measurement behind the default.
+its worlds together, phase by phase (`simbot.sim.loop.simulation.step_together`: the people of
+all its worlds think in one pass, their IMUs sample in one), and sends back their observations as
+arrays. docs/learning.md has the measurement behind the default.
 
 Sub-environment i is the single environment: reset with seed s it gives, action for action, the
 episode `gymnasium.make(id, **kwargs)` gives after `reset(seed=s)` (tests/test_gym_vector.py).
@@ -38,7 +39,7 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +48,7 @@ from gymnasium.vector.utils import batch_space
 
 from simbot.gym.base import Observation, SimbotEnv
 from simbot.gym.errors import EnvConfigError, SimServerError
+from simbot.gym.local import LocalSession, step_together
 from simbot.gym.options import EnvOptions
 from simbot.sim.render.pool import usable_cores
 
@@ -57,8 +59,8 @@ Step = tuple[Observation, npt.NDArray[np.float64], npt.NDArray[np.bool_], npt.ND
 
 
 class EnvGroup:
-    """Some of a vector env's sub-environments, stepped one after the other with autoreset; the same
-    code in this process and in a simulation process."""
+    """Some of a vector env's sub-environments, their worlds stepped together, with autoreset; the
+    same code in this process and in a simulation process."""
 
     def __init__(self, task: str, kwargs: dict[str, Any], count: int, same_step: bool = False) -> None:
         make = _task(task)
@@ -81,29 +83,35 @@ class EnvGroup:
         return _stack([obs for obs, _ in results]), [info for _, info in results]
 
     def step(self, actions: npt.NDArray[Any]) -> Step:
-        observations, rewards, terminated, truncated, infos = [], [], [], [], []
+        """Each env's step, or its reset where its episode ended at the last; the worlds that step
+        do so together (`step_together`: every batched system once for all of them)."""
+        results: list[tuple[Observation, float, bool, bool, dict[str, Any]]] = []
+        stepping = [i for i, ended in enumerate(self._ended) if not ended]
+        for i in stepping:
+            self.envs[i].step_begin(actions[i])
+        sessions = [self.envs[i].session for i in stepping]
+        assert all(isinstance(session, LocalSession) for session in sessions)  # a vector env runs off the bus
+        reached = iter(step_together(cast(list[LocalSession], sessions), self.envs[0].physics_steps))
         for i, env in enumerate(self.envs):
             if self._ended[i]:
                 obs, info = env.reset()
-                reward, term, trunc = 0.0, False, False
-            else:
-                obs, reward, term, trunc, info = env.step(actions[i])
-                if self.same_step and (term or trunc):
-                    final_obs, final_info = obs, info
-                    obs, info = env.reset()
-                    info = {**info, "final_obs": final_obs, "final_info": final_info}
+                results.append((obs, 0.0, False, False, info))
+                self._ended[i] = False
+                continue
+            obs, reward, term, trunc, info = env.step_end(next(reached))
+            if self.same_step and (term or trunc):
+                final_obs, final_info = obs, info
+                obs, info = env.reset()
+                info = {**info, "final_obs": final_obs, "final_info": final_info}
             self._ended[i] = (term or trunc) and not self.same_step
-            observations.append(obs)
-            rewards.append(reward)
-            terminated.append(term)
-            truncated.append(trunc)
-            infos.append(info)
+            results.append((obs, reward, term, trunc, info))
+        observations, rewards, terminated, truncated, infos = zip(*results)
         return (
             _stack(observations),
             np.array(rewards, np.float64),
             np.array(terminated, np.bool_),
             np.array(truncated, np.bool_),
-            infos,
+            list(infos),
         )
 
     def close(self) -> None:

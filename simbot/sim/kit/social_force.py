@@ -187,6 +187,29 @@ class Surroundings:
     """The robots' outlines (one rectangle holding a robot's footprint) near the people, a pair each."""
     outline_of: Ints
 
+    @staticmethod
+    def joined(parts: Sequence[Surroundings]) -> Surroundings:
+        """Several worlds' surroundings as one, their people numbered on: each person sees only its
+        own world's others (`seen` and `motions` block-diagonal), so each comes out as in its world alone."""
+        if len(parts) == 1:
+            return parts[0]
+        rows = np.cumsum([0] + [len(part.seen) for part in parts])
+        columns = np.cumsum([0] + [len(part.others) for part in parts])
+        seen = np.zeros((rows[-1], columns[-1]), bool)
+        motions = np.zeros((rows[-1], columns[-1], 2))
+        for part, row, column in zip(parts, rows, columns):
+            seen[row : row + len(part.seen), column : column + len(part.others)] = part.seen
+            motions[row : row + len(part.seen), column : column + len(part.others)] = part.motions
+        return Surroundings(
+            np.concatenate([part.others for part in parts]),
+            motions,
+            seen,
+            Boxes.joined([part.obstacles for part in parts]),
+            np.concatenate([part.obstacle_of + row for part, row in zip(parts, rows)]),
+            Boxes.joined([part.outlines for part in parts]),
+            np.concatenate([part.outline_of + row for part, row in zip(parts, rows)]),
+        )
+
 
 def driving(p: Params, people: People, goals: Floats, arriving: Bools) -> tuple[Floats, Floats]:
     """(the driving accelerations, e): towards `goals` at the desired speed, slowing into those `arriving`."""

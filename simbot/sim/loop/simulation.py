@@ -8,17 +8,18 @@ schedules; what happens in a step is the systems' and the physics module's busin
 
 from __future__ import annotations
 
-import functools
+import contextlib
 import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import cast
 
 from simbot.sim.loop.system import (
+    Batch,
     BatchedPostUpdate,
     BatchedPreUpdate,
     Closable,
@@ -141,12 +142,27 @@ def _phases(system: System) -> frozenset[type]:
     return _PHASES[kind]
 
 
-def _joined(batches: dict[tuple[type, int], list[System]], system: System, priority: int) -> list[System] | None:
-    """Adds `system` to its class's batch of `priority`; the batch where it is the first (it runs in
+@dataclass(frozen=True)
+class Slot:
+    """One call of a phase: a system's own, or its batched class's for the `batch` of one priority
+    (`key`: the class and priority, which worlds of the same systems share)."""
+
+    call: Callable[[UpdateInfo], None] | None
+    batch: list[System] | None = None
+    key: tuple[type, int] | None = None
+    paced: Periodic | None = None
+    """What says when a post-update call is next due (None: every step)."""
+
+
+def _joined(batches: dict[tuple[type, int], Slot], system: System, priority: int) -> Slot | None:
+    """Adds `system` to its class's batch of `priority`; the slot where it is the first (it runs in
     its place), else None."""
-    batch = batches.setdefault((type(system), priority), [])
-    batch.append(system)
-    return batch if len(batch) == 1 else None
+    key = (type(system), priority)
+    if key in batches:
+        cast(list[System], batches[key].batch).append(system)
+        return None
+    batches[key] = Slot(None, [system], key)
+    return batches[key]
 
 
 @dataclass
@@ -159,9 +175,8 @@ class Simulation:
     clock: SimClock = field(init=False)
     paused: bool = False
     rtf: RealTimeFactor = field(default_factory=RealTimeFactor)
-    _pre: list[Callable[[UpdateInfo], None]] = field(init=False)
-    _post: list[tuple[Callable[[UpdateInfo], None], Periodic | None]] = field(init=False)
-    """Each post-update call, and what says when it is next due (None: every step)."""
+    _pre: list[Slot] = field(init=False)
+    _post: list[Slot] = field(init=False)
     _steps: deque[StepRequest] = field(default_factory=deque)
     _pacer: Pacer = field(default_factory=Pacer)
 
@@ -175,28 +190,26 @@ class Simulation:
         return [entry.system for entry in sorted(self.scheduled, key=lambda entry: entry.priority)]
 
     def _order(self) -> None:
-        """The per-phase lists; a batched class's instances of one priority run as one call, in
+        """The per-phase slots; a batched class's instances of one priority run as one call, in
         the place of the first of them."""
         ordered = sorted(self.scheduled, key=lambda entry: entry.priority)
         self._pre, self._post = [], []
-        pre: dict[tuple[type, int], list[System]] = {}
-        post: dict[tuple[type, int], list[System]] = {}
+        pre: dict[tuple[type, int], Slot] = {}
+        post: dict[tuple[type, int], Slot] = {}
         for entry in ordered:
             system = entry.system
             phases = _phases(system)
             if BatchedPreUpdate in phases:
-                if batch := _joined(pre, system, entry.priority):
-                    self._pre.append(functools.partial(type(cast(BatchedPreUpdate, system)).pre_update_all, batch))
+                if slot := _joined(pre, system, entry.priority):
+                    self._pre.append(slot)
             elif PreUpdate in phases:
-                self._pre.append(cast(PreUpdate, system).pre_update)
+                self._pre.append(Slot(cast(PreUpdate, system).pre_update))
             if BatchedPostUpdate in phases:
-                if batch := _joined(post, system, entry.priority):
-                    self._post.append(
-                        (functools.partial(type(cast(BatchedPostUpdate, system)).post_update_all, batch), None)
-                    )
+                if slot := _joined(post, system, entry.priority):
+                    self._post.append(slot)
             elif PostUpdate in phases:
                 paced = cast(Periodic, system) if Periodic in phases else None
-                self._post.append((cast(PostUpdate, system).post_update, paced))
+                self._post.append(Slot(cast(PostUpdate, system).post_update, paced=paced))
 
     def add_systems(self, systems: list[Scheduled]) -> None:
         """Systems join the loop (a created model's between steps: world control calls it from `poll`)."""
@@ -211,16 +224,7 @@ class Simulation:
 
     def step(self) -> None:
         """One step of every system and the physics; `paused` in the record when world control stepped a paused world."""
-        self.clock.advance()
-        info = self.clock.info(self.paused)
-        for before in self._pre:
-            before(info)
-        self.physics.step()
-        with self.physics.reading():
-            now_ns = info.sim_time_ns
-            for after, paced in self._post:
-                if paced is None or now_ns >= paced.next_due_ns:
-                    after(info)
+        step_together([self])
 
     def request_steps(self, count: int, done: Callable[[], None]) -> None:
         """`count` more steps, then `done()`; these run even when paused or in lockstep."""
@@ -291,3 +295,45 @@ class Simulation:
             request.done()
         if self.mode is Mode.REALTIME:
             self._pacer.anchor(self.clock.now_ns)
+
+
+def step_together(sims: Sequence[Simulation]) -> None:
+    """One step of each of `sims`, phase by phase: worlds of the same systems (a vector env's
+    sub-envs) call each batched class once for all their instances, each world's with its own info;
+    the others step one after the other. Each world comes out as if stepped alone."""
+    if len(sims) > 1 and not _alike(sims):
+        for sim in sims:
+            step_together([sim])
+        return
+    infos = []
+    for sim in sims:
+        sim.clock.advance()
+        infos.append(sim.clock.info(sim.paused))
+    _phase(zip(*(sim._pre for sim in sims)), infos, "pre_update_all")
+    for sim in sims:
+        sim.physics.step()
+    with contextlib.ExitStack() as reading:
+        for sim in sims:
+            reading.enter_context(sim.physics.reading())
+        _phase(zip(*(sim._post for sim in sims)), infos, "post_update_all")
+
+
+def _alike(sims: Sequence[Simulation]) -> bool:
+    """Whether `sims` have the same slots, in the same order, in both phases."""
+    shapes = {(tuple(slot.key for slot in sim._pre), tuple(slot.key for slot in sim._post)) for sim in sims}
+    return len(shapes) == 1
+
+
+def _phase(slots: Iterable[tuple[Slot, ...]], infos: list[UpdateInfo], batched: str) -> None:
+    """Each slot of a phase across the worlds: a batched class's once for every world's batch, a
+    system's own once in each world (a paced one only when due)."""
+    for across in slots:
+        first = across[0]
+        if first.key is not None:
+            getattr(first.key[0], batched)(
+                [Batch(cast(list[System], slot.batch), info) for slot, info in zip(across, infos)]
+            )
+            continue
+        for slot, info in zip(across, infos):
+            if slot.paced is None or info.sim_time_ns >= slot.paced.next_due_ns:
+                cast(Callable[[UpdateInfo], None], slot.call)(info)

@@ -7,14 +7,18 @@ has a `name`, and implements only the phases it needs, each a small Protocol giv
 `UpdateInfo` (sim time, step size, iterations, paused: Gazebo's UpdateInfo):
 
 - `pre_update(info)`: before the physics step; drain commands, write joint targets.
-- `pre_update_all(systems, info)`, a classmethod, in place of `pre_update`: the class steps all its
-  instances of one priority at once (`BatchedPreUpdate`): a world's people think in one pass.
+- `pre_update_all(batches)`, a classmethod, in place of `pre_update`: the class steps all its
+  instances of one priority at once (`BatchedPreUpdate`), given as a `Batch` (the instances and
+  the step's info) per world that steps: a world's people, or every sub-env's, think in one pass.
 - `post_update(info)`: after the step; read state, publish at its own rate. The physics is
   read-only here (`PhysicsReadOnly` if a system tries to change it), as Gazebo's PostUpdate
   sees a const entity-component manager: every system reads the same, finished step.
-- `post_update_all(systems, info)`, a classmethod, in place of `post_update`: the class steps
-  all its instances of one priority at once (`BatchedPostUpdate`). A fleet of a hundred tugs has
-  a hundred IMUs; one call does their frame queries, rotations and noise as arrays.
+- `post_update_all(batches)`, a classmethod, in place of `post_update`: the class steps
+  all its instances of one priority at once (`BatchedPostUpdate`), a `Batch` per world. A fleet
+  of a hundred tugs has a hundred IMUs; one call does their frame queries, rotations and noise as
+  arrays. Worlds of the same systems step together (`simbot.sim.loop.simulation.step_together`,
+  a vector env's sub-envs): each batched class is called once per phase for all of them, each
+  world's instances with its own info (sub-envs' clocks differ after their resets).
 - `reset(info)`: the world was reset; forget what was integrated.
 - `model_added(event)`, `model_removed(event)`: a model entered the world (at start, or created
   through world control) or is about to leave it, with its bodies and its systems
@@ -41,7 +45,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -87,13 +91,20 @@ class PostUpdate(Protocol):
     def post_update(self, info: UpdateInfo) -> None: ...
 
 
+class Batch(NamedTuple):
+    """A world's instances of one batched class at one priority, and that world's step."""
+
+    systems: Sequence[Any]
+    info: UpdateInfo
+
+
 @runtime_checkable
 class BatchedPreUpdate(Protocol):
     """A pre-update system whose class steps all its instances of one priority in one call, where the
     first of them would have run (as `BatchedPostUpdate`, before the physics step)."""
 
     @classmethod
-    def pre_update_all(cls, systems: Sequence[Any], info: UpdateInfo) -> None: ...
+    def pre_update_all(cls, batches: Sequence[Batch]) -> None: ...
 
 
 @runtime_checkable
@@ -103,7 +114,7 @@ class BatchedPostUpdate(Protocol):
     rate, random stream and outputs), only cheaper together."""
 
     @classmethod
-    def post_update_all(cls, systems: Sequence[Any], info: UpdateInfo) -> None: ...
+    def post_update_all(cls, batches: Sequence[Batch]) -> None: ...
 
 
 @runtime_checkable

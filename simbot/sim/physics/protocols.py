@@ -34,6 +34,13 @@ class FrameMotions(NamedTuple):
     angular: npt.NDArray[np.float64]
     """N×3."""
 
+    @staticmethod
+    def joined(parts: Sequence[FrameMotions]) -> FrameMotions:
+        """Several queries' rows in one (worlds stepped together)."""
+        if len(parts) == 1:
+            return parts[0]
+        return FrameMotions(*(np.concatenate(column) for column in zip(*parts)))
+
 
 class WorldReader(Protocol):
     """Reading the world (`Queries` has the details): all a post-update system may do."""

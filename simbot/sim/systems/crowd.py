@@ -58,6 +58,8 @@ this system's own random stream: lockstep runs repeat bit for bit.
 A world's people are stepped together (`pre_update_all`): the bodies are read once a step for all
 of them, and those due update their forces in one pass of the kit's arrays, each with its own
 parameters, so that what a person costs falls as the crowd grows (docs/speed.md, "The crowd").
+Worlds that step together (a vector env's sub-envs) think in the same pass, each person seeing
+only its own world.
 `set_pose` on the actor moves its route with it (its start where it was put); `reset` takes it
 back to its start.
 """
@@ -66,6 +68,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -92,7 +95,7 @@ from simbot.sim.kit.social_force import (
     turned,
 )
 from simbot.sim.kit.waypoints import waypoints
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import compose
 from simbot.transform import Transform, yaw_quaternion
 
@@ -178,29 +181,25 @@ class SocialForce:
         self._put = self._place()
 
     def pre_update(self, info: UpdateInfo) -> None:
-        type(self).pre_update_all([self], info)
+        type(self).pre_update_all([Batch([self], info)])
 
     @classmethod
-    def pre_update_all(cls, people: Sequence[SocialForce], info: UpdateInfo) -> None:
-        """One physics step of a world's people: the forces again for those due (or all, where the
-        world changed), in one pass; then every position moved on with its velocity, kept clear of
-        the robots, and each actor put there."""
-        walking = [person for person in people if person._ticked(info)]
-        if not walking:
-            return
-        view, physics = walking[0]._view, walking[0]._physics
-        for person in walking:
-            person._view = view
-            person._follow_teleport()
-        poses = Poses(physics)
-        changed = view.refresh(tuple(physics.body_names()))
-        if changed:
-            for person in walking:
-                person._near_at = None
-        due = [person for person in walking if changed or person._due(info.sim_time_ns)]
+    def pre_update_all(cls, batches: Sequence[Batch]) -> None:
+        """One physics step of each world's people: the forces again for those due (or all of a world
+        that changed), every world's in one pass; then every position moved on with its velocity,
+        kept clear of the robots, and each actor put there."""
+        walking: list[WorldStep] = []
+        due: list[WorldStep] = []
+        for batch in batches:
+            world = _world_step(batch)
+            if world is not None:
+                walking.append(world)
+                if thinking := [p for p in world.people if world.changed or p._due(world.now_ns)]:
+                    due.append(world._replace(people=thinking))
         if due:
-            _think(due, info.sim_time_ns, poses)
-        _walk(walking, poses)
+            _think(due)
+        if walking:
+            _walk(walking)
 
     def _ticked(self, info: UpdateInfo) -> bool:
         """Whether sim time moved on since this person's last step (its `_dt`, s)."""
@@ -258,6 +257,33 @@ class SocialForce:
         self._near_at = None
 
 
+class WorldStep(NamedTuple):
+    """One world's people in a step: those who walk in it, its sim time, its bodies' poses, and
+    whether its set of bodies changed (all think again)."""
+
+    people: list[SocialForce]
+    now_ns: int
+    poses: Poses
+    changed: bool
+
+
+def _world_step(batch: Batch) -> WorldStep | None:
+    """A world's people whose sim time moved on (None: none did), each following a teleport, the
+    world's view of them refreshed."""
+    walking = [person for person in batch.systems if person._ticked(batch.info)]
+    if not walking:
+        return None
+    view, physics = walking[0]._view, walking[0]._physics
+    for person in walking:
+        person._view = view
+        person._follow_teleport()
+    changed = view.refresh(tuple(physics.body_names()))
+    if changed:
+        for person in walking:
+            person._near_at = None
+    return WorldStep(walking, batch.info.sim_time_ns, Poses(physics), changed)
+
+
 def _pairs(parts: list[Boxes]) -> tuple[Boxes, Ints]:
     """The rectangles of every person's `parts` in one, and the person each is for."""
     return Boxes.joined(parts), np.repeat(np.arange(len(parts)), [len(part) for part in parts])
@@ -299,14 +325,22 @@ def _surroundings(people: list[SocialForce], positions: Floats, spans: Floats, p
     )
 
 
-def _think(people: list[SocialForce], now_ns: int, poses: Poses) -> None:
-    """The social force on each of `people` from where everyone stands now, each velocity steered by
-    it over its update period (semi-implicit Euler), each put back outside people and obstacles."""
+def _think(worlds: list[WorldStep]) -> None:
+    """The social force on each person of `worlds` from where everyone of its world stands now, each
+    velocity steered by it over its update period (semi-implicit Euler), each put back outside
+    people and obstacles: every world's people in one pass, each seeing only its own world."""
+    people = [person for world in worlds for person in world.people]
     params = Params.of(tuple(person._crowd for person in people))
-    spans = np.array([person._span(now_ns) for person in people])
+    spans = np.array([person._span(world.now_ns) for world in worlds for person in world.people])
     positions = np.array([person._position for person in people])
     velocities = (positions - np.array([person._anchor for person in people])) / spans[:, None]
-    around = _surroundings(people, positions, spans, poses)
+    bounds = np.cumsum([0] + [len(world.people) for world in worlds])
+    around = Surroundings.joined(
+        [
+            _surroundings(world.people, positions[a:b], spans[a:b], world.poses)
+            for world, a, b in zip(worlds, bounds[:-1], bounds[1:])
+        ]
+    )
     for person in people:
         person._goal = person._route.after(person._goal, person._position, person._crowd.waypoint_tolerance)
     goals = np.array([person._route.points[person._goal] for person in people])
@@ -321,15 +355,16 @@ def _think(people: list[SocialForce], now_ns: int, poses: Poses) -> None:
         person._position, person._velocity, person._anchor = position, velocity, position
 
 
-def _walk(people: list[SocialForce], poses: Poses) -> None:
-    """Each of `people` on by its velocity over its step, out of the robots it is near, turned
-    towards its velocity, and put there."""
-    params = Params.of(tuple(person._crowd for person in people))
-    dts = np.array([person._dt for person in people])
-    velocities = np.array([person._velocity for person in people])
-    positions = np.array([person._position for person in people]) + velocities * dts[:, None]
-    yaws = turned(params, np.array([person._yaw for person in people]), velocities, dts)
-    for k, person in enumerate(people):
+def _walk(worlds: list[WorldStep]) -> None:
+    """Each person of `worlds` on by its velocity over its step, out of the robots it is near,
+    turned towards its velocity, and put there."""
+    people = [(person, world.poses) for world in worlds for person in world.people]
+    params = Params.of(tuple(person._crowd for person, _ in people))
+    dts = np.array([person._dt for person, _ in people])
+    velocities = np.array([person._velocity for person, _ in people])
+    positions = np.array([person._position for person, _ in people]) + velocities * dts[:, None]
+    yaws = turned(params, np.array([person._yaw for person, _ in people]), velocities, dts)
+    for k, (person, poses) in enumerate(people):
         position = positions[k : k + 1]
         if person._touching:
             footprints = person._view.band(*person._band).footprints_at(person._touching, poses)

@@ -32,7 +32,8 @@ from simbot.description.naming import sensor_frame, sensor_rate
 from simbot.description.sensor_params import Noise, SdfElement
 from simbot.sim.kit.rates import Sampled
 from simbot.sim.kit.sensors import ChannelNoise
-from simbot.sim.loop.system import SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemContext, UpdateInfo
+from simbot.sim.physics.protocols import FrameMotions
 from simbot.transform import rotate_many
 
 Axes = tuple[Noise, Noise, Noise]
@@ -91,26 +92,34 @@ class Imu(Sampled):
         self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 
     def post_update(self, info: UpdateInfo) -> None:
-        type(self).post_update_all([self], info)
+        type(self).post_update_all([Batch([self], info)])
 
     @classmethod
-    def post_update_all(cls, imus: Sequence[Imu], info: UpdateInfo) -> None:
-        """Every IMU due now samples; those someone subscribes to publish."""
-        due = [imu for imu in imus if imu.due(info)]
+    def post_update_all(cls, batches: Sequence[Batch]) -> None:
+        """Every IMU due now samples, every world's in one pass (a frame query a world); those
+        someone subscribes to publish."""
+        due: list[Imu] = []
+        stamps: list[int] = []
+        parts: list[FrameMotions] = []
+        for imus, info in batches:
+            if here := [imu for imu in imus if imu.due(info)]:
+                due += here
+                stamps += [info.sim_time_ns] * len(here)
+                parts.append(here[0]._physics.frame_motions([imu._where for imu in here]))
         if not due:
             return
-        now_ns = info.sim_time_ns
-        motions = due[0]._physics.frame_motions([imu._where for imu in due])
-        acceleration = Imu._accelerations(due, now_ns, motions.linear)
+        motions = FrameMotions.joined(parts)
+        acceleration = Imu._accelerations(due, np.array(stamps), motions.linear)
         count = len(due)
         # gyro and accelerometer turned into each frame in one call: rows 0..N-1 and N..2N-1
         turns = np.concatenate([motions.orientations, motions.orientations])
-        sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - due[0]._gravity]), into=True)
+        gravity = np.array([imu._gravity for imu in due])
+        sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - gravity]), into=True)
         terms = np.array([imu._noise_terms for imu in due])  # mean, bias, stddev of the six channels
         white = np.array([imu._white_row() for imu in due])
         true = np.hstack([sensed[:count], sensed[count:]])
         measured = true + terms[:, :6] + terms[:, 6:12] + white * terms[:, 12:]  # ChannelNoise's sum, in its order
-        for row, imu in enumerate(due):
+        for row, (imu, now_ns) in enumerate(zip(due, stamps)):
             if imu._pub.has_subscribers:
                 quat = motions.orientations[row]
                 imu._pub.put(
@@ -119,12 +128,17 @@ class Imu(Sampled):
             imu.published(now_ns)
 
     @staticmethod
-    def _accelerations(imus: Sequence[Imu], now_ns: int, linear: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """Each IMU's mean acceleration since its last sample (zero for the first), and this one kept."""
+    def _accelerations(
+        imus: Sequence[Imu], stamps: npt.NDArray[np.int64], linear: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
+        """Each IMU's mean acceleration since its last sample (zero for the first), and this one kept
+        (`stamps`: each one's sim time now)."""
         last = np.array([imu._last_linear for imu in imus])
-        seconds = np.array([(now_ns - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu in imus])
-        for imu, velocity in zip(imus, linear):
-            imu._last_ns, imu._last_linear = now_ns, velocity
+        seconds = np.array(
+            [(int(now) - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu, now in zip(imus, stamps)]
+        )
+        for imu, now, velocity in zip(imus, stamps, linear):
+            imu._last_ns, imu._last_linear = int(now), velocity
         return np.where(np.isfinite(seconds)[:, None], (linear - last) / seconds[:, None], 0.0)
 
     def _white_row(self) -> npt.NDArray[np.float64]:

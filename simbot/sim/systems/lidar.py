@@ -46,7 +46,7 @@ from simbot.description.lidar_params import LidarParams
 from simbot.description.naming import sensor_frame, sensor_rate
 from simbot.description.sensor_params import Noise
 from simbot.sim.kit.rates import Sampled
-from simbot.sim.loop.system import SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemContext, UpdateInfo
 from simbot.sim.physics.protocols import RayBatch
 from simbot.transform import matmul, quaternion_to_matrix
 
@@ -102,13 +102,19 @@ class Lidar(Sampled):
         self._points = ctx.bus.publisher(f"{topic}/points", messages.PointCloud2)
 
     def post_update(self, info: UpdateInfo) -> None:
-        type(self).post_update_all([self], info)
+        type(self).post_update_all([Batch([self], info)])
 
     @classmethod
-    def post_update_all(cls, lidars: Sequence[Lidar], info: UpdateInfo) -> None:
+    def post_update_all(cls, batches: Sequence[Batch]) -> None:
         """Every lidar due now scans. Those someone subscribes to cast their rays together, in one
-        cast of the world, their frames read in one query; the others only draw their noise, so that
-        what a subscriber gets does not depend on who listened before."""
+        cast of their world, their frames read in one query; the others only draw their noise, so
+        that what a subscriber gets does not depend on who listened before."""
+        for lidars, info in batches:
+            Lidar._scan_world(lidars, info)
+
+    @staticmethod
+    def _scan_world(lidars: Sequence[Lidar], info: UpdateInfo) -> None:
+        """A world's lidars due now scan (see `post_update_all`)."""
         watched = []
         for lidar in lidars:
             if not lidar.due(info):
