@@ -187,28 +187,21 @@ class Surroundings:
     """The robots' outlines (one rectangle holding a robot's footprint) near the people, a pair each."""
     outline_of: Ints
 
-    @staticmethod
-    def joined(parts: Sequence[Surroundings]) -> Surroundings:
-        """Several worlds' surroundings as one, their people numbered on: each person sees only its
-        own world's others (`seen` and `motions` block-diagonal), so each comes out as in its world alone."""
-        if len(parts) == 1:
-            return parts[0]
-        rows = np.cumsum([0] + [len(part.seen) for part in parts])
-        columns = np.cumsum([0] + [len(part.others) for part in parts])
-        seen = np.zeros((rows[-1], columns[-1]), bool)
-        motions = np.zeros((rows[-1], columns[-1], 2))
-        for part, row, column in zip(parts, rows, columns):
-            seen[row : row + len(part.seen), column : column + len(part.others)] = part.seen
-            motions[row : row + len(part.seen), column : column + len(part.others)] = part.motions
-        return Surroundings(
-            np.concatenate([part.others for part in parts]),
-            motions,
-            seen,
-            Boxes.joined([part.obstacles for part in parts]),
-            np.concatenate([part.obstacle_of + row for part, row in zip(parts, rows)]),
-            Boxes.joined([part.outlines for part in parts]),
-            np.concatenate([part.outline_of + row for part, row in zip(parts, rows)]),
-        )
+
+def block_diagonal(worlds: Sequence[tuple[Floats, Floats, Bools]]) -> tuple[Floats, Floats, Bools]:
+    """Several worlds' people as one `Surroundings`' others, motions and seen (each world's m × 2,
+    n × m × 2, n × m), its people numbered on: each person sees only its own world's others, so each
+    comes out as in its world alone."""
+    if len(worlds) == 1:
+        return worlds[0]
+    rows = np.cumsum([0] + [len(seen) for _, _, seen in worlds])
+    columns = np.cumsum([0] + [len(others) for others, _, _ in worlds])
+    seen = np.zeros((rows[-1], columns[-1]), bool)
+    motions = np.zeros((rows[-1], columns[-1], 2))
+    for (others, moved, looked), row, column in zip(worlds, rows, columns):
+        seen[row : row + len(looked), column : column + len(others)] = looked
+        motions[row : row + len(looked), column : column + len(others)] = moved
+    return np.concatenate([others for others, _, _ in worlds]), motions, seen
 
 
 def driving(p: Params, people: People, goals: Floats, arriving: Bools) -> tuple[Floats, Floats]:

@@ -80,6 +80,7 @@ from simbot.description.model import Model
 from simbot.description.plugin_params import bool_param
 from simbot.sim.kit.crowd_view import Band, Poses, View
 from simbot.sim.kit.social_force import (
+    Bools,
     Boxes,
     Floats,
     Ints,
@@ -88,6 +89,7 @@ from simbot.sim.kit.social_force import (
     Route,
     Surroundings,
     accelerations,
+    block_diagonal,
     detours,
     kept_clear,
     outside,
@@ -289,38 +291,53 @@ def _pairs(parts: list[Boxes]) -> tuple[Boxes, Ints]:
     return Boxes.joined(parts), np.repeat(np.arange(len(parts)), [len(part) for part in parts])
 
 
-def _surroundings(people: list[SocialForce], positions: Floats, spans: Floats, poses: Poses) -> Surroundings:
-    """What each of `people` keeps its distance from: the others (their velocities since each last
-    looked), the shadows near it and the robots' outlines within its reach; each one's robots within
-    the radius and CLOSING_SPEED for an update period are kept clear at every step (`_touching`)."""
-    view = people[0]._view
-    bands = [view.band(*person._band) for person in people]
-    placed = {
-        key: (band.outlines_at(poses), band.movables_at(poses)) for key, band in {id(b): b for b in bands}.items()
-    }
-    names = view.people
-    others = poses.frames(list(names))[:, :2]
-    motions = np.stack([person._motions(names, others, span) for person, span in zip(people, spans)])
-    seen = np.ones((len(people), len(names)), bool)
-    seen[np.arange(len(people)), [names.index(person._actor) for person in people]] = False
-    statics, static_of = _pairs([person._static_near(band) for person, band in zip(people, bands)])
-    movables, movable_of = _pairs([placed[id(band)][1] for band in bands])
+def _surroundings(worlds: list[WorldStep], positions: Floats, spans: Floats) -> Surroundings:
+    """What each person of `worlds` keeps its distance from: the others of its world (their
+    velocities since it last looked), the shadows near it and its world's robots' outlines within
+    its reach; each one's robots within the radius and CLOSING_SPEED for an update period are kept
+    clear at every step (`_touching`). What each world holds is read world by world, the distances
+    for all worlds at once."""
+    people = [person for world in worlds for person in world.people]
+    blocks: list[tuple[Floats, Floats, Bools]] = []
+    statics: list[Boxes] = []
+    movables: list[Boxes] = []
+    outlines: list[Boxes] = []
+    robots: list[str] = []
+    first = 0
+    for world in worlds:
+        view, poses, mine = world.people[0]._view, world.poses, world.people
+        bands = [view.band(*person._band) for person in mine]
+        placed = {
+            key: (band.outlines_at(poses), band.movables_at(poses)) for key, band in {id(b): b for b in bands}.items()
+        }
+        names = view.people
+        others = poses.frames(list(names))[:, :2]
+        motions = np.stack([p._motions(names, others, span) for p, span in zip(mine, spans[first : first + len(mine)])])
+        seen = np.ones((len(mine), len(names)), bool)
+        seen[np.arange(len(mine)), [names.index(person._actor) for person in mine]] = False
+        blocks.append((others, motions, seen))
+        statics += [person._static_near(band) for person, band in zip(mine, bands)]
+        movables += [placed[id(band)][1] for band in bands]
+        outlines += [placed[id(band)][0] for band in bands]
+        robots += [name for band in bands for name in band.robots]
+        first += len(mine)
+    static, static_of = _pairs(statics)
+    movable, movable_of = _pairs(movables)
     reach = np.array([person._crowd.obstacle_reach for person in people])
-    movables = movables.take(keep := movables.within(positions[movable_of], reach[movable_of]))
-    outlines, outline_of = _pairs([placed[id(band)][0] for band in bands])
-    gaps, _ = outlines.nearest(positions[outline_of])
+    movable = movable.take(keep := movable.within(positions[movable_of], reach[movable_of]))
+    outline, outline_of = _pairs(outlines)
+    gaps, _ = outline.nearest(positions[outline_of])
     margins = np.array([p._crowd.radius + CLOSING_SPEED * p._period_ns / 1e9 for p in people])[outline_of]
-    robots = [name for band in bands for name in band.robots]
-    for k, person in enumerate(people):
-        person._touching = [robots[i] for i in np.flatnonzero((outline_of == k) & (gaps < margins))]
-    near = outlines.within(positions[outline_of], np.array([p._crowd.reach for p in people])[outline_of])
+    for person in people:
+        person._touching = []
+    for pair in np.flatnonzero(gaps < margins):
+        people[outline_of[pair]]._touching.append(robots[pair])
+    near = outline.within(positions[outline_of], np.array([p._crowd.reach for p in people])[outline_of])
     return Surroundings(
-        others,
-        motions,
-        seen,
-        Boxes.joined([statics, movables]),
+        *block_diagonal(blocks),
+        Boxes.joined([static, movable]),
         np.concatenate([static_of, movable_of[keep]]),
-        outlines.take(near),
+        outline.take(near),
         outline_of[near],
     )
 
@@ -334,13 +351,7 @@ def _think(worlds: list[WorldStep]) -> None:
     spans = np.array([person._span(world.now_ns) for world in worlds for person in world.people])
     positions = np.array([person._position for person in people])
     velocities = (positions - np.array([person._anchor for person in people])) / spans[:, None]
-    bounds = np.cumsum([0] + [len(world.people) for world in worlds])
-    around = Surroundings.joined(
-        [
-            _surroundings(world.people, positions[a:b], spans[a:b], world.poses)
-            for world, a, b in zip(worlds, bounds[:-1], bounds[1:])
-        ]
-    )
+    around = _surroundings(worlds, positions, spans)
     for person in people:
         person._goal = person._route.after(person._goal, person._position, person._crowd.waypoint_tolerance)
     goals = np.array([person._route.points[person._goal] for person in people])
