@@ -28,7 +28,7 @@ CLIENTS = REPO / "clients"
 MAX_LINES = 500
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("simbot.transform", "simbot.plugins", "simbot.arguments", "simbot.sim.bullet"),
+    ("simbot.transform", "simbot.plugins", "simbot.arguments", "simbot.memory", "simbot.sim.bullet"),
     ("simbot.description", "simbot.bus"),
     ("simbot.variation", "simbot.mapping", "simbot.dataset_format", "simbot.scan_merge"),
     ("simbot.sim.physics", "simbot.sim.render"),

@@ -42,9 +42,10 @@ from server_helpers import (
     wait_until,
 )
 
+from simbot import memory
 from simbot.bus import messages
 from simbot.bus.graph import discover
-from simbot.description.fleet import TUG_BYTES, WORLD_BYTES, too_many_for_memory
+from simbot.description.fleet import TUG_BYTES, WORLD_BYTES
 from simbot.description.model import Scene
 from simbot.sim import server
 from simbot.transform import quaternion_to_matrix
@@ -369,8 +370,9 @@ def test_robots_past_what_memory_allows_is_one_line_and_nothing_starts(
 ) -> None:
     """A thousand tugs need about 3 GiB (TUG_BYTES each, measured); with 1 GiB available the server
     says so in one line, how many would fit, and exits 2 before it opens a bus or loads a model."""
-    assert too_many_for_memory(1000, 8 << 30) is None
-    monkeypatch.setattr(server, "available_memory", lambda: 1 << 30)
+    monkeypatch.setattr(memory, "available", lambda: 8 << 30)
+    assert memory.shortfall("--robots", 1000, TUG_BYTES, WORLD_BYTES, "a tug") is None
+    monkeypatch.setattr(memory, "available", lambda: 1 << 30)
     code = server.main(["--world", "empty", "--robots", "1000", "--physics", "kinematic", "--mode", "lockstep"])
     err = capsys.readouterr().err.strip().splitlines()
     fits = ((1 << 30) - WORLD_BYTES) // TUG_BYTES

@@ -246,6 +246,7 @@ def test_dock_batches_too_with_a_camera_and_its_sub_envs_are_the_single_env() ->
         ({"num_envs": 2, "processes": 0, "cameras": ("camera_front",)}, "cameras camera_front with processes=0"),
         ({"num_envs": 2, "watch": True}, "watch=True needs a server"),
         ({"num_envs": 2, "physics": "warp"}, "physics 'warp': one of dynamic, kinematic"),
+        ({"num_envs": 10**6}, "num_envs 1000000: about 4"),
         ({"num_envs": 2, "autoreset_mode": "later"}, "autoreset_mode 'later': one of NextStep, SameStep"),
     ],
 )

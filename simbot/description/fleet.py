@@ -126,15 +126,3 @@ def check_zones(zones: Sequence[Zone], spots: Sequence[Spot]) -> None:
 def in_zone(spots: Sequence[Spot], band: Zone | None) -> list[Spot]:
     """The robots a zone server holds: those standing in its band (all of them without one)."""
     return [spot for spot in spots if band is None or band.holds(spot.x)]
-
-
-def too_many_for_memory(robots: int, available: int) -> str | None:
-    """Why `robots` tugs do not fit in `available` bytes (WORLD_BYTES and TUG_BYTES each), or None."""
-    needed = WORLD_BYTES + robots * TUG_BYTES
-    if needed <= available:
-        return None
-    fits = max(0, (available - WORLD_BYTES) // TUG_BYTES)
-    return (
-        f"--robots {robots}: a server needs about {needed / 2**30:.1f} GiB for them "
-        f"({TUG_BYTES >> 20} MiB a tug), and {available / 2**30:.1f} GiB is available: {fits} fit"
-    )

@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import logging
 import math
-import os
 import signal
 import sys
 import threading
@@ -37,11 +36,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from simbot import memory
 from simbot.arguments import number, whole
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, World, load_world
 from simbot.description.additions import addition_path, with_additions, world_path
-from simbot.description.fleet import DEFAULT_SPAWN, MAX_FLEET, Zone, fleet, in_zone, too_many_for_memory, zone
+from simbot.description.fleet import DEFAULT_SPAWN, MAX_FLEET, TUG_BYTES, WORLD_BYTES, Zone, fleet, in_zone, zone
 from simbot.description.model import Model
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
@@ -314,39 +314,6 @@ def _config(args: argparse.Namespace) -> ServerConfig:
     )
 
 
-def available_memory() -> int:
-    """Bytes this process may still take without swapping: Linux's MemAvailable (else the free
-    pages), and no more than its container's cgroup leaves (memory.max less memory.current); a
-    terabyte where nothing can be read (a bound that is not known holds nothing back)."""
-    bounds = [_meminfo_available(), _cgroup_left()]
-    known = [bound for bound in bounds if bound is not None]
-    return min(known) if known else 1 << 40
-
-
-def _meminfo_available() -> int | None:
-    try:
-        with open("/proc/meminfo") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def _cgroup_left() -> int | None:
-    """What the cgroup (v2) this process runs in leaves it, or None without a limit."""
-    try:
-        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
-        used = Path("/sys/fs/cgroup/memory.current").read_text().strip()
-    except OSError:
-        return None
-    return None if limit == "max" else max(0, int(limit) - int(used))
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `simbot-server`."""
     parser = build_parser()
@@ -362,7 +329,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"simbot-server: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     held = len(robot_places(config.spawn, config.robots, config.columns, config.zone)) if config.robots else 0
-    if (problem := too_many_for_memory(held, available_memory())) is not None:
+    if (problem := memory.shortfall("--robots", held, TUG_BYTES, WORLD_BYTES, "a tug")) is not None:
         print(f"simbot-server: error: {problem}", file=sys.stderr)
         return EXIT_USAGE
     stop = threading.Event()
