@@ -144,10 +144,32 @@ def test_the_action_space_is_the_drives_limit_from_the_robots_sdf() -> None:
         float(j.findtext("axis/limit/velocity") or "nan") for j in model.iter("joint") if "wheel" in j.get("name", "")
     )
     radius, separation = float(drive.findtext("wheel_radius") or ""), float(drive.findtext("wheel_separation") or "")
-    linear, angular = check_limits(EnvOptions(), RobotFacts.read(ROBOT_SDF))
+    linear, angular = check_limits(EnvOptions(), RobotFacts.read(ROBOT_SDF, "empty"))
     assert (linear, angular) == pytest.approx((wheel * radius, 2 * wheel * radius / separation))
     with pytest.raises(EnvConfigError, match=r"max_linear 9\.0: must be in \(0, 7\.5\]"):
-        check_limits(EnvOptions(max_linear=9.0), RobotFacts.read(ROBOT_SDF))
+        check_limits(EnvOptions(max_linear=9.0), RobotFacts.read(ROBOT_SDF, "empty"))
+
+
+def test_a_lidar_without_a_topic_is_observed_on_gazebos_default_key(tmp_path: Path) -> None:
+    """The server publishes a sensor that states no `<topic>` on Gazebo's default key; the env names
+    its sources by the same rule, so it observes that scan: the same as the tug's own, whose front
+    lidar states one (before, the env listened on the sensor's name, where nothing came)."""
+    text = ROBOT_SDF.read_text(encoding="utf-8").replace("../meshes/", f"{ROBOT_SDF.parent.parent / 'meshes'}/")
+    assert text.count("<topic>lidar_front</topic>") == 1
+    robot = tmp_path / "tug_without_a_front_topic.sdf"
+    robot.write_text(text.replace("<topic>lidar_front</topic>", ""), encoding="utf-8")
+    key = RobotFacts.read(robot, "empty").lidars["lidar_front"]
+    assert key == "world/empty/model/flexley_tug/link/base_scan_front/sensor/lidar_front/scan"
+    scans = []
+    for sdf in (ROBOT_SDF, robot):
+        env = gymnasium.make(simbot.gym.NAVIGATE, world="empty", physics="kinematic", robot=sdf, timeout=20.0)
+        try:
+            obs, _ = env.reset(seed=3)
+            obs, *_ = env.step(np.array([0.5, 0.2], np.float32))
+            scans.append(obs["scan"])
+        finally:
+            env.close()
+    assert np.array_equal(scans[0], scans[1]), "the scan differs from the tug's own"
 
 
 @pytest.mark.parametrize(

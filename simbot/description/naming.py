@@ -15,7 +15,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from simbot.description.model import Plugin, Sensor
+from simbot.description.model import Link, Model, Plugin, Sensor
 
 _LIBRARY = re.compile(
     r"^(?:lib)?(?:gz-sim|ignition-gazebo|gz-gazebo)\d*-(?P<name>.+?)(?:-system)?(?:\.so|\.dylib|\.dll)?$"
@@ -39,6 +39,20 @@ def scoped_key(name: str) -> str:
 def model_topic(model: str, leaf: str) -> str:
     """Gazebo's default key of a system of the model running as `model`: `model/<model>/<leaf>`."""
     return f"model/{scoped_key(model)}/{leaf}"
+
+
+def sensor_topic(world: str, running: str, model: Model | None, link: Link, sensor: Sensor, kind: str) -> str:
+    """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
+    for the model running as `running` (`scan`, `image`, `imu`, `points`, ...; an empty kind, as
+    Gazebo's RGBD camera has, ends at `<s>`); a joint's sensor: `.../joint/<j>/sensor/<s>/<kind>`.
+    The one rule: the server's sensors publish there, and the gym subscribes there."""
+    stated = (sensor.topic or "").strip().strip("/")
+    if stated:
+        return stated
+    joint = model.joint_of(sensor) if model is not None else None
+    owner = f"joint/{scoped_key(joint.name)}" if joint else f"link/{scoped_key(link.name)}"
+    prefix = f"world/{scoped_key(world)}/model/{scoped_key(running)}/{owner}/sensor/{scoped_key(sensor.name)}"
+    return f"{prefix}/{kind}" if kind else prefix
 
 
 def sensor_frame(sensor: Sensor) -> str:

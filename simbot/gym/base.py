@@ -52,15 +52,13 @@ from simbot.gym.options import (
     read_world,
     steps_per_period,
 )
-from simbot.gym.robot import CONTACT_SENSOR, CONTACT_TOPIC, RobotFacts
+from simbot.gym.robot import CONTACT_SENSOR, CONTACT_TOPIC, ROBOT, RobotFacts
 from simbot.gym.serve import server_spec, task_additions
 from simbot.gym.session import Session
 from simbot.variation import Variations, read_profile
 
 log = logging.getLogger(__name__)
 
-ROBOT = "flexley_tug"
-"""The robot's name in the running world, whatever its SDF calls it."""
 POSE = "geometry_msgs/msg/PoseStamped"
 TARGET_FRAME = "base_link"
 """The merged scan's frame, as the merger client's."""
@@ -109,8 +107,8 @@ class SimbotEnv(gymnasium.Env[Observation, npt.NDArray[np.float32]]):
     def __init__(self, options: EnvOptions, rewards: Rewards | Mapping[str, float] | None = None) -> None:
         self.options = options
         self.rewards = _rewards(rewards)
-        self.robot = RobotFacts.read(options.robot)
         self.world = read_world(options.world)
+        self.robot = RobotFacts.read(options.robot, self.world.name)
         self.physics_steps = steps_per_period(options, self.world, self.robot)
         check_cameras(options, self.robot)
         self._check_robot()

@@ -29,14 +29,16 @@ from simbot.description.drive_params import DiffDriveParams
 from simbot.description.errors import SystemConfigError
 from simbot.description.footprints import Rectangle, collision_boxes
 from simbot.description.lidar_params import LIDAR_TYPES, LidarParams
-from simbot.description.model import Model, Sensor
-from simbot.description.naming import plugin_named
+from simbot.description.model import Model
+from simbot.description.naming import plugin_named, sensor_topic
 from simbot.description.plugin_params import param
 from simbot.gym.errors import EnvConfigError
 from simbot.transform import matmul
 
 log = logging.getLogger(__name__)
 
+ROBOT = "flexley_tug"
+"""The robot's name in the running world, whatever its SDF calls it."""
 CAMERA_TYPES = ("camera",)
 CONTACT_TOPIC = "gym/contact"
 CONTACT_SENSOR = "gym_contact"
@@ -79,20 +81,21 @@ class RobotFacts:
     attach_state_topic: str | None
 
     @staticmethod
-    def read(path: Path) -> RobotFacts:
-        """The robot's facts from its SDF, its plugins' and sensors' parameters read as the server
-        reads them; EnvConfigError naming the file for one the environments cannot use."""
+    def read(path: Path, world: str) -> RobotFacts:
+        """The robot's facts from its SDF, running as ROBOT in the world named `world`: its plugins'
+        and sensors' parameters read, and its keys named, as the server does; EnvConfigError naming
+        the file for one the environments cannot use."""
         try:
-            return RobotFacts._read(path, load_model(path))
+            return RobotFacts._read(path, load_model(path), world)
         except SystemConfigError as exc:
             raise EnvConfigError(f"robot {path}: {exc}") from None
 
     @staticmethod
-    def _read(path: Path, model: Model) -> RobotFacts:
+    def _read(path: Path, model: Model, world: str) -> RobotFacts:
         plugin = plugin_named(model.plugins, "DiffDrive")
         if plugin is None:
             raise EnvConfigError(f"robot {path}: no DiffDrive plugin; the environments drive a differential robot")
-        drive = DiffDriveParams.parse(plugin, model, model.name)
+        drive = DiffDriveParams.parse(plugin, model, ROBOT)
         joint = plugin_named(model.plugins, "DetachableJoint")
         shapes = _collision_boxes(model)
         lowest = min(float(c[:, 2].min()) for _, c in shapes)
@@ -103,15 +106,23 @@ class RobotFacts:
             for (link, name), c in _by_link(shapes).items()
             if float(c[:, 2].min()) > lowest + BUMPER_CLEARANCE
         }
-        sensors = [(link.name, sensor) for link in model.links for sensor in link.sensors]
+        sensors = [(link, sensor) for link in model.links for sensor in link.sensors]
         return RobotFacts(
             source=path,
             limits=_drive_limits(model, drive),
             cmd_topic=drive.topic,
             odom_topic=drive.odom_topic,
             odom_rate=drive.odom_rate,
-            cameras={s.name: _topic(s) for _, s in sensors if s.type in CAMERA_TYPES},
-            lidars={s.name: _topic(s) for _, s in sensors if s.type in LIDAR_TYPES},
+            cameras={
+                s.name: sensor_topic(world, ROBOT, model, link, s, "image")
+                for link, s in sensors
+                if s.type in CAMERA_TYPES
+            },
+            lidars={
+                s.name: sensor_topic(world, ROBOT, model, link, s, "scan")
+                for link, s in sensors
+                if s.type in LIDAR_TYPES
+            },
             lidar_reach=_lidar_reach(model),
             footprint=Rectangle(
                 float(corners[:, 0].min()),
@@ -125,11 +136,6 @@ class RobotFacts:
             attach_topic=param(joint, "attach_topic") if joint else None,
             attach_state_topic=param(joint, "output_topic") if joint else None,
         )
-
-
-def _topic(sensor: Sensor) -> str:
-    """A sensor's stated `<topic>` (simbot's robot states each); its name where none is stated."""
-    return (sensor.topic or "").strip().strip("/") or sensor.name
 
 
 def _drive_limits(model: Model, drive: DiffDriveParams) -> DriveLimits:

@@ -85,8 +85,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             camera_size=(width, height),
             physics=args.physics,
         )
-        robot = RobotFacts.read(options.robot)
         world = read_world(options.world)
+        robot = RobotFacts.read(options.robot, world.name)
         with tempfile.TemporaryDirectory(prefix="simbot-gym-") as folder:
             additions = task_additions(args.task, [m.name for m in world.models])
             command = server_command(server_spec(options, robot, additions, Path(folder)), args.listen, args.namespace)

@@ -51,7 +51,7 @@ import numpy as np
 
 from simbot.description.errors import SystemConfigError
 from simbot.description.model import Link, Model, Plugin, Sensor, Visual, World
-from simbot.description.naming import model_topic, scoped_key
+from simbot.description.naming import model_topic, sensor_topic
 from simbot.sim.loop.bus_view import SimBus
 from simbot.sim.physics.protocols import WorldAccess
 
@@ -228,18 +228,9 @@ class SystemContext:
         return model_topic(name, leaf)
 
     def sensor_topic(self, kind: str) -> str:
-        """A sensor's `<topic>`, else Gazebo's default `world/<w>/model/<m>/link/<l>/sensor/<s>/<kind>`
-        (`scan`, `image`, `imu`, `points`, ...; an empty kind, as Gazebo's RGBD camera has, ends at `<s>`);
-        a joint's sensor: `.../joint/<j>/sensor/<s>/<kind>`."""
+        """The sensor's key (`simbot.description.naming.sensor_topic`: its `<topic>`, else Gazebo's default)."""
         name, link, sensor = self.require_sensor()
-        stated = (sensor.topic or "").strip().strip("/")
-        if stated:
-            return stated
-        joint = self.model.joint_of(sensor) if self.model else None
-        owner = f"joint/{scoped_key(joint.name)}" if joint else f"link/{scoped_key(link.name)}"
-        scope = (self.world.name, name)
-        prefix = "world/{}/model/{}/".format(*map(scoped_key, scope)) + f"{owner}/sensor/{scoped_key(sensor.name)}"
-        return f"{prefix}/{kind}" if kind else prefix
+        return sensor_topic(self.world.name, name, self.model, link, sensor, kind)
 
 
 SystemFactory = Callable[[SystemContext], System]
