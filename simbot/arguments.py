@@ -1,4 +1,4 @@
-"""argparse types that every command shares: a number or a whole number within bounds.
+"""argparse types that every command shares: a number or a whole number within bounds, an image size.
 
 A bad value is argparse's one-line error naming the option, and exit code 2: the server, `simbot map`,
 `simbot experiment` and the client programs check their numbers alike. A leaf module (argparse and
@@ -47,3 +47,17 @@ def whole(least: int = 1, most: int | None = None) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+MAX_IMAGE_SIDE = 8192
+
+
+def image_size(text: str) -> tuple[int, int]:
+    """`WxH` in pixels, each 1..MAX_IMAGE_SIDE (a camera's `--camera-size`)."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"expected WxH such as 320x240, got {text!r}")
+    width, height = (int(p) for p in parts)
+    if not (1 <= width <= MAX_IMAGE_SIDE and 1 <= height <= MAX_IMAGE_SIDE):
+        raise argparse.ArgumentTypeError(f"width and height must be 1..{MAX_IMAGE_SIDE}, got {text!r}")
+    return width, height

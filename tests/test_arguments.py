@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from simbot.arguments import number, whole
+from simbot.arguments import image_size, number, whole
 
 
 def _parsed(kind: object, text: str, capsys: pytest.CaptureFixture[str]) -> tuple[object, str]:
@@ -59,3 +59,19 @@ def test_without_an_upper_bound_only_the_lower_one_holds(capsys: pytest.CaptureF
     assert _parsed(whole(), "1000000", capsys) == (1000000, "")
     _, error = _parsed(whole(), "0", capsys)
     assert error == "prog: error: argument --x: expected a whole number ≥ 1, got '0'"
+
+
+@pytest.mark.parametrize(("text", "value"), [("320x240", (320, 240)), ("8192X1", (8192, 1))])
+def test_an_image_size_is_taken(text: str, value: tuple[int, int], capsys: pytest.CaptureFixture[str]) -> None:
+    assert _parsed(image_size, text, capsys) == (value, "")
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [("0x240", "width and height must be 1..8192"), ("320", "expected WxH such as 320x240"), ("8193x2", "1..8192")],
+)
+def test_an_image_size_out_of_bounds_or_malformed_is_refused(
+    text: str, why: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    value, error = _parsed(image_size, text, capsys)
+    assert value is None and error.startswith("prog: error: argument --x: ") and why in error and repr(text) in error

@@ -24,6 +24,7 @@ import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+from simbot.arguments import image_size
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
 from simbot.gym.options import PEOPLE, PHYSICS, EnvOptions, profile_file, read_world, world_file
@@ -66,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--control-period", type=float, default=0.1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cameras", nargs="*", default=[])
-    parser.add_argument("--camera-size", default="160x120", metavar="WxH")
+    parser.add_argument("--camera-size", type=image_size, default=(160, 120), metavar="WxH")
     parser.add_argument("--listen", required=True)
     parser.add_argument("--namespace", required=True)
     return parser
@@ -75,14 +76,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        width, height = (int(v) for v in args.camera_size.lower().split("x"))
         options = EnvOptions(
             world=args.world,
             people=args.people,
             control_period=args.control_period,
             seed=args.seed,
             cameras=tuple(args.cameras),
-            camera_size=(width, height),
+            camera_size=args.camera_size,
             physics=args.physics,
         )
         world = read_world(options.world)

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from simbot import memory
-from simbot.arguments import number, whole
+from simbot.arguments import image_size, number, whole
 from simbot.bus import BusConfigError, BusOpenError, BusOptions, Node, add_bus_arguments
 from simbot.description import DescriptionError, World, load_world
 from simbot.description.additions import addition_path, with_additions, world_path
@@ -231,7 +231,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="camera renderer: gl (OpenGL on EGL: the GPU, else Mesa on the CPU), tiny (PyBullet's TinyRenderer), auto (default: gl where an EGL context opens, else tiny)",
     )
     parser.add_argument(
-        "--camera-size", type=_size, metavar="WxH", help="every camera's image size instead of the SDF's, e.g. 320x240"
+        "--camera-size",
+        type=image_size,
+        metavar="WxH",
+        help="every camera's image size instead of the SDF's, e.g. 320x240",
     )
     parser.add_argument(
         "--camera-rate", type=number(float, unit="Hz"), metavar="HZ", help="every camera's rate instead of the SDF's"
@@ -252,20 +255,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     add_bus_arguments(parser)
     return parser
-
-
-MAX_CAMERA_SIDE = 8192
-
-
-def _size(text: str) -> tuple[int, int]:
-    """`WxH` in pixels, each 1..8192."""
-    parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise argparse.ArgumentTypeError(f"expected WxH such as 320x240, got {text!r}")
-    width, height = (int(p) for p in parts)
-    if not (1 <= width <= MAX_CAMERA_SIDE and 1 <= height <= MAX_CAMERA_SIDE):
-        raise argparse.ArgumentTypeError(f"width and height must be 1..{MAX_CAMERA_SIDE}, got {text!r}")
-    return width, height
 
 
 def parse_config(argv: Sequence[str]) -> ServerConfig:
