@@ -53,6 +53,7 @@ docs: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_server.py
 	$(BIN)/python benchmarks/bench_fleet.py
+	$(BIN)/python benchmarks/bench_fleet_create.py
 	$(BIN)/python benchmarks/bench_turn.py
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[localisation]'
 	$(BIN)/python benchmarks/bench_localisation.py

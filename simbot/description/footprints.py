@@ -87,6 +87,12 @@ def outline(model: Model) -> Floats:
     return convex_hull(np.concatenate(corners)) if corners else np.zeros((0, 2))
 
 
+def reach(points: Floats) -> float:
+    """How far the farthest of `points` (k × 2, a body's frame) lies from the frame's origin: two
+    bodies farther apart than their reaches added cannot overlap."""
+    return float(np.hypot(points[:, 0], points[:, 1]).max()) if len(points) else 0.0
+
+
 def in_world(points: Floats, pose: Planar) -> Floats:
     """`points` (k × 2, a body's frame) in the world with the body at `pose` (x, y, yaw)."""
     x, y, yaw = pose

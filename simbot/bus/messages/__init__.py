@@ -40,7 +40,7 @@ from simbot.bus.messages.images import (
     image,
     image_pixels,
 )
-from simbot.bus.messages.markers import NO_COLOUR, delete_all, marker, marker_array
+from simbot.bus.messages.markers import NO_COLOUR, delete_all, marker, marker_array, restamped
 from simbot.bus.messages.nav import COVARIANCE_SIZE, occupancy_grid, odometry
 from simbot.bus.messages.sensors import fluid_pressure, imu, joint_state, laser_scan, magnetic_field, nav_sat_fix
 from simbot.bus.messages.std import NS_PER_S, clock, empty, float64, header, stamp_ns, string, time_msg
@@ -180,6 +180,7 @@ __all__ = [
     "point_cloud_array",
     "pose_stamped",
     "quaternion",
+    "restamped",
     "stamp_ns",
     "string",
     "tf_message",

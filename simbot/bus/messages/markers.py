@@ -9,7 +9,7 @@ import numpy as np
 
 from simbot.bus.messages.geometry import pose, vector3
 from simbot.bus.messages.std import header
-from simbot.bus.messages.typestore import ColorRGBA, CompressedImage, Duration, Marker, MarkerArray, MeshFile
+from simbot.bus.messages.typestore import ColorRGBA, CompressedImage, Duration, Header, Marker, MarkerArray, MeshFile
 from simbot.bus.messages.values import Floats, floats, three
 
 NO_COLOUR = (0.0, 0.0, 0.0, 0.0)
@@ -53,6 +53,15 @@ def marker(
         mesh_file=MeshFile(filename="", data=np.zeros(0, np.uint8)),
         mesh_use_embedded_materials=bool(mesh) and (r, g, b, a) == NO_COLOUR,
     )
+
+
+def restamped(marker: Marker, stamp: Header) -> Marker:
+    """`marker` with the header `stamp` (its frame and time): a scene of thousands of markers, built
+    once each, stamped anew whenever it is sent again."""
+    again = object.__new__(Marker)  # copy.copy's shallow copy, without its protocol: 2 µs, not 4
+    again.__dict__.update(marker.__dict__)
+    again.header = stamp
+    return again
 
 
 def delete_all(ns: int, frame: str) -> Marker:

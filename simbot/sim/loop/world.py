@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ import numpy as np
 
 from simbot.description import DescriptionError, load_description
 from simbot.description.actor_scripts import is_actor
-from simbot.description.footprints import in_world, outline, overlap
+from simbot.description.footprints import in_world, outline, overlap, reach
 from simbot.description.model import Model, World
 from simbot.description.naming import scoped_key
 from simbot.description.poses import Pose
@@ -273,14 +274,17 @@ class SimWorld:
     def _check_clear(self, name: str, model: Model, pose: Pose) -> None:
         """ValueError naming both where the robot `name` at `pose` would stand on ground another
         robot takes up (their collisions' outlines on the floor overlap)."""
-        mine = in_world(outline(model), (pose.xyz[0], pose.xyz[1], pose.rpy[2]))
+        (x, y, _), own = pose.xyz, outline(model)
+        mine, span = in_world(own, (x, y, pose.rpy[2])), reach(own)
         for other in self.physics.body_names():
             there = self.physics.model_of(other)
-            if _is_robot(there):
-                at = self.physics.model_pose(other)
-                if overlap(mine, in_world(outline(there), (at.position[0], at.position[1], at.yaw))):
-                    x, y = pose.xyz[0], pose.xyz[1]
-                    raise ValueError(f"pose: {name!r} at ({x:.2f}, {y:.2f}) would overlap the robot {other!r}")
+            if not _is_robot(there):
+                continue
+            at, theirs = self.physics.model_pose(other), outline(there)
+            if math.hypot(at.position[0] - x, at.position[1] - y) > span + reach(theirs):
+                continue  # too far apart to touch: the polygons need no test (a thousand tugs)
+            if overlap(mine, in_world(theirs, (at.position[0], at.position[1], at.yaw))):
+                raise ValueError(f"pose: {name!r} at ({x:.2f}, {y:.2f}) would overlap the robot {other!r}")
 
     def _free_name(self, name: str, allow_renaming: bool) -> str:
         """`name`, or with allow_renaming the first free `name_1`, `name_2`, ... (as Gazebo renames)."""

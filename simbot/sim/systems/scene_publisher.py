@@ -34,6 +34,7 @@ ms for the warehouse's 220 visuals) and put happen on a sender thread, never in 
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -72,9 +73,15 @@ class Part:
     pose: Transform
     rgba: tuple[float, float, float, float]
 
-    def marker(self, now_ns: int) -> Any:
+    @functools.cached_property
+    def _marker(self) -> Any:
         kind, scale, mesh = self.shape
-        return messages.marker(now_ns, self.frame, self.model, self.index, kind, *self.pose, scale, self.rgba, mesh)
+        return messages.marker(0, self.frame, self.model, self.index, kind, *self.pose, scale, self.rgba, mesh)
+
+    def marker(self, stamp: Any) -> Any:
+        """The part's marker with the header `stamp` (its frame at the scene's time): built once,
+        stamped anew each time the scene is sent (a fleet's scene is thousands of markers)."""
+        return messages.restamped(self._marker, stamp)
 
 
 def shape_of(geometry: Geometry) -> Shape | None:
@@ -206,7 +213,10 @@ class ScenePublisher:
     def post_update(self, info: UpdateInfo) -> None:
         if self._changed:
             self._changed = False
-            markers = [part.marker(info.sim_time_ns) for parts in self._parts.values() for part in parts]
+            now_ns = info.sim_time_ns
+            frames = {part.frame for parts in self._parts.values() for part in parts}
+            stamps = {frame: messages.header(now_ns, frame) for frame in frames}
+            markers = [part.marker(stamps[part.frame]) for parts in self._parts.values() for part in parts]
             self._sender.send(messages.marker_array([messages.delete_all(info.sim_time_ns, WORLD_FRAME), *markers]))
         if self._every.due(info.sim_time_ns) and (self._moving or self._anchors):
             self._tf.put(messages.tf_message(self._transforms(info.sim_time_ns)))
