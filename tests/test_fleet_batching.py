@@ -50,6 +50,7 @@ def run(robot: Path, *, batched: bool, listen_from: int) -> Recording:
     sim = world.sim
     if not batched:  # each system alone and asked every step, as before systems could batch
         sim._post = [Slot(system.post_update, 0) for system in sim.systems if isinstance(system, PostUpdate)]
+        sim._plan = None  # made again from the slots above
     got: Recording = defaultdict(list)
     command = node.publisher("tug_2/cmd_vel", messages.Twist)
     try:

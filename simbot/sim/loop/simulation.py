@@ -13,7 +13,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 from typing import cast
@@ -174,6 +174,37 @@ def _batched(slots: list[Slot], batches: dict[tuple[type, int], Slot], system: S
     _inserted(slots, batches[key])
 
 
+Run = Slot | list[Slot]
+"""A batched class's slot, or systems' own slots one after the other (what a step calls in a row)."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A world's slots as a step calls them: each phase's runs, and the batched slots' keys in order
+    (worlds whose keys match step together)."""
+
+    pre: list[Run]
+    post: list[Run]
+    keys: tuple[tuple[tuple[type, int] | None, ...], tuple[tuple[type, int] | None, ...]]
+
+    @staticmethod
+    def of(pre: list[Slot], post: list[Slot]) -> Plan:
+        return Plan(_runs(pre), _runs(post), (tuple(s.key for s in pre), tuple(s.key for s in post)))
+
+
+def _runs(slots: list[Slot]) -> list[Run]:
+    """`slots` with each stretch of systems' own slots in one list."""
+    runs: list[Run] = []
+    for slot in slots:
+        if slot.key is not None:
+            runs.append(slot)
+        elif runs and isinstance(runs[-1], list):
+            runs[-1].append(slot)
+        else:
+            runs.append([slot])
+    return runs
+
+
 @dataclass
 class Simulation:
     """The world, its systems, and the loop that advances them."""
@@ -188,6 +219,8 @@ class Simulation:
     _post: list[Slot] = field(init=False)
     _batches: tuple[dict[tuple[type, int], Slot], dict[tuple[type, int], Slot]] = field(init=False)
     """The batched slots of each phase (pre, post) by class and priority."""
+    _plan: Plan | None = None
+    """The slots as a step calls them, made again after they change."""
     _steps: deque[StepRequest] = field(default_factory=deque)
     _pacer: Pacer = field(default_factory=Pacer)
 
@@ -203,14 +236,14 @@ class Simulation:
     def _order(self) -> None:
         """The per-phase slots, afresh; a batched class's instances of one priority run as one call,
         in the place of the first of them."""
-        self._pre, self._post, self._batches = [], [], ({}, {})
+        self._pre, self._post, self._batches, self._plan = [], [], ({}, {}), None
         for entry in sorted(self.scheduled, key=lambda entry: entry.priority):
             self._slot(entry)
 
     def _slot(self, entry: Scheduled) -> None:
         """`entry`'s system into the phases it implements, after those of its priority already there."""
         system, priority = entry.system, entry.priority
-        phases = _phases(system)
+        phases, self._plan = _phases(system), None
         if BatchedPreUpdate in phases:
             _batched(self._pre, self._batches[0], system, priority)
         elif PreUpdate in phases:
@@ -238,6 +271,13 @@ class Simulation:
     def step(self) -> None:
         """One step of every system and the physics; `paused` in the record when world control stepped a paused world."""
         step_together([self])
+
+    @property
+    def plan(self) -> Plan:
+        """The slots as a step calls them (kept until they change)."""
+        if self._plan is None:
+            self._plan = Plan.of(self._pre, self._post)
+        return self._plan
 
     def request_steps(self, count: int, done: Callable[[], None]) -> None:
         """`count` more steps, then `done()`; these run even when paused or in lockstep."""
@@ -314,7 +354,8 @@ def step_together(sims: Sequence[Simulation]) -> None:
     """One step of each of `sims`, phase by phase: worlds of the same systems (a vector env's
     sub-envs) call each batched class once for all their instances, each world's with its own info;
     the others step one after the other. Each world comes out as if stepped alone."""
-    if len(sims) > 1 and not _alike(sims):
+    plans = [sim.plan for sim in sims]
+    if len({plan.keys for plan in plans}) > 1:
         for sim in sims:
             step_together([sim])
         return
@@ -322,31 +363,27 @@ def step_together(sims: Sequence[Simulation]) -> None:
     for sim in sims:
         sim.clock.advance()
         infos.append(sim.clock.info(sim.paused))
-    _phase(zip(*(sim._pre for sim in sims)), infos, "pre_update_all")
+    _phase([plan.pre for plan in plans], infos, "pre_update_all")
     for sim in sims:
         sim.physics.step()
     with contextlib.ExitStack() as reading:
         for sim in sims:
             reading.enter_context(sim.physics.reading())
-        _phase(zip(*(sim._post for sim in sims)), infos, "post_update_all")
+        _phase([plan.post for plan in plans], infos, "post_update_all")
 
 
-def _alike(sims: Sequence[Simulation]) -> bool:
-    """Whether `sims` have the same slots, in the same order, in both phases."""
-    shapes = {(tuple(slot.key for slot in sim._pre), tuple(slot.key for slot in sim._post)) for sim in sims}
-    return len(shapes) == 1
-
-
-def _phase(slots: Iterable[tuple[Slot, ...]], infos: list[UpdateInfo], batched: str) -> None:
-    """Each slot of a phase across the worlds: a batched class's once for every world's batch, a
-    system's own once in each world (a paced one only when due)."""
-    for across in slots:
+def _phase(worlds: list[list[Run]], infos: list[UpdateInfo], batched: str) -> None:
+    """One phase of each world: a batched class's slot once for every world's batch, each world's
+    run of systems' own slots in turn (a paced one only when due)."""
+    for across in zip(*worlds):
         first = across[0]
-        if first.key is not None:
-            getattr(first.key[0], batched)(
-                [Batch(cast(list[System], slot.batch), info) for slot, info in zip(across, infos)]
+        if isinstance(first, Slot):
+            getattr(cast(tuple[type, int], first.key)[0], batched)(
+                [Batch(cast(list[System], cast(Slot, slot).batch), info) for slot, info in zip(across, infos)]
             )
             continue
-        for slot, info in zip(across, infos):
-            if slot.paced is None or info.sim_time_ns >= slot.paced.next_due_ns:
-                cast(Callable[[UpdateInfo], None], slot.call)(info)
+        for run, info in zip(across, infos):
+            now_ns = info.sim_time_ns
+            for slot in cast(list[Slot], run):
+                if slot.paced is None or now_ns >= slot.paced.next_due_ns:
+                    cast(Callable[[UpdateInfo], None], slot.call)(info)

@@ -101,19 +101,21 @@ class Imu(Sampled):
         due: list[Imu] = []
         stamps: list[int] = []
         parts: list[FrameMotions] = []
+        gravities = []
         for imus, info in batches:
             if here := [imu for imu in imus if imu.due(info)]:
                 due += here
                 stamps += [info.sim_time_ns] * len(here)
                 parts.append(here[0]._physics.frame_motions([imu._where for imu in here]))
+                gravities.append(np.broadcast_to(here[0]._gravity, (len(here), 3)))  # one a world
         if not due:
             return
         motions = FrameMotions.joined(parts)
-        acceleration = Imu._accelerations(due, np.array(stamps), motions.linear)
+        acceleration = Imu._accelerations(due, stamps, motions.linear)
         count = len(due)
         # gyro and accelerometer turned into each frame in one call: rows 0..N-1 and N..2N-1
         turns = np.concatenate([motions.orientations, motions.orientations])
-        gravity = np.array([imu._gravity for imu in due])
+        gravity = gravities[0] if len(gravities) == 1 else np.concatenate(gravities)
         sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - gravity]), into=True)
         terms = np.array([imu._noise_terms for imu in due])  # mean, bias, stddev of the six channels
         white = np.array([imu._white_row() for imu in due])
@@ -129,16 +131,16 @@ class Imu(Sampled):
 
     @staticmethod
     def _accelerations(
-        imus: Sequence[Imu], stamps: npt.NDArray[np.int64], linear: npt.NDArray[np.float64]
+        imus: Sequence[Imu], stamps: Sequence[int], linear: npt.NDArray[np.float64]
     ) -> npt.NDArray[np.float64]:
         """Each IMU's mean acceleration since its last sample (zero for the first), and this one kept
         (`stamps`: each one's sim time now)."""
         last = np.array([imu._last_linear for imu in imus])
         seconds = np.array(
-            [(int(now) - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu, now in zip(imus, stamps)]
+            [(now - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu, now in zip(imus, stamps)]
         )
         for imu, now, velocity in zip(imus, stamps, linear):
-            imu._last_ns, imu._last_linear = int(now), velocity
+            imu._last_ns, imu._last_linear = now, velocity
         return np.where(np.isfinite(seconds)[:, None], (linear - last) / seconds[:, None], 0.0)
 
     def _white_row(self) -> npt.NDArray[np.float64]:
