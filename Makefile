@@ -39,7 +39,7 @@ test-browser: $(STAMP)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check playwright || echo "test-browser: Playwright could not be installed; the test will skip"
 	$(BIN)/python -m pytest tests/browser -m browser
 
-## ruff's checks and its format check over the tree, mypy over simbot/, clients/ and benchmarks/ (rules and strictness in pyproject.toml).
+## ruff's checks and its format check over the tree, mypy over simbot/, clients/, benchmarks/ and tests/ (rules and strictness in pyproject.toml).
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .

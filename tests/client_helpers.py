@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from server_helpers import REPO
 
@@ -211,7 +211,7 @@ class PtyClient:
                 )
             time.sleep(0.02)
 
-    def attributes(self) -> list[object]:
+    def attributes(self) -> list[Any]:
         """The terminal's current attributes (termios.tcgetattr of the slave)."""
         return termios.tcgetattr(self.slave)
 

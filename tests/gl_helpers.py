@@ -17,7 +17,7 @@ def _why_no_egl() -> str | None:
     try:
         import moderngl
 
-        moderngl.create_context(standalone=True, backend="egl", require=330).release()
+        moderngl.create_context(standalone=True, backend="egl", require=330).release()  # type: ignore[arg-type]  # the stub types **settings as dicts
     except Exception as exc:  # noqa: BLE001 - any failure means no GL here
         return f"no OpenGL 3.3 EGL context opens on this machine ({exc})"
     return None

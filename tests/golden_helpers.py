@@ -204,7 +204,7 @@ class Recording:
     def save(self, path: Path) -> None:
         arrays = {f"{key}|{column}": values for key, cols in self.keys.items() for column, values in cols.items()}
         arrays["types"] = np.array(json.dumps(self.types, sort_keys=True))
-        np.savez_compressed(path, **arrays)
+        np.savez_compressed(path, allow_pickle=True, **arrays)  # numpy's default, named so **arrays types check
 
     @staticmethod
     def load(path: Path) -> Recording:

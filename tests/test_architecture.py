@@ -263,9 +263,12 @@ def _client_imports(source: str) -> list[int]:
     """Lines importing a client program (`simbot.clients…`, or the checkout's `clients…`)."""
     lines = []
     for node in ast.walk(ast.parse(source)):
-        names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
-        if isinstance(node, ast.ImportFrom) and not node.level:
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
             names = [node.module or ""]
+        else:
+            continue
         if any(_under(name, ("simbot.clients", "clients")) for name in names):
             lines.append(node.lineno)
     return lines

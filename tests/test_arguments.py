@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 
 import pytest
 
 from simbot.arguments import image_size, number, whole
 
 
-def _parsed(kind: object, text: str, capsys: pytest.CaptureFixture[str]) -> tuple[object, str]:
+def _parsed(kind: Callable[[str], object], text: str, capsys: pytest.CaptureFixture[str]) -> tuple[object, str]:
     """The value `--x text` gives, or None and argparse's error line after its exit 2."""
     parser = argparse.ArgumentParser(prog="prog")
     parser.add_argument("--x", type=kind)

@@ -151,7 +151,7 @@ def _gl_device() -> str:
     """What rasterises GL here (llvmpipe names its LLVM and vector width)."""
     import moderngl
 
-    context = moderngl.create_context(standalone=True, backend="egl", require=330)
+    context = moderngl.create_context(standalone=True, backend="egl", require=330)  # type: ignore[arg-type]  # the stub types **settings as dicts
     try:
         return str(context.info["GL_RENDERER"])
     finally:

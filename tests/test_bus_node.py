@@ -25,6 +25,7 @@ from simbot.bus import (
     EncodeError,
     ForkedSessionError,
     Node,
+    Publisher,
     Queryable,
     Request,
     ServiceError,
@@ -475,7 +476,11 @@ def test_a_fleets_publishers_and_inboxes_start_no_thread_each_and_still_hear_the
         assert not publishers[8].has_subscribers
         senders = [pair.client.publisher(f"tug_{k}/cmd_vel", TWIST) for k in (3, 99)]
         for sender in senders:
-            wait_until(lambda sender=sender: sender.has_subscribers, what="the server's inbox")
+
+            def matched(sender: Publisher = sender) -> bool:
+                return sender.has_subscribers
+
+            wait_until(matched, what="the server's inbox")
             sender.put(m.twist((0.5, 0.0, 0.0), (0.0, 0.0, 0.0)))
         wait_until(lambda: inboxes[3].received == 1 and inboxes[99].received == 1, what="both commands")
         latched[4].put(m.string("<robot/>"))

@@ -430,7 +430,9 @@ def test_a_viewers_cmd_vel_is_denied_an_operators_drives(server: Server) -> None
         before = cmd_vel_received(operator, server)
         publisher = viewer.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
         wait_until(
-            lambda: publisher.matching_status.matching, 10.0, f"the viewer to learn the server subscribes to {key}"
+            lambda: publisher.matching_status.matching,  # type: ignore[attr-defined]  # a MatchingStatus; the stub says bool
+            10.0,
+            f"the viewer to learn the server subscribes to {key}",
         )
         for _ in range(5):
             publisher.put(command)

@@ -66,7 +66,7 @@ def test_bad_configuration_is_refused() -> None:
     with pytest.raises(ValueError):
         StampSync(["a"], 10, 5)
     with pytest.raises(KeyError):
-        StampSync(["a"], 0, 0).add("b", 0, None)
+        StampSync[None](["a"], 0, 0).add("b", 0, None)
 
 
 def test_lookup_chains_transforms_between_branches() -> None:

@@ -31,6 +31,7 @@ from simbot.bus.intrinsics import Intrinsics
 from simbot.dataset_format import DatasetWriter, Shot
 from simbot.sim.render import Annotation, CameraSpec, RenderPool
 from simbot.sim.render.label_bits import instance_of, label_of, labelled
+from simbot.transform import Transform
 
 FIXTURES = REPO / "tests" / "fixtures"
 ROOM = FIXTURES / "dataset_room.sdf"
@@ -90,6 +91,13 @@ def crate_box(label: int, camera: tuple[float, float, float]) -> list[float]:
     return [float(x0), float(y0), float(x1 - x0), float(y1 - y0)]
 
 
+def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
+    """The image OpenCV reads at `path` (cv2.imread's default: 8-bit BGR)."""
+    image = cv2.imread(str(path), flags)
+    assert image is not None, f"OpenCV reads no image at {path}"
+    return image
+
+
 def check_area(annotation: dict[str, Any], camera: tuple[float, float, float]) -> None:
     """The mask's area is the silhouette's, give or take the pixels along its outline."""
     outline = crate_outline(annotation["category_id"], camera)
@@ -108,13 +116,31 @@ def rendered(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
         pytest.skip(NO_EGL)
     grey, red, blue = (0.5, 0.5, 0.5, 1.0), (0.9, 0.1, 0.1, 1.0), (0.1, 0.1, 0.9, 1.0)
     bodies = [
-        box_body("wall", (0.1, 10.0, 4.0), grey, True, ((WALL_X + 0.05, 0, 1), (0, 0, 0, 1)), (), 1),
-        box_body("red", (0.6, 0.6, 0.6), red, True, ((3.3, 0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=5),), 2),
-        box_body("blue", (0.6, 0.6, 0.6), blue, True, ((3.3, -0.6, 0.4), (0, 0, 0, 1)), (Annotation(label=9),), 3),
+        box_body(
+            "wall", (0.1, 10.0, 4.0), grey, True, Transform((WALL_X + 0.05, 0.0, 1.0), (0.0, 0.0, 0.0, 1.0)), (), 1
+        ),
+        box_body(
+            "red",
+            (0.6, 0.6, 0.6),
+            red,
+            True,
+            Transform((3.3, 0.6, 0.4), (0.0, 0.0, 0.0, 1.0)),
+            (Annotation(label=5),),
+            2,
+        ),
+        box_body(
+            "blue",
+            (0.6, 0.6, 0.6),
+            blue,
+            True,
+            Transform((3.3, -0.6, 0.4), (0.0, 0.0, 0.0, 1.0)),
+            (Annotation(label=9),),
+            3,
+        ),
     ]
     spec = CameraSpec("cam", W, H, HFOV, 0.1, 10.0, outputs=("color", "labels"))
     with RenderPool(bodies, [spec], workers=1, renderer=str(request.param)) as pool:
-        pool.request(0, 1, ((0.0, 0.0, 0.5), (0.0, 0.0, 0.0, 1.0)), {})
+        pool.request(0, 1, Transform((0.0, 0.0, 0.5), (0.0, 0.0, 0.0, 1.0)), {})
         (frame,) = pool.collect(wait_for=0, timeout=120.0)
         color, packed = frame["color"].copy(), frame["labels"].copy()
     root = tmp_path_factory.mktemp(f"rendered-{request.param}")
@@ -133,7 +159,7 @@ def test_pycocotools_reads_the_masks_where_the_crates_are(rendered: Path) -> Non
     assert sorted(coco.getCatIds()) == [5, 9]
     (image,) = coco.loadImgs(coco.getImgIds())
     assert image["file_name"] == "cam/rgb/0000000000000000001.png", "the colour image from the same place"
-    assert cv2.imread(str(rendered / image["file_name"])).shape == (H, W, 3)
+    assert read_image(rendered / image["file_name"]).shape == (H, W, 3)
     annotations = coco.loadAnns(coco.getAnnIds(imgIds=[image["id"]]))
     assert sorted(a["category_id"] for a in annotations) == [5, 9]
     for annotation in annotations:
@@ -148,8 +174,8 @@ def test_pycocotools_reads_the_masks_where_the_crates_are(rendered: Path) -> Non
 
 def test_the_label_maps_hold_what_the_masks_say(rendered: Path) -> None:
     coco = COCO(str(rendered / "annotations.json"))
-    labels = cv2.imread(str(rendered / "seg/labels/0000000000000000001.png"), cv2.IMREAD_UNCHANGED)
-    instances = cv2.imread(str(rendered / "seg/instances/0000000000000000001.png"), cv2.IMREAD_UNCHANGED)
+    labels = read_image(rendered / "seg/labels/0000000000000000001.png", cv2.IMREAD_UNCHANGED)
+    instances = read_image(rendered / "seg/instances/0000000000000000001.png", cv2.IMREAD_UNCHANGED)
     assert labels.dtype == np.uint8 and instances.dtype == np.uint16
     for annotation in coco.loadAnns(coco.getAnnIds()):
         mask = coco.annToMask(annotation).astype(bool)
@@ -198,13 +224,14 @@ def test_sets_of_colour_and_depth_with_intrinsics_and_poses(sim: SimServer) -> N
         for frame in frames.values():
             assert frame["stamp_ns"] == group["stamp_ns"]
             k = np.array(frame["intrinsics"]["K"])
-            assert np.allclose(k, [[FX, 0, (W - 1) / 2], [0, FX, (H - 1) / 2], [0, 0, 1]], atol=1e-6)
+            expected_k: list[list[float]] = [[FX, 0, (W - 1) / 2], [0, FX, (H - 1) / 2], [0, 0, 1]]
+            assert np.allclose(k, expected_k, atol=1e-6)
             pose = np.array(frame["pose"])
             assert np.allclose(pose[:3, 3], place, atol=POSE_M), (pose[:3, 3], place)
             optical = [[0, 0, 1], [-1, 0, 0], [0, -1, 0]]  # x right, y down, z forward, in the world
             assert np.allclose(pose[:3, :3], optical, atol=1e-3), pose
-        colour = cv2.imread(str(out / frames["rig_rgb"]["files"]["rgb"]))[..., ::-1]
-        depth = cv2.imread(str(out / frames["rig_depth"]["files"]["depth"]), cv2.IMREAD_UNCHANGED)
+        colour = read_image(out / frames["rig_rgb"]["files"]["rgb"])[..., ::-1]
+        depth = read_image(out / frames["rig_depth"]["files"]["depth"], cv2.IMREAD_UNCHANGED)
         assert colour.shape == (H, W, 3) and depth.dtype == np.uint16
         column, row = (round(v) for v in projected(0.6, 0.4 - place[2], CRATE_X - place[0]))
         red = colour[row, column].astype(int)
@@ -288,7 +315,7 @@ def test_save_writes_every_frame_in_the_layout(tmp_path: Path) -> None:
     assert [frame_number(f["stamp_ns"]) for f in frames] == list(range(11)), "the first step's, then ten over a second"
     for frame in frames:
         assert frame["camera"] == "saver"
-        assert cv2.imread(str(target / frame["files"]["rgb"])).shape == (H, W, 3)
+        assert read_image(target / frame["files"]["rgb"]).shape == (H, W, 3)
         pose = np.array(frame["pose"])
         assert np.allclose(pose[:3, 3], [0, 0, 1.5], atol=1e-6)
         forward = [math.cos(PITCH), 0.0, -math.sin(PITCH)]
@@ -369,7 +396,7 @@ def test_save_of_a_segmentation_camera_beside_a_colour_one(tmp_path: Path) -> No
     for image in images:
         annotations = coco.loadAnns(coco.getAnnIds(imgIds=[image["id"]]))
         assert sorted(a["category_id"] for a in annotations) == [5, 9]
-        labels = cv2.imread(str(target / "saver_seg" / "labels" / Path(image["file_name"]).name), cv2.IMREAD_UNCHANGED)
+        labels = read_image(target / "saver_seg" / "labels" / Path(image["file_name"]).name, cv2.IMREAD_UNCHANGED)
         for annotation in annotations:
             mask = coco.annToMask(annotation).astype(bool)
             assert mask.sum() == annotation["area"] > 0

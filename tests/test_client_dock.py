@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Iterator
 from contextlib import AbstractContextManager
+from typing import Any
 
 import pytest
 from client_helpers import PtyClient, bus_args, client_command, pty_client, run_without_terminal
@@ -46,15 +47,15 @@ def dock(sim: SimServer, *args: str) -> AbstractContextManager[PtyClient]:
     return pty_client(client_command("dock", *bus_args(sim), *args))
 
 
-def joint_states(sim: SimServer) -> Collector[str]:
+def joint_states(sim: SimServer) -> Collector[Any]:
     """The joint's state as it changes, starting with the latched current one."""
     collector = sim.subscribe("detachable_joint/state", STRING, latched=True)
     collector.wait_count(1, what="the latched detachable_joint/state")
     return collector
 
 
-def states(collector: Collector[object]) -> list[str]:
-    return [m.data for m in collector.messages()]  # type: ignore[attr-defined]
+def states(collector: Collector[Any]) -> list[str]:
+    return [m.data for m in collector.messages()]
 
 
 def attaches(sim: SimServer) -> int:
@@ -62,7 +63,7 @@ def attaches(sim: SimServer) -> int:
     return int(sim.state()["received"][sim.key("attach")])
 
 
-def refused(sim: SimServer, client: PtyClient, collector: Collector[object]) -> str:
+def refused(sim: SimServer, client: PtyClient, collector: Collector[Any]) -> str:
     """Types t, waits for the warning, and makes sure nothing was attached: none reaches the server over five
     more check periods of sim time, by the end of which a second t is refused as well (the client's loop is
     past them)."""

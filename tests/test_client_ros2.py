@@ -149,11 +149,15 @@ class RosUser:
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
-        sim_time = {
-            "cli_args": ["--ros-args", "-r", f"/clock:={clock}"],
-            "parameter_overrides": [Parameter("use_sim_time", Parameter.Type.BOOL, True)],
-        }
-        self.node = rclpy.create_node(name, context=self.context, **(sim_time if clock else {}))
+        if clock:
+            self.node = rclpy.create_node(
+                name,
+                context=self.context,
+                cli_args=["--ros-args", "-r", f"/clock:={clock}"],
+                parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL, True)],
+            )
+        else:
+            self.node = rclpy.create_node(name, context=self.context)
         self._jump_handles: list[Any] = []
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
@@ -162,7 +166,7 @@ class RosUser:
 
     def subscribe(
         self, msgtype: type[Any], topic: str, qos: Any = 10, raw: bool = False
-    ) -> tuple[Collector[Any], Callable[[], None]]:
+    ) -> tuple[Collector[Any], Callable[[], bool]]:
         """Messages of `topic` collected; the second item ends the subscription."""
         collector: Collector[Any] = Collector()
         subscription = self.node.create_subscription(msgtype, topic, collector, qos, raw=raw)
@@ -398,9 +402,12 @@ def test_a_key_carried_both_ways_is_not_echoed(sim: SimServer, ros: RosUser) -> 
 
     key = sim.key("cmd_vel")
     commands, unsubscribe = ros.subscribe(Twist, topic(sim, "cmd_vel"))
-    wait_until(
-        lambda: sim.drive(0.0) or len(commands), WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2
-    )
+
+    def carried() -> int:
+        sim.drive(0.0)
+        return len(commands)
+
+    wait_until(carried, WAIT_S, "the bridge to carry the bus's cmd_vel to DDS", poll=0.2)
     seen, received = len(commands), sim.state()["received"][key]
     for _ in range(5):
         sim.drive(0.0)

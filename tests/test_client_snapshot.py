@@ -17,7 +17,7 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
@@ -123,6 +123,13 @@ def run_snapshot(port: int, namespace: str, out: Path, *args: str) -> subprocess
     return subprocess.run(command, check=False, capture_output=True, text=True, cwd=REPO, timeout=60)
 
 
+def read_png(path: Path, flags: int = cv2.IMREAD_COLOR) -> npt.NDArray[np.uint8]:
+    """The 8-bit image OpenCV reads at `path` (cv2.imread's default: BGR)."""
+    image = cv2.imread(str(path), flags)
+    assert image is not None, f"OpenCV reads no image at {path}"
+    return cast(npt.NDArray[np.uint8], image)
+
+
 def mask(image: npt.NDArray[np.uint8], *colours: tuple[int, int, int]) -> npt.NDArray[np.bool_]:
     """Pixels of exactly one of `colours` (BGR)."""
     return np.any([np.all(image == colour, axis=2) for colour in colours], axis=0)
@@ -150,10 +157,10 @@ def test_map_and_panorama_show_the_published_geometry(tmp_path: Path) -> None:
     assert result.stderr == ""
     assert result.stdout.split() == [str(tmp_path / "out" / "panorama.png"), str(tmp_path / "out" / "map.png")]
 
-    panorama = cv2.imread(str(tmp_path / "out" / "panorama.png"), cv2.IMREAD_UNCHANGED)
+    panorama = read_png(tmp_path / "out" / "panorama.png", cv2.IMREAD_UNCHANGED)
     assert np.array_equal(panorama, panorama_rgb()[:, :, ::-1]), "the panorama is not the published image in BGR"
 
-    image = cv2.imread(str(tmp_path / "out" / "map.png"))
+    image = read_png(tmp_path / "out" / "map.png")
     assert image.shape == (601, 601, 3)  # ±6 m at 2 cm/px, the robot at the centre pixel
 
     # the wall: every return 2 m ahead (row = centre − 2 m / 2 cm), spanning y = +1 … −1 m (left … right)
@@ -194,7 +201,7 @@ def test_silent_details_are_reported_and_the_map_still_written(tmp_path: Path) -
     assert any(f"no {snap.PANORAMA} within" in line and "stitcher" in line for line in lines), lines
     assert any(f"no {snap.TROLLEY_POSE} within" in line for line in lines), lines
     assert any(f"no {snap.DESCRIPTION} within" in line and "2.1 × 0.5" in line for line in lines), lines
-    image = cv2.imread(str(tmp_path / "map.png"))
+    image = read_png(tmp_path / "map.png")
     assert_footprint(image, *snap.SPEC_CHASSIS_M)
     assert not mask(image, snap.TROLLEY).any()
 
@@ -243,13 +250,13 @@ def test_snapshot_of_the_real_merger_and_stitcher(tmp_path: Path) -> None:
         trolley, _ = sim.pose("trolley")
     assert process.returncode == 0, stderr
     assert stderr == "", stderr
-    panorama = cv2.imread(str(tmp_path / "panorama.png"))
+    panorama = read_png(tmp_path / "panorama.png")
     published = [m for m in panoramas.messages() if (m.height, m.width) == panorama.shape[:2]]
     assert any(np.array_equal(panorama, snap.panorama_pixels(m)) for m in published), (
         "not one of the stitcher's panoramas"
     )
 
-    image = cv2.imread(str(tmp_path / "map.png"))
+    image = read_png(tmp_path / "map.png")
     assert_footprint(image, 2.1, 0.5)  # from the real robot_description
     rel_x, rel_y = trolley[0] - robot[0], trolley[1] - robot[1]  # both unturned at spawn
     top, bottom, left, right = bbox(mask(image, snap.TROLLEY))

@@ -392,8 +392,13 @@ def test_echo_decodes_what_is_sent_to_the_inputs(sim: SimServer) -> None:
         wait_until(lambda: states.stdout().count("\n") >= 1, timeout=RUN_TIMEOUT_S, what="the latched state")
         for key, msg in sent.items():
             with client_process(sim, "echo", key, "--once", "--json") as echo:
+
+                def echoed(key: str = key, msg: Any = msg, echo: Any = echo) -> bool:
+                    sim.send(key, msg)
+                    return not echo.alive()
+
                 wait_until(
-                    lambda key=key, msg=msg, echo=echo: sim.send(key, msg) or not echo.alive(),
+                    echoed,
                     timeout=RUN_TIMEOUT_S,
                     what=f"echo of {key}",
                     poll=0.2,

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml  # type: ignore[import-untyped]  # PyYAML, which xacro requires
+import yaml  # PyYAML, which xacro requires
 from bus_helpers import endpoint, free_port, unique_namespace
 from server_helpers import REPO, Collector, stamp_ns
 

@@ -11,7 +11,7 @@ import pytest
 
 from simbot.sim.render import culling
 from simbot.sim.render.scene import projection_matrix, view_matrix
-from simbot.transform import matmul
+from simbot.transform import Transform, matmul
 
 VFOV_DEG, ASPECT, NEAR, FAR = 60.0, 4.0 / 3.0, 0.1, 50.0
 HALF_WIDTH = ASPECT * math.tan(math.radians(VFOV_DEG) / 2.0)
@@ -22,7 +22,7 @@ MARGIN = 1e-6
 
 @pytest.fixture(scope="module")
 def planes() -> np.ndarray:
-    pose = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    pose = Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
     return culling.frustum_planes(matmul(projection_matrix(VFOV_DEG, ASPECT, NEAR, FAR), view_matrix(pose)))
 
 

@@ -57,7 +57,11 @@ def run(robot: Path, *, batched: bool, listen_from: int) -> Recording:
         for step in range(STEPS):
             if step == listen_from:
                 for key in KEYS:
-                    node.hub.listen(key, lambda msg, key=key: got[key].append((stamp_ns(msg), encode(msg))))
+
+                    def deliver(msg: Any, key: str = key) -> None:
+                        got[key].append((stamp_ns(msg), encode(msg)))
+
+                    node.hub.listen(key, deliver)
             if step == DRIVE_AT:
                 command.put(messages.twist((0.8, 0.0, 0.0), (0.0, 0.0, 0.6)))
             sim.step()

@@ -26,6 +26,7 @@ import math
 import re
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -133,10 +134,10 @@ def test_teleop_reads_and_drives_the_followed_robot(sim: SimServer) -> None:
     assert moved["tug_1"] < 0.01
 
 
-def _last(states: Collector[object]) -> str | None:
+def _last(states: Collector[Any]) -> str | None:
     """The joint's latest state (`attached` / `detached`), None before the latched one came."""
     received = states.messages()
-    return str(received[-1].data) if received else None  # type: ignore[attr-defined]
+    return str(received[-1].data) if received else None
 
 
 def _drive_tug_2(sim: SimServer, speed: float, steps: int) -> None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import time
 
-import yaml  # type: ignore[import-untyped]  # PyYAML, which xacro requires
+import yaml  # PyYAML, which xacro requires
 import zenoh
 from bus_helpers import free_port
 from conftest import REPO

@@ -17,6 +17,7 @@ import select
 import signal
 import subprocess
 import sys
+from typing import cast
 
 from server_helpers import alive, descendants, wait_until
 
@@ -92,7 +93,7 @@ def test_an_async_vector_env_after_check_env_just_works_and_dies_with_its_parent
         report = _report(process)
         assert report.get("same") == [True, True], report
         left = descendants(process.pid)
-        workers = set(report["pids"])  # type: ignore[arg-type]
+        workers = set(cast("list[int]", report["pids"]))
         assert workers <= left and len(left) >= 3 * len(workers), f"workers {workers}, processes {left}"
         os.kill(process.pid, signal.SIGKILL)
         process.wait()

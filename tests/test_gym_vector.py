@@ -25,6 +25,7 @@ from server_helpers import alive, killed_script, wait_until
 from test_gym import WALL_WORLD
 
 from simbot.gym import EnvConfigError, SimServerError
+from simbot.gym.base import SimbotEnv
 from simbot.gym.local import LocalSession
 from simbot.gym.session import Session
 from simbot.gym.vector import SimbotVectorEnv
@@ -95,8 +96,10 @@ def test_the_world_off_the_bus_observes_exactly_what_the_bus_path_observes(kwarg
     watched = gymnasium.make("simbot/Navigate-v0", watch=True, **kwargs)
     try:
         runs = [run_single(env, 11, 25) for env in (local, watched)]
-        assert isinstance(local.unwrapped.session, LocalSession) and local.unwrapped.session.process is None
-        assert isinstance(watched.unwrapped.session, Session) and watched.unwrapped.session.process is not None
+        local_env, watched_env = local.unwrapped, watched.unwrapped
+        assert isinstance(local_env, SimbotEnv) and isinstance(watched_env, SimbotEnv)
+        assert isinstance(local_env.session, LocalSession) and local_env.session.process is None
+        assert isinstance(watched_env.session, Session) and watched_env.session.process is not None
     finally:
         local.close()
         watched.close()
@@ -214,11 +217,11 @@ def test_goal_ahead_puts_the_goal_straight_ahead_at_the_starts_heading() -> None
 
 def test_dock_batches_too_with_a_camera_and_its_sub_envs_are_the_single_env() -> None:
     """Each sub-env's render worker started by its simulation process, the frames taken back."""
-    kwargs = {"world": "empty", "cameras": ("camera_front",), "camera_size": (32, 24)}
+    kwargs: dict[str, Any] = {"world": "empty", "cameras": ("camera_front",), "camera_size": (32, 24)}
     envs = gymnasium.make_vec("simbot/Dock-v0", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
     single = gymnasium.make("simbot/Dock-v0", cameras_in_process=True, **kwargs)
     try:
-        assert envs.action_space.shape == (2, 3)
+        assert isinstance(envs, SimbotVectorEnv) and envs.action_space.shape == (2, 3)
         obs, _ = envs.reset(seed=[8, 9])
         image = obs["camera_front"]
         assert image.shape == (2, 24, 32, 3) and 100 < image.mean() < 250, "not the lit floor (an empty buffer?)"

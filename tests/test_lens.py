@@ -28,6 +28,7 @@ import dataclasses
 import math
 from collections.abc import Iterator
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -40,6 +41,7 @@ from simbot.bus import messages
 from simbot.clients.stitcher import CameraModel, CylinderStitcher, Intrinsics
 from simbot.sim.render import CameraSpec, RenderPool
 from simbot.sim.render.lens import Distortion
+from simbot.transform import Transform
 
 IMAGE, INFO, CLOUD = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/PointCloud2"
 BEHIND = ["--spawn", "-10", "0", "0.1", "0"]
@@ -125,7 +127,7 @@ def _k_and_d(info: object) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.floa
 def _rays(pixels: Points2, info: object) -> Points2:
     """Normalised undistorted rays of pixels (N×2), by OpenCV with the published K and D."""
     k, d = _k_and_d(info)
-    return cv2.undistortPoints(pixels.reshape(-1, 1, 2), k, d, criteria=SOLVE).reshape(-1, 2)
+    return cast(Points2, cv2.undistortPoints(pixels.reshape(-1, 1, 2), k, d, criteria=SOLVE).reshape(-1, 2))
 
 
 def _bow(lines: Points2) -> float:
@@ -294,9 +296,11 @@ def test_pixels_a_folding_lens_reaches_no_ray_through_read_black_inf_and_nan(ren
     if renderer == "gl" and NO_EGL:
         pytest.skip(NO_EGL)
     spec = CameraSpec("fold", 160, 120, HFOV, 0.05, 50.0, ("color", "depth", "points"), distortion=Distortion(FOLD_K1))
-    wall = box_body("wall", (0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0), True, ((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    wall = box_body(
+        "wall", (0.1, 20.0, 20.0), (0.5, 0.5, 0.5, 1.0), True, Transform((2.05, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    )
     with RenderPool([wall], [spec], workers=1, renderer=renderer) as pool:
-        pool.request(0, 1, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {})
+        pool.request(0, 1, Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), {})
         (frame,) = pool.collect(wait_for=0, timeout=60.0)
         color, depth, points = (frame[name].copy() for name in ("color", "depth", "points"))
     cx, cy = spec.principal_point

@@ -45,6 +45,13 @@ def write_image(path: Path, left: tuple[int, int, int], right: tuple[int, int, i
     return image
 
 
+def read_image(path: str) -> npt.NDArray[Any]:
+    """The image OpenCV reads back from `path` (BGR), which must be there."""
+    image = cv2.imread(path)
+    assert image is not None, f"OpenCV cannot read {path}"
+    return image
+
+
 def world(tmp_path: Path, visuals: str, links: str = "") -> Path:
     """A world of one static model `thing` whose link `base` holds `visuals`, and `links` after it."""
     path = tmp_path / "world.sdf"
@@ -275,7 +282,7 @@ def test_obj_keeps_each_mtl_material_with_its_texture_and_uvs(tmp_path: Path, pi
     )
     assert (plain.surface.shininess, plain.surface.opacity, plain.surface.albedo_map) == (50.0, 0.5, None)
     assert textured.surface.albedo_map is not None
-    assert np.array_equal(cv2.imread(textured.surface.albedo_map), image), "the texture file holds the MTL's image"
+    assert np.array_equal(read_image(textured.surface.albedo_map), image), "the texture file holds the MTL's image"
     # the textured triangle 1 3 4: corners (0,0) (1,1) (0,1) scaled by 2, uvs as the vt's
     corners = {tuple(p): tuple(uv) for p, uv in zip(textured.positions.tolist(), textured.uvs.tolist(), strict=True)}
     assert corners == {(0.0, 0.0, 0.0): (0.0, 0.0), (2.0, 2.0, 0.0): (1.0, 1.0), (0.0, 2.0, 0.0): (0.0, 1.0)}
@@ -292,7 +299,7 @@ def test_the_same_mesh_with_another_texture_shows_that_texture(tmp_path: Path, p
     for folder, image in zip("ab", images, strict=True):
         textured = by_colour(pieces_of(world(tmp_path / folder, mesh_visual("m.obj"))))[(1.0, 1.0, 1.0)]
         assert textured.surface.albedo_map is not None
-        assert np.array_equal(cv2.imread(textured.surface.albedo_map), image), folder
+        assert np.array_equal(read_image(textured.surface.albedo_map), image), folder
 
 
 def test_an_sdf_material_replaces_the_mesh_materials(tmp_path: Path, pieces_of: PiecesOf) -> None:
@@ -365,7 +372,7 @@ def test_collada_keeps_each_material_and_its_node_transform(tmp_path: Path, piec
     red, textured = pieces[(1.0, 0.0, 0.0)], pieces[(1.0, 1.0, 1.0)]
     assert red.surface.emissive == pytest.approx((0.0, 0.0, 0.2)) and red.surface.albedo_map is None
     assert red.surface.shininess == pytest.approx(20.0)
-    assert textured.surface.albedo_map is not None and np.array_equal(cv2.imread(textured.surface.albedo_map), image)
+    assert textured.surface.albedo_map is not None and np.array_equal(read_image(textured.surface.albedo_map), image)
     assert np.allclose(red.positions[:, 2], 2.0) and np.allclose(textured.positions[:, 2], 2.0), "the node's matrix"
     assert sorted(map(tuple, textured.uvs.tolist())) == [(0.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
 
@@ -408,7 +415,7 @@ def test_glb_keeps_base_colours_textures_emission_and_nodes(tmp_path: Path, piec
     )
     assert textured.surface.emissive == pytest.approx((0.1, 0.0, 0.0))
     assert textured.surface.albedo_map is not None
-    assert np.array_equal(cv2.imread(textured.surface.albedo_map)[:, :, ::-1], pixels)
+    assert np.array_equal(read_image(textured.surface.albedo_map)[:, :, ::-1], pixels)
     assert len(textured.positions) == 36 and textured.uvs.max() == pytest.approx(1.0)
 
 
@@ -522,6 +529,7 @@ def pybullet_view(scene: BulletScene, name: str) -> dict[int, tuple[npt.NDArray[
         link, geometry, dimensions, mesh_file, position, orientation, rgba = shape[1:8]
         if geometry == GEOM_MESH:
             loaded = trimesh.load(mesh_file.decode(), force="mesh")
+            assert isinstance(loaded, trimesh.Trimesh), mesh_file
             local = np.asarray(loaded.vertices)[np.asarray(loaded.faces)].reshape(-1, 3) * np.asarray(dimensions[:3])
         else:
             tessellated = primitive(geometry, tuple(dimensions))

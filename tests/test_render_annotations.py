@@ -8,10 +8,11 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from gl_helpers import NO_EGL, box_body
 
 from simbot.sim.render import Annotation, CameraSpec, Light, RenderPool, SceneBody
 from simbot.sim.render.label_bits import instance_of, label_of, labelled
-from tests.gl_helpers import NO_EGL, box_body
+from simbot.transform import Transform
 
 W, H, HFOV = 160, 120, math.radians(90.0)
 FX = (W / 2) / math.tan(HFOV / 2)
@@ -20,8 +21,8 @@ AMBIENT_K, GRADIENT = 300.0, -0.5
 """A steep lapse, so that the atmosphere's temperature visibly changes over a box's height."""
 
 
-def at(x: float, y: float, z: float = 0.0) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    return ((x, y, z), (0.0, 0.0, 0.0, 1.0))
+def at(x: float, y: float, z: float = 0.0) -> Transform:
+    return Transform((x, y, z), (0.0, 0.0, 0.0, 1.0))
 
 
 def bodies() -> list[SceneBody]:
@@ -64,7 +65,7 @@ def test_labelled_crates_show_their_label_and_an_instance_each(frame: dict[str, 
     left, right = packed[mid, column(1.2, 4.0)], packed[mid, column(-0.8, 4.0)]
     assert labelled(left) and labelled(right)
     assert label_of(left) == label_of(right) == 7
-    assert (instance_of(left), instance_of(right)) == (3, 4)
+    assert (int(instance_of(left)), int(instance_of(right))) == (3, 4)
 
 
 def test_unlabelled_geometry_hides_what_lies_behind_it(frame: dict[str, np.ndarray]) -> None:

@@ -26,7 +26,7 @@ W, H = 160, 120
 FX = 80.0
 HFOV = 2.0 * math.atan((W / 2) / FX)
 WAIT = 30.0
-AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+AHEAD: Transform = Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
 RED, GREEN, BLUE, GREY = (1.0, 0.0, 0.0, 1.0), (0.0, 1.0, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0)
 CAMERAS = [CameraSpec("rgb", W, H, HFOV, 0.05, 50.0), CameraSpec("noisy", W, H, HFOV, 0.05, 50.0, seed=3)]
 RGB, NOISY = 0, 1
@@ -39,7 +39,7 @@ TEXTURE = Path(__file__).resolve().parents[1] / "worlds" / "textures" / "floor_a
 
 
 def at(x: float, y: float, z: float = 0.0) -> Transform:
-    return ((x, y, z), (0.0, 0.0, 0.0, 1.0))
+    return Transform((x, y, z), (0.0, 0.0, 0.0, 1.0))
 
 
 def wall(name: str, rgba: tuple[float, float, float, float], y: float, static: bool = True) -> SceneBody:

@@ -53,7 +53,7 @@ from simbot.sim.render import (
     output_kinds,
     plan_pool,
 )
-from simbot.sim.render.kinds import Array, Finish
+from simbot.sim.render.kinds import Array, Finish, Optics
 from simbot.sim.render.specs import Transform
 
 W, H = 160, 120
@@ -80,7 +80,7 @@ GREY_AT = (500.0, 0.0, 0.0)  # a grey wall filling the view: a flat region for t
 LATE_AT = (600.0, 0.0, 0.0)  # empty until a test adds bodies to the running pool
 LATE_FACE, LATE_SIZE, LATE_SIDE = 2.0, 0.4, 0.5  # their front faces 2 m ahead, 0.4 m wide, 0.5 m either side
 
-AHEAD: Transform = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+AHEAD: Transform = Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
 
 
 ARM = Model(
@@ -98,11 +98,11 @@ ARM = Model(
 
 
 def at(xyz: tuple[float, float, float]) -> Transform:
-    return (xyz, (0.0, 0.0, 0.0, 1.0))
+    return Transform(xyz, (0.0, 0.0, 0.0, 1.0))
 
 
 def yawed(xyz: tuple[float, float, float], yaw: float) -> Transform:
-    return (xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
+    return Transform(xyz, (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)))
 
 
 def scene() -> list[SceneBody]:
@@ -190,7 +190,7 @@ def test_camera_pose_moves_the_image(pool: RenderPool) -> None:
     left = render(pool, RGB, at((0.0, 0.2, 0.0)))["color"]
     assert centroid_column(mask(left, 0)) == pytest.approx(W / 2 + FX * 0.2 / RED_FACE - 0.5, abs=2)
     pitch = -0.1  # a negative pitch about y raises the optical axis (z up)
-    up = render(pool, RGB, ((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2))))["color"]
+    up = render(pool, RGB, Transform((0.0, 0.0, 0.0), (0.0, math.sin(pitch / 2), 0.0, math.cos(pitch / 2))))["color"]
     rows = np.nonzero(mask(up, 0))[0]
     assert rows.mean() == pytest.approx(H / 2 + FX * math.tan(0.1) - 0.5, abs=2)  # row 0 is the top
 
@@ -393,7 +393,7 @@ def _sphere_silhouette(camera: CameraSpec, centre: tuple[float, float, float], r
     rays = np.stack([np.full(u.shape, camera.fx), -u, -v], axis=-1)
     rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
     to_centre = np.asarray(centre) / np.linalg.norm(centre)
-    return rays @ to_centre > math.cos(math.asin(radius / np.linalg.norm(centre)))  # type: ignore[no-any-return]
+    return rays @ to_centre > math.cos(math.asin(radius / np.linalg.norm(centre)))
 
 
 def test_a_failed_render_raises_and_frees_the_camera(pool: RenderPool) -> None:
@@ -436,7 +436,7 @@ def test_bodies_added_to_a_running_pool_are_drawn_where_placed_and_removed_ones_
         pool.request(RGB, 0, camera, {"late_green": BodyState(green.base, {})})
 
 
-def nearer_than_3m(spec: CameraSpec) -> Finish:
+def nearer_than_3m(spec: Optics) -> Finish:
     """The test kind's finishing step: 255 where the depth (finished into metres before it) is under 3 m."""
 
     def fill(out: Array, arrays: Mapping[str, Array]) -> None:

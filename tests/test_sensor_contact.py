@@ -11,6 +11,7 @@ import pytest
 from probe_helpers import G, assert_left_out, probe, sensor, vector
 
 from simbot.sim.server import ROBOT_NAME
+from simbot.transform import Transform
 
 
 def test_contact_of_a_box_resting_on_the_ground(tmp_path: Path) -> None:
@@ -48,7 +49,7 @@ def test_contact_on_a_ramp_includes_friction(tmp_path: Path) -> None:
     contact = sensor("bump", "contact", "<contact><collision>box</collision></contact>")
     with probe(tmp_path, contact, world=RAMP, static=False, spawn=(x, y, z, 0.0)) as sim:
         sim.server.physics.set_model_pose(
-            ROBOT_NAME, ((x, y, z), (0.0, math.sin(RAMP_PITCH / 2), 0.0, math.cos(RAMP_PITCH / 2)))
+            ROBOT_NAME, Transform((x, y, z), (0.0, math.sin(RAMP_PITCH / 2), 0.0, math.cos(RAMP_PITCH / 2)))
         )
         msg = sim.sample("bump", 500)
         (position, _), _, _ = sim.server.physics.frame_motion(ROBOT_NAME, "body")

@@ -39,13 +39,13 @@ def sim(request: pytest.FixtureRequest) -> Iterator[SimServer]:
 def test_depth_camera_reads_z_depth_of_the_wall_with_its_camera_info_beside_it(sim: SimServer) -> None:
     got = sim.latest({"depth_camera": IMAGE, "depth_camera/camera_info": INFO}, chunk=100)
     image, info = got["depth_camera"], got["depth_camera/camera_info"]
-    assert (image.encoding, image.width, image.height, image.step) == ("32FC1", W, H, W * 4)  # type: ignore[attr-defined]
-    assert image.header.frame_id == "depth_cam_optical_frame"  # type: ignore[attr-defined]
-    depth = messages.depth_pixels(image)  # type: ignore[arg-type]
+    assert (image.encoding, image.width, image.height, image.step) == ("32FC1", W, H, W * 4)
+    assert image.header.frame_id == "depth_cam_optical_frame"
+    depth = messages.depth_pixels(image)
     assert depth[H // 2, W // 2] == pytest.approx(WALL, abs=0.01)
     np.testing.assert_allclose(depth, WALL, atol=0.01)  # the plane z = 3 across the image: flat, not a range
     assert stamp_ns(info) == stamp_ns(image)
-    assert info.k[0] == pytest.approx(FX) and info.k[2] == pytest.approx((W - 1) / 2)  # type: ignore[attr-defined]
+    assert info.k[0] == pytest.approx(FX) and info.k[2] == pytest.approx((W - 1) / 2)
 
 
 def test_rgbd_camera_publishes_image_depth_points_and_info_under_one_stamp(sim: SimServer) -> None:

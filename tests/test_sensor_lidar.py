@@ -71,7 +71,7 @@ Floats = npt.NDArray[np.float64]
 def sensor_pose(robot: tuple[Sequence[float], Sequence[float]], sensor: str) -> tuple[Floats, Floats]:
     """(position, rotation matrix) of a lidar in the world, from the robot's model pose."""
     (xyz, quat), (offset, yaw) = robot, SENSORS[sensor]
-    rot = quaternion_to_matrix(tuple(quat))  # type: ignore[arg-type]
+    rot = quaternion_to_matrix(tuple(quat))
     local = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
     return np.asarray(xyz) + rot @ np.asarray(offset), rot @ local
 

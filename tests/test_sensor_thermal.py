@@ -103,8 +103,14 @@ def sim(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
     world = tmp_path_factory.mktemp("thermal") / "thermal_room.sdf"
     world.write_text(world_text())
     with drawn_by(request.param, str(world), NO_ROBOT) as server:
-        server.renderer = request.param  # type: ignore[attr-defined]
+        server.renderer = request.param  # type: ignore[attr-defined]  # which renderer the tests expect
         yield server
+
+
+def renderer_of(sim: SimServer) -> str:
+    """The renderer the module's fixture started `sim` with."""
+    renderer: str = sim.renderer  # type: ignore[attr-defined]
+    return renderer
 
 
 def counts(msg: Any) -> np.ndarray:
@@ -125,7 +131,7 @@ def height_at(row: int, depth: float) -> float:
 
 def air(sim: SimServer, z: float) -> float:
     """What unannotated geometry at height z reads (K): the atmosphere there; TinyRenderer's at z = 0."""
-    return AMBIENT + GRADIENT * (z if sim.renderer == "gl" else 0.0)  # type: ignore[attr-defined]
+    return AMBIENT + GRADIENT * (z if renderer_of(sim) == "gl" else 0.0)
 
 
 def patch(image: np.ndarray, row: int, column: int) -> np.ndarray:
@@ -162,9 +168,9 @@ def test_unannotated_geometry_reads_the_atmosphere_at_its_height(sim: SimServer)
         expected = air(sim, height_at(row, WALL_DEPTH)) * 100
         assert abs(int(image[row, column]) - expected) <= 1, f"the wall at {z} m reads {image[row, column]}"
     assert abs(int(image[pixel(0.0, 0.5, WALL_DEPTH)]) - int(image[pixel(0.0, 3.5, WALL_DEPTH)])) == (
-        pytest.approx(GRADIENT * 3.0 * 100, abs=6) if sim.renderer == "gl" else 0  # type: ignore[attr-defined]
+        pytest.approx(GRADIENT * 3.0 * 100, abs=6) if renderer_of(sim) == "gl" else 0
     )
-    if sim.renderer == "gl":  # type: ignore[attr-defined]
+    if renderer_of(sim) == "gl":
         row, column = pixel(-1.0, 1.6, BOX_DEPTH)
         assert abs(int(image[row, column]) - air(sim, height_at(row, BOX_DEPTH)) * 100) <= 1
 

@@ -97,7 +97,8 @@ def tf_static(client_node: Node) -> dict[str, tuple[str, np.ndarray]]:
 
 def _in_root(tree: dict[str, tuple[str, np.ndarray]], frame: str) -> np.ndarray:
     """The pose of `frame` in base_footprint, composed along tf_static."""
-    matrix, seen = np.eye(4), []
+    matrix = np.eye(4)
+    seen: list[str] = []
     while frame != ROOT:
         assert frame in tree, f"tf_static does not connect {frame!r} to {ROOT} (chain {' <- '.join(seen + [frame])})"
         assert frame not in seen, f"tf_static has a cycle through {frame!r}"

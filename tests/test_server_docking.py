@@ -10,6 +10,8 @@ Detached, the robot drives forward and slides out from under the deck: the troll
 
 from __future__ import annotations
 
+from typing import Any
+
 import pytest
 from server_helpers import (
     STRING,
@@ -31,7 +33,7 @@ fresh_world = reset_before_each()
 def _late_joiner_sees(sim: SimServer, expected: str) -> None:
     """A new client node subscribing now (latched) gets the current state without any new change."""
     with sim.client() as late:
-        seen: Collector[object] = Collector()
+        seen: Collector[Any] = Collector()
         late.subscribe("detachable_joint/state", STRING, seen, latched=True)
         got = seen.wait_count(1, timeout=5.0, what="detachable_joint/state for a late joiner")
         assert got[0].data == expected, f"a late joiner got {got[0].data!r}, the joint is {expected!r}"

@@ -132,7 +132,7 @@ def test_turn_on_the_spot_then_stop(sim: SimServer) -> None:
     after = sorted((m for m in truth.messages() if t1 <= stamp_ns(m) <= t2), key=stamp_ns)
 
     def rates(a: object, b: object) -> tuple[float, float]:
-        dt = (stamp_ns(b) - stamp_ns(a)) / 1e9  # type: ignore[arg-type]
+        dt = (stamp_ns(b) - stamp_ns(a)) / 1e9
         (pa, qa), (pb, qb) = pose_of(a.pose), pose_of(b.pose)  # type: ignore[attr-defined]
         return planar_distance(pa, pb) / dt, abs(wrap(yaw_of(qb) - yaw_of(qa))) / dt
 

@@ -49,7 +49,7 @@ Pieces = Callable[[BulletScene, str], list[Piece]]
 
 def floor() -> SceneBody:
     """A white slab, its top face at z 0."""
-    return box_body("floor", (20.0, 20.0, 0.1), WHITE, True, ((0.0, 0.0, -0.05), AHEAD))
+    return box_body("floor", (20.0, 20.0, 0.1), WHITE, True, Transform((0.0, 0.0, -0.05), AHEAD))
 
 
 def camera(outputs: tuple[str, ...] = ("color",), near: float = 0.05) -> CameraSpec:
@@ -84,7 +84,7 @@ def drawing(
         }
         renderer.render(0, pose, drawn)
         if "depth" in drawn:
-            linear_depth(drawn["depth"], spec.near, spec.far)  # type: ignore[arg-type]
+            linear_depth(drawn["depth"], spec.near, spec.far)
         return drawn  # type: ignore[return-value]
 
     try:
@@ -154,8 +154,8 @@ def test_a_box_casts_the_suns_shadow_on_the_floor_away_from_the_sun(static: bool
     sun = LightSource(diffuse=(0.5, 0.5, 0.5), direction=(1.0, 0.0, -1.0), cast_shadows=True)
     light = Light(sources=(sun,), ambient=(0.3, 0.3, 0.3), background=(0.0, 0.0, 0.0))
     cube_at = (2.0, 0.0, 0.5)
-    cube = box_body("cube", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), static, ((0.0, 0.0, 0.5), AHEAD))
-    states = {} if static else {"cube": BodyState((cube_at, AHEAD), {})}
+    cube = box_body("cube", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), static, Transform((0.0, 0.0, 0.5), AHEAD))
+    states = {} if static else {"cube": BodyState(Transform(cube_at, AHEAD), {})}
     x0 = 0.0 if static else cube_at[0]
     lit, shaded = 255.0 * (0.3 + 0.5 * math.cos(math.pi / 4)), 255.0 * 0.3
     spec = camera()
@@ -192,8 +192,8 @@ def test_emissive_adds_to_the_lit_colour_and_unlit_shows_its_colour_as_is() -> N
         "flat": Surface(diffuse=(0.1, 0.8, 0.3), lit=False),
     }
     bodies = [
-        box_body("glow", (0.1, 1.0, 1.0), WHITE, True, ((2.0, 0.6, 0.0), AHEAD)),
-        box_body("flat", (0.1, 1.0, 1.0), WHITE, True, ((2.0, -0.6, 0.0), AHEAD)),
+        box_body("glow", (0.1, 1.0, 1.0), WHITE, True, Transform((2.0, 0.6, 0.0), AHEAD)),
+        box_body("flat", (0.1, 1.0, 1.0), WHITE, True, Transform((2.0, -0.6, 0.0), AHEAD)),
     ]
     with drawing(bodies, light, camera(), dressed(surfaces)) as draw:
         image = draw(((0.0, 0.0, 0.0), AHEAD))["color"].astype(float)
@@ -211,8 +211,8 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
         "glass": Surface(diffuse=(0.0, 1.0, 0.0), lit=False, opacity=0.5),
     }
     bodies = [
-        box_body("wall", (0.1, 10.0, 10.0), WHITE, True, ((3.05, 0.0, 0.0), AHEAD)),
-        box_body("glass", (0.1, 1.0, 1.0), WHITE, True, ((1.5, 0.0, 0.0), AHEAD)),
+        box_body("wall", (0.1, 10.0, 10.0), WHITE, True, Transform((3.05, 0.0, 0.0), AHEAD)),
+        box_body("glass", (0.1, 1.0, 1.0), WHITE, True, Transform((1.5, 0.0, 0.0), AHEAD)),
     ]
     with drawing(bodies, DARK, camera(("color", "depth")), dressed(surfaces)) as draw:
         frame = draw(((0.0, 0.0, 0.0), AHEAD))
@@ -223,7 +223,7 @@ def test_a_translucent_box_blends_over_what_lies_behind_and_leaves_its_depth() -
     assert float(frame["depth"][SIZE // 2, SIZE // 2]) == pytest.approx(3.0, abs=0.005)
 
 
-PANEL = box_body("panel", (0.01, 0.01, 0.01), WHITE, True, ((0.0, 0.0, 0.0), AHEAD))
+PANEL = box_body("panel", (0.01, 0.01, 0.01), WHITE, True, Transform((0.0, 0.0, 0.0), AHEAD))
 """A body whose pieces `panel_pieces` gives."""
 
 
@@ -280,7 +280,7 @@ def test_a_textured_box_shows_its_image_upright_on_each_face_it_turns_to_a_camer
     image[:, :32], image[:, 32:], image[:4] = (0, 0, 255), (255, 0, 0), (0, 255, 0)  # BGR
     cv2.imwrite(str(tmp_path / "halves.png"), image)
     textured = box_model((1.0, 1.0, 1.0), WHITE, texture=tmp_path / "halves.png")
-    box = body_of("box", textured, True, ((2.0, 0.0, 0.0), AHEAD))
+    box = body_of("box", textured, True, Transform((2.0, 0.0, 0.0), AHEAD))
     pose = ((0.0, 0.0, 0.0), AHEAD) if face == "-x" else ((4.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0))
     with drawing([box], Light(sources=(), ambient=(1.0, 1.0, 1.0)), camera()) as draw:
         seen = draw(pose)["color"]
@@ -325,12 +325,12 @@ def test_a_depth_camera_inside_its_housing_box_reads_the_scene() -> None:
     facing = (0.0, 0.0, 1.0, 0.0)  # yawed π: looking along −x
     bodies = [
         floor(),
-        box_body("box", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), True, ((0.0, -1.0, 0.5), AHEAD)),
-        box_body("housing", (0.1, 0.1, 0.1), (0.2, 0.2, 0.2, 1.0), True, (eye, facing)),
+        box_body("box", (1.0, 1.0, 1.0), (0.5, 0.5, 0.5, 1.0), True, Transform((0.0, -1.0, 0.5), AHEAD)),
+        box_body("housing", (0.1, 0.1, 0.1), (0.2, 0.2, 0.2, 1.0), True, Transform(eye, facing)),
     ]
     spec = CameraSpec("depth_camera1", size, size, hfov, 0.1, 10.0, outputs=("depth",))
     with RenderPool(bodies, [spec], workers=1, renderer="gl") as pool:
-        pool.request(0, 1, (eye, facing), {})
+        pool.request(0, 1, Transform(eye, facing), {})
         frame = next(f for f in pool.collect(wait_for=0, timeout=30.0) if f.camera == 0)
         depth = np.array(frame["depth"])
     cx, cy = spec.principal_point
@@ -381,7 +381,7 @@ def test_more_lights_than_the_shader_holds_are_one_warning(caplog: pytest.LogCap
     """Nine lights: the first eight shade (the ninth, a bright sun, changes nothing), one warning."""
     dim = LightSource(diffuse=(0.05, 0.05, 0.05), direction=(1.0, 0.0, 0.0))
     bright = LightSource(diffuse=(1.0, 1.0, 1.0), direction=(1.0, 0.0, 0.0))
-    wall = [box_body("wall", (0.1, 10.0, 10.0), WHITE, True, ((3.05, 0.0, 0.0), AHEAD))]
+    wall = [box_body("wall", (0.1, 10.0, 10.0), WHITE, True, Transform((3.05, 0.0, 0.0), AHEAD))]
     with (
         caplog.at_level(logging.WARNING),
         drawing(wall, replace(DARK, sources=(dim,) * 8 + (bright,)), camera()) as draw,

@@ -21,7 +21,7 @@ from simbot.sim.physics import Physics
 from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, KinematicStepper, kinematic
 from simbot.sim.physics.steady_turn import Chassis, steady_turn, turn_centre
 from simbot.sim.physics.stepping import DynamicStepper, stepper
-from simbot.transform import yaw_of
+from simbot.transform import Transform, yaw_of
 
 G = 9.8
 ROBOT_MASS = 100 + 4 * 0.765 + 4 * 0.103 + 2 * 1.17 + 0.001  # chassis, wheels, castors, lidars, token root
@@ -76,7 +76,7 @@ def test_model_pose_is_the_model_frame_not_the_centre_of_mass() -> None:
     assert (x, y) == pytest.approx((1.0, 0.2), abs=0.005)
     assert z == pytest.approx(0.0, abs=0.005)
     assert yaw_of(quat) == pytest.approx(0.3, abs=0.005)
-    sim.set_model_pose("trolley", ((-1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    sim.set_model_pose("trolley", Transform((-1.0, 2.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     assert sim.model_pose("trolley")[0] == pytest.approx((-1.0, 2.0, 0.0), abs=1e-6)
     sim.close()
 
@@ -246,8 +246,10 @@ def test_sdf_force_dependent_slip_is_read(tmp_path: Path) -> None:
     finally:
         path.unlink()
     frictions = {link.name: link.collisions[0].friction for link in model.links if link.name.endswith("_wheel")}
-    assert (frictions["front_left_wheel"].slip1, frictions["front_left_wheel"].slip2) == (0.002, 5e-4)
-    assert (frictions["back_left_wheel"].slip1, frictions["back_left_wheel"].slip2) == (0.0, 0.0)
+    front_left, back_left = frictions["front_left_wheel"], frictions["back_left_wheel"]
+    assert front_left is not None and back_left is not None
+    assert (front_left.slip1, front_left.slip2) == (0.002, 5e-4)
+    assert (back_left.slip1, back_left.slip2) == (0.0, 0.0)
 
 
 @pytest.mark.parametrize("bad", ["-0.01", "fast", "nan"])
@@ -260,7 +262,8 @@ def test_a_bad_slip_is_one_line_and_the_default(tmp_path: Path, caplog: pytest.L
     finally:
         path.unlink()
     wheel = next(link for link in model.links if link.name == "front_left_wheel")
-    assert wheel.collisions[0].friction.slip2 == 0.0
+    friction = wheel.collisions[0].friction
+    assert friction is not None and friction.slip2 == 0.0
     lines = [r.getMessage() for r in caplog.records if "slip2" in r.getMessage()]
     assert len(lines) == 1
     assert all(part in lines[0] for part in ("'flexley_tug'", "'front_left_wheel'", "<slip2>", repr(bad)))

@@ -23,6 +23,7 @@ from simbot.description.poses import Pose
 from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
 from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly
+from simbot.transform import Transform
 
 STEP_NS = 1_000_000
 Calls = list[tuple[str, ...]]
@@ -131,7 +132,12 @@ def test_requested_steps_run_in_lockstep_and_reply_after_the_last() -> None:
     world, stop = World(), threading.Event()
     done: list[int] = []
     world.sim.request_steps(0, lambda: done.append(-1))  # nothing to do: answered at once
-    world.sim.request_steps(3, lambda: (done.append(world.sim.clock.iterations), stop.set()))
+
+    def note_then_stop() -> None:
+        done.append(world.sim.clock.iterations)
+        stop.set()
+
+    world.sim.request_steps(3, note_then_stop)
     loop = threading.Thread(target=world.sim.run, args=(stop, lambda: None))
     loop.start()
     loop.join(10.0)
@@ -154,7 +160,8 @@ class Recorder:
 
 def test_every_phase_of_a_step_gets_one_update_record() -> None:
     """Sim time reached, step size, iterations, and paused when world control steps a paused world."""
-    recorder, calls = Recorder(), []
+    recorder = Recorder()
+    calls: Calls = []
     sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, in_loop([recorder]))
     sim.step()
     sim.set_paused(True)
@@ -205,7 +212,7 @@ class Meddler:
 
     def post_update(self, info: UpdateInfo) -> None:
         try:
-            self.physics.set_model_pose("box", ((0.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0)))
+            self.physics.set_model_pose("box", Transform((0.0, 0.0, 5.0), (0.0, 0.0, 0.0, 1.0)))
         except PhysicsReadOnly as exc:
             self.refused.append(str(exc))
 
@@ -224,7 +231,7 @@ def test_post_update_sees_the_physics_read_only() -> None:
         (_, _, z), _ = physics.model_pose("box")
         assert z == pytest.approx(1.0 - 9.8 * 0.001**2, abs=1e-4)  # one step of free fall, not 5 m up
         assert not physics.read_only
-        physics.set_model_pose("box", ((0.0, 0.0, 2.0), (0.0, 0.0, 0.0, 1.0)))
+        physics.set_model_pose("box", Transform((0.0, 0.0, 2.0), (0.0, 0.0, 0.0, 1.0)))
         assert physics.model_pose("box")[0][2] == pytest.approx(2.0)
     finally:
         physics.close()

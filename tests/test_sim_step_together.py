@@ -47,7 +47,11 @@ def run(together: bool) -> list[Recording]:
     try:
         for (_, node), drive, record in zip(worlds, DRIVES, got, strict=True):
             for key in KEYS:
-                node.hub.listen(key, lambda msg, key=key, record=record: record[key].append(encode(msg)))
+
+                def deliver(msg: Any, key: str = key, record: Recording = record) -> None:
+                    record[key].append(encode(msg))
+
+                node.hub.listen(key, deliver)
             command = node.publisher("cmd_vel", messages.Twist)
             command.put(messages.twist((drive[0], 0.0, 0.0), (0.0, 0.0, drive[1])))
         sims = [world.sim for world, _ in worlds]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import ROBOT_SDF, ROBOT_URDF, run_cli
 
-from simbot.description import DescriptionError, load_description, load_model, model_to_urdf
+from simbot.description import DescriptionError, Model, load_description, load_model, model_to_urdf
 from simbot.description.model import Cylinder
 from simbot.description.urdf_writer import link_frame
 
@@ -19,6 +19,7 @@ XACRO = Path(__file__).parent / "fixtures" / "two_wheels.urdf.xacro"
 def test_xacro_is_expanded() -> None:
     """Macros and properties expand: two wheels at ±track/2 with the property's radius."""
     model = load_description(XACRO)
+    assert isinstance(model, Model)
     assert model.name == "two_wheels" and [link.name for link in model.links] == [
         "base_link",
         "left_wheel",
@@ -46,6 +47,7 @@ def test_generated_urdf_reads_back_as_the_sdf() -> None:
     """Our URDF, read back, puts every link frame where the writer said (forward kinematics by yourdfpy)."""
     sdf = load_model(ROBOT_SDF)
     urdf = load_description(ROBOT_URDF)
+    assert isinstance(urdf, Model)
     for link in sdf.links:
         assert np.allclose(urdf.link(link.name).pose.matrix(), link_frame(link).matrix(), atol=1e-9), link.name
     assert urdf.link("base_link").inertial.mass == 100  # type: ignore[union-attr]

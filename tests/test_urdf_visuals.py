@@ -28,6 +28,7 @@ from simbot.sim.physics import Physics
 from simbot.sim.render.scene import BulletScene
 from simbot.sim.render.specs import SceneBody
 from simbot.sim.render.visuals import body_pieces
+from simbot.transform import Transform
 
 GAZEBO = REPO / "tests" / "fixtures" / "gazebo"
 
@@ -102,7 +103,7 @@ def test_a_mesh_pybullet_cannot_read_is_its_own_file_with_its_material(tmp_path:
     urdf = model_to_urdf(model, generated_dir=tmp_path)
     mesh = ET.fromstring(urdf).find(".//mesh")
     assert mesh is not None and mesh.get("filename", "").endswith(".obj")
-    body = SceneBody("crate", urdf, True, ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), visuals=visuals)
+    body = SceneBody("crate", urdf, True, Transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), visuals=visuals)
     assert pickle.loads(pickle.dumps(body)) == body
 
 
@@ -137,7 +138,9 @@ def test_an_unreadable_mesh_and_a_corrupt_texture_are_one_warning_each_and_the_r
         Visual("sphere", Sphere(0.5), Pose((0.0, 2.0, 0.0))),
     )
     model = Model("thing", links=(Link("base", visuals=visuals),))
-    body = SceneBody("thing", model_to_urdf(model), True, ((0, 0, 0), (0, 0, 0, 1)), visuals=urdf_visuals(model))
+    body = SceneBody(
+        "thing", model_to_urdf(model), True, Transform((0, 0, 0), (0, 0, 0, 1)), visuals=urdf_visuals(model)
+    )
     scene = BulletScene(pb, [body])
     try:
         with caplog.at_level(logging.WARNING):

@@ -32,7 +32,7 @@ def _origin(element: yourdfpy.Visual | yourdfpy.Collision) -> np.ndarray:
     return np.eye(4) if element.origin is None else element.origin
 
 
-def _models() -> list[pytest.param]:
+def _models() -> list[pytest.ParameterSet]:
     reference = REFERENCE / "urdf" / "Flexley_Tug.sdf"
     skip = pytest.mark.skipif(not reference.is_file(), reason=f"reference description not found at {reference}")
     return [

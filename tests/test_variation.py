@@ -11,6 +11,7 @@ import json
 import math
 import subprocess
 import tempfile
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from simbot.description.actor_paths import ScriptPath
 from simbot.description.actor_scripts import ActorModel
 from simbot.description.additions import with_additions
 from simbot.description.footprints import overlap
+from simbot.description.model import World
 from simbot.sim.loop.world import load_robot
 from simbot.variation import Profile, ProfileError, read_profile, vary
 from simbot.variation.clutter import PREFIX
@@ -71,14 +73,14 @@ def profile() -> Profile:
 
 
 @pytest.fixture(scope="module")
-def warehouse() -> object:
+def warehouse() -> World:
     return with_additions(load_world(WAREHOUSE), [PEOPLE])
 
 
 # --- the draws, against the profile
 
 
-def test_the_same_seed_draws_the_same_world_and_others_differ(warehouse, profile: Profile) -> None:
+def test_the_same_seed_draws_the_same_world_and_others_differ(warehouse: World, profile: Profile) -> None:
     robot = load_robot(TUG)
     first, again, other = (
         vary(warehouse, robot, profile, 7),
@@ -89,7 +91,7 @@ def test_the_same_seed_draws_the_same_world_and_others_differ(warehouse, profile
     assert first.world != other.world and first.clutter != () and other.clutter != ()
 
 
-def test_every_draw_stays_within_the_profile(warehouse, profile: Profile) -> None:
+def test_every_draw_stays_within_the_profile(warehouse: World, profile: Profile) -> None:
     original = {model.name: model for model in warehouse.models}
     assert profile.clutter is not None and profile.sun is not None and profile.people is not None
     for seed in range(5):
@@ -138,7 +140,7 @@ def _inside(x: float, y: float, rect: tuple[float, float, float, float]) -> bool
     return rect[0] <= x <= rect[2] and rect[1] <= y <= rect[3]
 
 
-def test_clutter_keeps_off_every_route_and_every_model(warehouse, profile: Profile) -> None:
+def test_clutter_keeps_off_every_route_and_every_model(warehouse: World, profile: Profile) -> None:
     """No piece's shadow overlaps another model's (the boxes holding their collisions) or a person's path."""
     from simbot.description.footprints import Rectangle
     from simbot.description.free_poses import Places
@@ -184,7 +186,7 @@ def test_clutter_keeps_off_every_route_and_every_model(warehouse, profile: Profi
         ("[cameras]\nnoise_stddev = [-1, 0]\n", "cameras.noise_stddev: must be at least 0"),
     ],
 )
-def test_a_bad_profile_is_one_line_naming_file_and_key(tmp_path: Path, warehouse, text: str, says: str) -> None:
+def test_a_bad_profile_is_one_line_naming_file_and_key(tmp_path: Path, warehouse: World, text: str, says: str) -> None:
     path = tmp_path / "bad.variation.toml"
     path.write_text(text)
     with pytest.raises(ProfileError) as caught:
@@ -213,7 +215,7 @@ def test_a_bad_randomise_option_is_one_line_and_exit_2(option: str, says: str) -
 
 
 @pytest.fixture(scope="module")
-def sim(tmp_path_factory: pytest.TempPathFactory) -> SimServer:
+def sim(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SimServer]:
     rig = tmp_path_factory.mktemp("rig") / "rig.sdf"
     rig.write_text(RIG)
     with running_server(
@@ -226,8 +228,13 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> SimServer:
 def collect(server: SimServer, *args: str) -> tuple[dict, Path]:
     out = Path(tempfile.mkdtemp(prefix="simbot-variation-"))
     with client_process(server, "dataset", "--out", str(out), "--cameras", "rig_rgb", "rig_boxes", *args) as client:
+
+        def stepped_and_finished() -> bool:
+            _steps(server, 10)
+            return not client.alive()
+
         # a seed's first set comes at its first step, so a chunk of steps may span several seeded resets
-        wait_until(lambda: (_steps(server, 10), not client.alive())[1], RUN_TIMEOUT_S, "the dataset client to finish")
+        wait_until(stepped_and_finished, RUN_TIMEOUT_S, "the dataset client to finish")
         assert client.process.returncode == 0, client.stderr()
     return json.loads((out / "manifest.json").read_text()), out
 

@@ -88,7 +88,12 @@ def test_no_frame_of_the_old_world_comes_after_a_seeded_reset() -> None:
     every image after the reset is stamped on the new timeline (not after the sim time it arrives at, which is
     still short of where the old one was)."""
     with world("--mode", "fast") as (sim_world, inbox):
-        wait_until(lambda: (sim_world.sim.step(), inbox.drain())[1], 120.0, "the render workers' first frame")
+
+        def stepped_and_drained() -> list[object]:
+            sim_world.sim.step()
+            return inbox.drain()
+
+        wait_until(stepped_and_drained, 120.0, "the render workers' first frame")
         while sim_world.sim.clock.now_ns < 10**9:  # a second of the old timeline, its frames as they come
             sim_world.sim.step()
         rendering = next(s for s in sim_world.systems if type(s).__name__ == "Rendering")

@@ -91,6 +91,7 @@ def _npm_packages(folder: Path) -> None:
     """studio-base's bundle and React 17 as npm packs them (no install scripts, no dependencies), unpacked."""
     if (folder / "studio" / "assets" / "index.js").exists():
         return
+    assert NPM is not None, "npm is not installed (_skip_without_tools skips first)"
     folder.mkdir(parents=True, exist_ok=True)
     for spec in (STUDIO, *REACT):
         done = subprocess.run(
@@ -340,6 +341,7 @@ def _screenshot(page: Any, path: Path) -> np.ndarray:
     path.parent.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=str(path), timeout=DEADLINE_S * 1000)
     shot = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    assert shot is not None, f"{path} is not an image"
     return cv2.cvtColor(shot, cv2.COLOR_BGR2RGB)
 
 
