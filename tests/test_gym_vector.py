@@ -122,29 +122,47 @@ def test_each_sub_env_is_the_single_env_with_its_seed_through_autoreset(walled: 
     try:
         assert isinstance(envs, SimbotVectorEnv) and envs.processes == processes
         assert envs.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.NEXT_STEP
-        obs, _ = envs.reset(seed=seed)
-        vector: list[list[tuple[Any, ...]]] = [
-            [({k: v[i] for k, v in obs.items()}, 0.0, False, False)] for i in range(count)
-        ]
-        for step in range(steps):
-            obs, rewards, terminated, truncated, _ = envs.step(np.stack([actions(step, i) for i in range(count)]))
-            for i in range(count):
-                vector[i].append(
-                    ({k: v[i] for k, v in obs.items()}, float(rewards[i]), bool(terminated[i]), bool(truncated[i]))
-                )
+        vector = run_vector(envs, seed, steps)
     finally:
         envs.close()
-    single = gymnasium.make("simbot/Navigate-v0", **walled)
-    try:
+    for i, expected in enumerate(assert_each_is_the_single_env(vector, seed, steps, walled)):
+        ends = sum(1 for record in expected if record[2] or record[3])
+        assert ends >= 1, f"env {i}: no episode ended in {steps} steps; autoreset untested"
+
+
+def run_vector(envs: Any, seed: int, steps: int) -> list[list[tuple[Any, ...]]]:
+    """Each sub-env's records from `reset(seed)` (as `run_single` keeps them), the vector env
+    autoresetting: (obs, reward, terminated, truncated) per step."""
+    count = envs.num_envs
+    obs, _ = envs.reset(seed=seed)
+    vector: list[list[tuple[Any, ...]]] = [
+        [({k: v[i] for k, v in obs.items()}, 0.0, False, False)] for i in range(count)
+    ]
+    for step in range(steps):
+        obs, rewards, terminated, truncated, _ = envs.step(np.stack([actions(step, i) for i in range(count)]))
         for i in range(count):
+            vector[i].append(
+                ({k: v[i] for k, v in obs.items()}, float(rewards[i]), bool(terminated[i]), bool(truncated[i]))
+            )
+    return vector
+
+
+def assert_each_is_the_single_env(
+    vector: list[list[tuple[Any, ...]]], seed: int, steps: int, kwargs: dict[str, Any]
+) -> list[list[tuple[Any, ...]]]:
+    """Sub-env i's records equal the single env's from seed + i, step for step; the single env's records."""
+    single = gymnasium.make("simbot/Navigate-v0", **kwargs)
+    episodes = []
+    try:
+        for i, records in enumerate(vector):
             expected = run_single(single, seed + i, steps, i)
-            ends = sum(1 for record in expected if record[2] or record[3])
-            assert ends >= 1, f"env {i}: no episode ended in {steps} steps; autoreset untested"
-            for step, (a, b) in enumerate(zip(vector[i], expected, strict=True)):
+            for step, (a, b) in enumerate(zip(records, expected, strict=True)):
                 assert_same(a[0], b[0], f"env {i} step {step}")
                 assert a[1:] == b[1:], f"env {i} step {step}: {a[1:]} vs {b[1:]}"
+            episodes.append(expected)
     finally:
         single.close()
+    return episodes
 
 
 def test_sub_envs_among_people_are_the_single_env_though_their_people_think_together() -> None:
@@ -156,22 +174,10 @@ def test_sub_envs_among_people_are_the_single_env_though_their_people_think_toge
         "simbot/Navigate-v0", num_envs=count, vectorization_mode="vector_entry_point", processes=0, **KINEMATIC_PEOPLE
     )
     try:
-        obs, _ = envs.reset(seed=seed)
-        vector = [[{k: v[i] for k, v in obs.items()}] for i in range(count)]
-        for step in range(steps):
-            obs, *_ = envs.step(np.stack([actions(step, i) for i in range(count)]))
-            for i in range(count):
-                vector[i].append({k: v[i] for k, v in obs.items()})
+        vector = run_vector(envs, seed, steps)
     finally:
         envs.close()
-    single = gymnasium.make("simbot/Navigate-v0", **KINEMATIC_PEOPLE)
-    try:
-        for i in range(count):
-            expected = run_single(single, seed + i, steps, i)
-            for step, (a, b) in enumerate(zip(vector[i], expected, strict=True)):
-                assert_same(a, b[0], f"env {i} step {step}")
-    finally:
-        single.close()
+    assert_each_is_the_single_env(vector, seed, steps, KINEMATIC_PEOPLE)
 
 
 def test_same_step_autoreset_gives_the_final_observation_in_the_info(walled: dict[str, Any]) -> None:
