@@ -24,9 +24,8 @@ Cameras render in each sub-env's own render workers, started by its simulation p
 frames come back to the world (`cameras_in_process`). Errors: a `num_envs` below 1, or an env that
 cannot step off the bus (`watch=True`, `endpoint=`: use `vectorization_mode="async"`; cameras with
 `processes=0`), or more envs than memory holds (ENV_BYTES each), is one EnvConfigError naming it
-before anything starts. A simulation process
-that dies raises SimServerError naming the envs it held and its exit code, and every other
-process is stopped: nothing is left running.
+before anything starts. A simulation process that dies raises SimServerError naming the envs it
+held and its exit code, and every other process is stopped: nothing is left running.
 """
 
 from __future__ import annotations
