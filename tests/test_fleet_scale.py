@@ -14,16 +14,20 @@ tugs stand 5 m apart along x and 1.5 m along y, among square pillars 0.4 m wide 
 columns, a pillar every other row (the empty world and them; square, so that both casts meet true
 faces, not a cylinder's hull): nothing of a tug reaches its neighbours' scan plane (0.356 m up;
 the chassis top is at 0.205 m), so the pillars are what the lidars see.
-Its scan, taken at the last step (5 Hz: t = 1 s is a scan), is the engine's cast (Embree where
-embreex installs); the reference is PyBullet's `rayTestBatch` of the same rays from where the lidar
-stands: hit or miss agree on ≥ 99.9 % of the rays, and the ranges of those both hit within the
-lidar's 1 cm resolution and a centimetre (issue 56's tolerance) on ≥ 99.5 %.
+Publishers drop under congestion (as rmw_zenoh's KEEP_LAST does), so under a loaded machine a
+tug's last message may never come: each topic's newest message received is checked at its own
+stamp, once every topic has one from the last two scan periods. Its scan is the engine's cast
+(Embree where embreex installs); the reference is PyBullet's `rayTestBatch` of the same rays from
+where the lidar stood when it scanned (kept at each scan's stamp): hit or miss agree on ≥ 99.9 % of
+the rays, and the ranges of those both hit within the lidar's 1 cm resolution and a centimetre
+(issue 56's tolerance) on ≥ 99.5 %.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +40,10 @@ from simbot.bus import BusOptions, Node, decode, messages
 from simbot.bus.graph import RosGraph
 from simbot.sim.server import Server, parse_config, world_path
 from simbot.sim.systems.lidar import Lidar
+from simbot.transform import Transform
 
 TUGS, COLUMNS = 200, 10
-STEPS = 200
+STEPS, STEP_NS, SCAN_PERIOD_NS = 200, 5_000_000, 200_000_000
 """1 s of 5 ms steps: five scans of each lidar, fifty odometry messages."""
 ARGS = ["--robots", str(TUGS), "--columns", str(COLUMNS), "--spawn", "0", "0", "0.1", "0"]
 ARGS += ["--physics", "kinematic", "--mode", "lockstep", "--seed", "5"]
@@ -73,9 +78,20 @@ def _pillared(folder: Path) -> Path:
     return path
 
 
+@dataclass(frozen=True)
+class Fleet:
+    """The server after a second with every tug driven, what the client heard, and where each
+    front lidar stood at each of its scans."""
+
+    server: Server
+    heard: dict[str, Any]
+    """Each topic's newest message received, decoded."""
+    scanned_from: dict[tuple[str, int], Transform]
+    """(tug, stamp in ns) → the front lidar's world pose when it cast that scan."""
+
+
 @pytest.fixture(scope="module")
-def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, dict[str, list[Any]]]]:
-    """The server stepped a second with every tug driven; the last odometry and scan of each tug."""
+def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Fleet]:
     port, namespace = free_port(), unique_namespace()
     world = _pillared(tmp_path_factory.mktemp("fleet"))
     with Node(BusOptions(listen=(endpoint(port),), namespace=namespace), "server") as node:
@@ -83,24 +99,42 @@ def fleet(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, di
         try:
             client_options = BusOptions(connect=(endpoint(port),), namespace=namespace)
             with Node(client_options, "client") as client:
-                heard: dict[str, list[Any]] = {}
+                newest: dict[str, bytes] = {}
                 graph = RosGraph()
 
                 def keep(sample: Any) -> None:
                     name = graph.name_of(str(sample.key_expr)) or ""
-                    heard.setdefault(name.removeprefix(namespace + "/"), []).append(sample.payload.to_bytes())
+                    newest[name.removeprefix(namespace + "/")] = sample.payload.to_bytes()
 
                 with (
                     raw_samples(client.session, graph.data_key(f"{namespace}/*/odom", ODOMETRY), keep),
                     raw_samples(client.session, graph.data_key(f"{namespace}/*/lidar_front", SCAN), keep),
                 ):
                     _drive(server, client)
-                    for _ in range(STEPS):
-                        server.sim.step()
-                    wait_until(lambda: len(heard) == 2 * TUGS and _all_at_the_end(heard), 30.0, "the last messages")
-                yield server, {key: [_decoded(key, data) for data in sent] for key, sent in heard.items()}
+                    scanned_from = _run(server)
+                    wait_until(lambda: _recent(newest), 30.0, "every topic's messages of the last scan periods")
+                    heard = {key: _decoded(key, data) for key, data in dict(newest).items()}
+                yield Fleet(server, heard, scanned_from)
         finally:
             server.close()
+
+
+def _front_lidars(server: Server) -> dict[str, Lidar]:
+    return {lidar._pub.key.rpartition("/")[0].rpartition("/")[2]: lidar for lidar in server.world.systems
+            if isinstance(lidar, Lidar) and lidar._pub.key.endswith("/lidar_front")}  # fmt: skip
+
+
+def _run(server: Server) -> dict[tuple[str, int], Transform]:
+    """Step the server STEPS times; where each front lidar stood at each scan, by the scan's stamp."""
+    lidars, physics = _front_lidars(server), server.world.physics
+    scanned_from = {}
+    for _ in range(STEPS):
+        server.sim.step()
+        for name, lidar in lidars.items():
+            stamps = lidar.meter.stamps
+            if stamps and (name, stamps[-1]) not in scanned_from:
+                scanned_from[name, stamps[-1]] = physics.frame_pose(*lidar._where)
+    return scanned_from
 
 
 def _drive(server: Server, client: Node) -> None:
@@ -119,42 +153,40 @@ def _decoded(key: str, data: bytes) -> Any:
     return decode(data, ODOMETRY if key.endswith("odom") else SCAN)
 
 
-def _all_at_the_end(heard: dict[str, list[Any]]) -> bool:
-    """Whether each topic's last message so far is stamped with the last step's time."""
-    end = STEPS * 5_000_000
-    for key, sent in heard.items():
-        msg = _decoded(key, sent[-1])
-        if msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec != end:
-            return False
-    return True
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
-def test_every_tugs_odometry_follows_its_command(fleet: tuple[Server, dict[str, list[Any]]]) -> None:
-    _, heard = fleet
+def _recent(newest: dict[str, bytes]) -> bool:
+    """Whether every topic has been heard from within the last two scan periods."""
+    if len(newest) < 2 * TUGS:
+        return False
+    since = STEPS * STEP_NS - 2 * SCAN_PERIOD_NS
+    return all(_stamp_ns(_decoded(key, data)) >= since for key, data in dict(newest).items())
+
+
+def test_every_tugs_odometry_follows_its_command(fleet: Fleet) -> None:
     for k in range(1, TUGS + 1):
-        odom = heard[f"tug_{k}/odom"][-1]
-        want = _expected(*_command(k), STEPS * 0.005)
+        odom = fleet.heard[f"tug_{k}/odom"]
+        want = _expected(*_command(k), _stamp_ns(odom) * 1e-9)
         got = (odom.pose.pose.position.x, odom.pose.pose.position.y)
         assert got == pytest.approx(want, abs=ODOMETRY_TOLERANCE_M), f"tug_{k}: odometry {got}, commanded {want}"
         assert odom.twist.twist.linear.x == pytest.approx(_command(k)[0], abs=1e-6), f"tug_{k}"
 
 
-def test_every_tugs_front_scan_is_pybullets_cast_of_the_same_rays(fleet: tuple[Server, dict[str, list[Any]]]) -> None:
-    server, heard = fleet
-    lidars = {lidar._pub.key.rpartition("/")[0].rpartition("/")[2]: lidar for lidar in server.world.systems
-              if isinstance(lidar, Lidar) and lidar._pub.key.endswith("/lidar_front")}  # fmt: skip
-    physics = server.world.physics
+def test_every_tugs_front_scan_is_pybullets_cast_of_the_same_rays(fleet: Fleet) -> None:
+    lidars, physics = _front_lidars(fleet.server), fleet.server.world.physics
     scans, casts = [], []
     for k in range(1, TUGS + 1):
-        lidar = lidars[f"tug_{k}"]
-        rays = lidar._rays(*physics.frame_pose(*lidar._where))
+        lidar, scan = lidars[f"tug_{k}"], fleet.heard[f"tug_{k}/lidar_front"]
+        rays = lidar._rays(*fleet.scanned_from[f"tug_{k}", _stamp_ns(scan)])
         spec = lidar.params
         fractions = physics.cast_ray_batches([rays], engine=False)[0]
         ranges = (spec.range_min + fractions * (spec.range_max - spec.range_min)).reshape(
             lidar._fan.directions.shape[:2]
         )
         casts.append(ranges[lidar._fan.scan_row])
-        scans.append(np.asarray(heard[f"tug_{k}/lidar_front"][-1].ranges, dtype=float))
+        scans.append(np.asarray(scan.ranges, dtype=float))
     scan, cast = np.concatenate(scans), np.concatenate(casts)
     hit, hit_cast = np.isfinite(scan), np.isfinite(cast)
     agree = float(np.mean(hit == hit_cast))
