@@ -63,7 +63,7 @@ from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.bullet import pb
 from simbot.sim.physics import Physics
-from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, kinematic
+from simbot.sim.physics.kinematic_world import KINEMATIC_STEP_S, kinematic
 
 STEP_S = 0.001
 SPACING_M = 1.0

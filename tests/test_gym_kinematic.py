@@ -18,7 +18,7 @@ import pytest
 from test_gym import FAST, WALL_WORLD, WALL_X, drive, ground_truth, make, unwrapped
 
 import simbot.gym
-from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S
+from simbot.sim.physics.kinematic_world import KINEMATIC_STEP_S
 
 
 @pytest.fixture(scope="module")

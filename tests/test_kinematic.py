@@ -1,4 +1,4 @@
-"""Kinematic fleet mode (simbot.sim.physics.kinematic_stepper) on a real server in lockstep.
+"""Kinematic fleet mode (simbot.sim.physics.kinematic_world) on a real server in lockstep.
 
 A kinematic base moves by exactly what its drive commands (the tug's DiffDrive states no limits),
 integrated at the world's 5 ms step with the heading at each step's midpoint, so the figures are

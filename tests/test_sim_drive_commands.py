@@ -2,7 +2,7 @@
 (simbot.sim.kit.command_pipeline): ramped at the acceleration limit and then clamped to the velocity
 limit each step, held while no command comes, and back to zero at a reset.
 
-Each drive runs in a kinematic world (simbot.sim.physics.kinematic_stepper), where the base moves
+Each drive runs in a kinematic world (simbot.sim.physics.kinematic_world), where the base moves
 by exactly the twist its drive commands, x += v·dt each 5 ms step: what the command pipeline gave
 is then the truth's to rounding. PyBullet keeps a base's position in float32, so each step rounds
 it by up to 2^-24 of itself: 200 steps of at most 0.33 m, 4e-6 m at the most. A step of the ramp
@@ -19,7 +19,7 @@ from bus_helpers import wait_until
 from test_sim_drive_systems import BOT, Rig, _car, _hinge, _inertial, _mecanum, _robot, _wheel, lockstep
 
 from simbot.bus import encode, messages
-from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S
+from simbot.sim.physics.kinematic_world import KINEMATIC_STEP_S
 
 MAX_SPEED, MAX_ACCELERATION = 0.4, 1.0
 LIMITS = f"<max_velocity>{MAX_SPEED}</max_velocity><max_acceleration>{MAX_ACCELERATION}</max_acceleration>"

@@ -112,7 +112,7 @@ class Rig:
 @contextmanager
 def lockstep(tmp_path: Path, robot: str, spawn_z: float = 0.0, kinematic: bool = False) -> Iterator[Rig]:
     """The robot alone in a flat world, in lockstep; `kinematic`: moved by its drive's command
-    (simbot.sim.physics.kinematic_stepper) at 5 ms steps, where a dynamic world steps at 1 ms."""
+    (simbot.sim.physics.kinematic_world) at 5 ms steps, where a dynamic world steps at 1 ms."""
     (tmp_path / "world.sdf").write_text(WORLD)
     (tmp_path / "robot.sdf").write_text(robot)
     spawn = (0.0, 0.0, spawn_z, 0.0)

@@ -18,7 +18,7 @@ from simbot.description.model import Box, Collision, Inertial, Link, Model, Sphe
 from simbot.description.poses import Pose
 from simbot.description.resources import asset
 from simbot.sim.physics import Physics
-from simbot.sim.physics.kinematic_stepper import KINEMATIC_STEP_S, KinematicStepper, kinematic
+from simbot.sim.physics.kinematic_world import KINEMATIC_STEP_S, KinematicWorld, kinematic
 from simbot.sim.physics.steady_turn import Chassis, steady_turn, turn_centre
 from simbot.sim.physics.stepping import DynamicStepper, stepper
 from simbot.transform import Transform, yaw_of
@@ -61,7 +61,7 @@ def test_the_world_asks_for_its_stepping_once() -> None:
     dynamic, kinematic_ = stepper(world, client), stepper(kinematic(world), client)
     pb.disconnect(client)
     assert isinstance(dynamic, DynamicStepper)
-    assert isinstance(kinematic_, KinematicStepper) and kinematic_.dt == KINEMATIC_STEP_S
+    assert isinstance(kinematic_, KinematicWorld) and kinematic_.dt == KINEMATIC_STEP_S
 
 
 def test_model_pose_is_the_model_frame_not_the_centre_of_mass() -> None:

@@ -18,7 +18,7 @@ from simbot.description.model import World
 from simbot.description.resources import asset
 from simbot.gym.errors import EnvConfigError
 from simbot.gym.robot import RobotFacts
-from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
+from simbot.sim.physics.kinematic_world import KINEMATIC, kinematic
 from simbot.variation import profile_beside
 
 RENDER_MODES = ("rgb_array",)

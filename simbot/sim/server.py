@@ -51,7 +51,7 @@ from simbot.sim.loop.simulation import Mode
 from simbot.sim.loop.system import RunOptions, System, SystemConfigError
 from simbot.sim.loop.world import Placement, SimWorld, load_robot
 from simbot.sim.loop.world_control import WorldControl
-from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
+from simbot.sim.physics.kinematic_world import KINEMATIC, kinematic
 from simbot.sim.render import RENDERERS
 from simbot.sim.zone_keys import ZoneBus
 from simbot.transform import yaw_of
@@ -83,7 +83,7 @@ class ServerConfig:
     randomise: tuple[int, Path] | None = None
     """`--randomise SEED[:PROFILE]`: the variant to start with and the profile it is drawn from."""
     kinematic: bool = False
-    """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic_stepper),
+    """`--physics kinematic`: robots move by their drives' commands (simbot.sim.physics.kinematic_world),
     as a world's `<physics type="kinematic">` asks."""
     columns: int = 1
     zone: Zone | None = None

@@ -39,7 +39,7 @@ from simbot.sim.loop.system import ModelEvent, ModelObserver, RunOptions, System
 from simbot.sim.loop.world_control import CreateRequest
 from simbot.sim.loop.world_edit import NotInPlace, Retunable, WorldEdit, WorldFollower, plan_edit, retuned
 from simbot.sim.physics import Physics, pose_to_transform
-from simbot.sim.physics.kinematic_stepper import KINEMATIC, kinematic
+from simbot.sim.physics.kinematic_world import KINEMATIC, kinematic
 from simbot.variation import Variant, Variations
 
 log = logging.getLogger(__name__)

@@ -1,12 +1,19 @@
-"""A model as loaded into PyBullet: its body id and the indices of its links and joints, by name.
-Nothing outside the physics package sees them: systems name a model, a link or a joint."""
+"""A model as loaded into PyBullet: its body id and the indices of its links and joints, by name,
+and bodies' bases read as rows (`Bases`). Nothing outside the physics package sees them: systems
+name a model, a link or a joint."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
 
 from simbot.description.kinematics import KinematicTree
 from simbot.description.model import Model
+from simbot.sim.bullet import pb
 from simbot.transform import Transform
 
 
@@ -54,3 +61,27 @@ class Body:
             return self.joints[joint]
         except KeyError:
             raise KeyError(f"model {self.name!r} has no movable joint {joint!r}") from None
+
+
+class Bases(NamedTuple):
+    """Bodies' bases as PyBullet holds them, a row each: each root link's centre of mass and its
+    velocity, in the world frame (what `Stepper.bases` answers)."""
+
+    positions: npt.NDArray[np.float64]
+    """N×3."""
+    orientations: npt.NDArray[np.float64]
+    """N×4, xyzw."""
+    linear: npt.NDArray[np.float64]
+    """N×3."""
+    angular: npt.NDArray[np.float64]
+    """N×3."""
+
+    @staticmethod
+    def read(client: int, ids: Sequence[int]) -> Bases:
+        """The bases of PyBullet bodies `ids`, one query each."""
+        rows = []
+        for body in ids:
+            position, orientation = pb.getBasePositionAndOrientation(body, physicsClientId=client)
+            rows.append((*position, *orientation, *sum(pb.getBaseVelocity(body, physicsClientId=client), ())))
+        table = np.array(rows, dtype=np.float64).reshape(-1, 13)
+        return Bases(table[:, :3], table[:, 3:7], table[:, 7:10], table[:, 10:])

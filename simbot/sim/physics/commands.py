@@ -13,7 +13,6 @@ from simbot.sim.bullet import pb
 from simbot.sim.physics.bullet_transforms import compose, invert, vec3
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.queries import Queries
-from simbot.sim.physics.stepping import Stepper
 from simbot.transform import Transform, Vec3, matmul
 
 FIXED_CONSTRAINT_FORCE = 1e6
@@ -24,7 +23,6 @@ class Commands(Queries):
     """Changing the world; the state it changes is `Physics`'s."""
 
     read_only: bool
-    _stepper: Stepper
 
     @changes_world
     def set_model_pose(self, model: str, pose: Transform) -> None:
@@ -33,6 +31,7 @@ class Commands(Queries):
         com = compose(pose, invert(body.com_to_frame))
         pb.resetBasePositionAndOrientation(body.id, *com, physicsClientId=self.client)
         pb.resetBaseVelocity(body.id, (0, 0, 0), (0, 0, 0), physicsClientId=self.client)
+        self._stepper.moved([body.id])
         self._rays.moved([body])
 
     @changes_world
@@ -46,6 +45,7 @@ class Commands(Queries):
         angular_world = matmul(rotation, angular)
         linear_world = matmul(rotation, linear) + np.cross(angular_world, np.subtract(com[0], frame[0]))
         pb.resetBaseVelocity(body.id, vec3(linear_world), vec3(angular_world), physicsClientId=self.client)
+        self._stepper.moved([body.id])
 
     @changes_world
     def set_joint_velocity(self, model: str, joint: str, velocity: float, max_effort: float) -> None:

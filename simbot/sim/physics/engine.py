@@ -42,6 +42,7 @@ class Physics(Commands):
     constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
     _rays: Rays = field(init=False)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
+    _base_offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _loader: Loader = field(init=False)
@@ -89,7 +90,7 @@ class Physics(Commands):
             raise ValueError(f"a model named {name!r} is already in the world")
         loaded = self._loader.load(model, name, pose)
         self.bodies[name] = loaded.body
-        self._stepper.add(loaded.body.id, loaded.wheels)
+        self._stepper.add(loaded.body, loaded.wheels)
         self._heightfields[name] = loaded.heightfields
         self._rays.add(loaded.body)
         return loaded.body
@@ -112,6 +113,7 @@ class Physics(Commands):
             body = self.bodies.pop(part)
             self._stepper.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
+            self._base_offsets = {k: v for k, v in self._base_offsets.items() if k[0] != part}
             self._rays.remove(part)
             for heightfield in self._heightfields.pop(part, []):
                 pb.removeBody(heightfield, physicsClientId=self.client)
@@ -152,4 +154,5 @@ class Physics(Commands):
             raise ValueError(f"reset: the world as started held {', '.join(gone)}, removed since; restart the server")
         if self._saved_state is not None:
             pb.restoreState(self._saved_state, physicsClientId=self.client)
+            self._stepper.moved([body.id for body in self.bodies.values()])
             self._rays.moved(list(self.bodies.values()))

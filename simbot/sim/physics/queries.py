@@ -18,7 +18,8 @@ from simbot.sim.physics.bullet_transforms import compose, pose_to_transform, vec
 from simbot.sim.physics.contacts import ContactPoint, contact_point
 from simbot.sim.physics.protocols import Frame, FrameMotions, RayBatch
 from simbot.sim.physics.rays import Rays
-from simbot.transform import Transform, Vec3, matmul
+from simbot.sim.physics.stepping import Stepper
+from simbot.transform import Transform, Vec3, matmul, quaternion_products, rotate_many
 
 
 class Queries:
@@ -32,6 +33,9 @@ class Queries:
     _rays: Rays
     _offsets: dict[tuple[str, str, Pose], Transform]
     """Frames fixed to links, in their link's URDF frame (`_offset`)."""
+    _base_offsets: dict[tuple[str, str, Pose], Transform]
+    """Frames fixed to bases, in their base's centre-of-mass frame (`_on_base`)."""
+    _stepper: Stepper
 
     @property
     def step_size(self) -> float:
@@ -83,8 +87,8 @@ class Queries:
     def model_motion(self, model: str) -> tuple[Transform, Vec3, Vec3]:
         """(model frame in the world, linear velocity of its origin, angular velocity), in the world frame."""
         body = self.body(model)
-        com = self._base(body)
-        linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
+        base = self._stepper.bases([body.id])
+        com, linear, angular = Transform.of(base.positions[0], base.orientations[0]), base.linear[0], base.angular[0]
         frame = compose(com, body.com_to_frame)
         offset = np.subtract(frame[0], com[0])
         velocity = np.add(linear, np.cross(angular, offset))
@@ -107,8 +111,11 @@ class Queries:
         return pose, velocity, (float(wx), float(wy), float(wz))
 
     def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions:
-        """`frame_motion` of many frames at once (a fleet's IMUs): the same state of each frame, and
-        the velocities of all frames' origins as arrays, summed in the same order (the same bits)."""
+        """`frame_motion` of many frames at once (a fleet's IMUs), as arrays: frames fixed to their
+        bodies' bases from one query of the bases (a kinematic fleet's rows), others link by link."""
+        on_bases = [self._on_base(*frame) for frame in frames]
+        if None not in on_bases:
+            return self._base_frame_motions(on_bases)  # type: ignore[arg-type]
         rows = []
         for frame in frames:
             (position, orientation), com, linear, angular = self._frame_state(*frame)
@@ -119,15 +126,38 @@ class Queries:
         velocities = np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
         return FrameMotions(table[:, :3], table[:, 3:7], velocities, table[:, 13:])  # v + ω × r
 
+    def _on_base(self, model: str, link: str, pose_in_link: Pose) -> tuple[int, Transform] | None:
+        """(body id, the frame in its base's centre-of-mass frame) of a frame fixed to its body's
+        root link (or a link merged into it); None for a frame on another link."""
+        body = self.body(model)
+        if body.link_index(link) != -1:
+            return None
+        key = (body.name, link, pose_in_link)
+        offset = self._base_offsets.get(key)
+        if offset is None:
+            offset = self._base_offsets[key] = compose(body.com_to_root, self._offset(body, link, pose_in_link))
+        return body.id, offset
+
+    def _base_frame_motions(self, on_bases: Sequence[tuple[int, Transform]]) -> FrameMotions:
+        """Frames fixed to bases (`_on_base`), their motions from their bases' at once."""
+        bases = self._stepper.bases([body for body, _ in on_bases])
+        offsets = np.array([(*position, *orientation) for _, (position, orientation) in on_bases]).reshape(-1, 7)
+        positions = bases.positions + rotate_many(bases.orientations, offsets[:, :3])
+        orientations = quaternion_products(bases.orientations, offsets[:, 3:])
+        (vx, vy, vz), (wx, wy, wz) = bases.linear.T, bases.angular.T
+        rx, ry, rz = (positions - bases.positions).T
+        velocities = np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
+        return FrameMotions(positions, orientations, velocities, bases.angular)  # v + ω × r
+
     def _frame_state(self, model: str, link: str, pose_in_link: Pose) -> tuple[Transform, Vec3, Vec3, Vec3]:
         """(the frame's world pose, its link's centre of mass, that centre's linear velocity, the
         angular velocity), as PyBullet reports them."""
         body = self.body(model)
         index = body.link_index(link)
         if index == -1:
-            com, orn = pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client)
-            linear, angular = pb.getBaseVelocity(body.id, physicsClientId=self.client)
-            frame = compose(Transform.of(com, orn), body.com_to_root)
+            base = self._stepper.bases([body.id])
+            com, linear, angular = vec3(base.positions[0]), vec3(base.linear[0]), vec3(base.angular[0])
+            frame = compose(Transform.of(com, base.orientations[0]), body.com_to_root)
         else:
             state = pb.getLinkState(
                 body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
@@ -150,7 +180,8 @@ class Queries:
 
     def _base(self, body: Body) -> Transform:
         """PyBullet's base frame (the root link's centre of mass) in the world."""
-        return Transform.of(*pb.getBasePositionAndOrientation(body.id, physicsClientId=self.client))
+        base = self._stepper.bases([body.id])
+        return Transform.of(base.positions[0], base.orientations[0])
 
     # joints
 

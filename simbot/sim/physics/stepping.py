@@ -5,6 +5,8 @@ chosen once when it is created (`stepper`), and otherwise knows nothing of the m
 
 - `add` and `forget`: a body entered the world (with its wheels' friction model, if it has
   wheels) or left it; nothing of a forgotten body is stepped again;
+- `bases`: bodies' bases (centre of mass, its velocity) as rows, what every reader of a base
+  reads; `moved`: bodies were placed or set moving from outside the stepping (a teleport, a reset);
 - `step`: the world one step on (the world's step size);
 - `joint_velocity`: a joint turns at a velocity from now on, with at most an effort where forces count;
 - `drive`: the planar twist a drive commands of a model frame, after its own clamping and ramps;
@@ -13,29 +15,33 @@ chosen once when it is created (`stepper`), and otherwise knows nothing of the m
 
 `DynamicStepper` (here) integrates forces: wheel friction from the last contacts, joint motors,
 constraints, then `stepSimulation`; a drive moves its base through the wheels, so it ignores the
-twist. `KinematicStepper` (`kinematic_stepper`) integrates nothing: bodies move by their twists and joint
-velocities and stop at contact.
+twist. `KinematicWorld` (`kinematic_world`) integrates nothing: bodies move by their twists and joint
+velocities and stop at contact, their bases held as arrays.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 from simbot.description.model import World
 from simbot.sim.bullet import pb
-from simbot.sim.physics.body import Body
-from simbot.sim.physics.kinematic_stepper import KINEMATIC, KinematicStepper
+from simbot.sim.physics.body import Bases, Body
+from simbot.sim.physics.kinematic_world import KINEMATIC, KinematicWorld
 from simbot.sim.physics.wheel_friction import WheelFriction, wheel_loads
 
 
 class Stepper(Protocol):
     """What differs between dynamic and kinematic stepping (see the module docstring)."""
 
-    def add(self, body: int, wheels: WheelFriction | None) -> None: ...
+    def add(self, body: Body, wheels: WheelFriction | None) -> None: ...
 
     def forget(self, body: int) -> None: ...
+
+    def bases(self, ids: Sequence[int]) -> Bases: ...
+
+    def moved(self, ids: Sequence[int]) -> None: ...
 
     def step(self, bodies: dict[str, Body]) -> None: ...
 
@@ -51,7 +57,7 @@ class Stepper(Protocol):
 def stepper(world: World, client: int) -> Stepper:
     """The stepping `world` asks for (`<physics type="kinematic">`, or dynamic) of the PyBullet world `client`."""
     if world.physics.type == KINEMATIC:
-        return KinematicStepper(client, world.physics.max_step_size)
+        return KinematicWorld(client, world.physics.max_step_size)
     return DynamicStepper(client)
 
 
@@ -63,12 +69,18 @@ class DynamicStepper:
     wheels: dict[int, WheelFriction] = field(default_factory=dict)
     """The wheels' friction model of each body that has wheels, by PyBullet body id."""
 
-    def add(self, body: int, wheels: WheelFriction | None) -> None:
+    def add(self, body: Body, wheels: WheelFriction | None) -> None:
         if wheels is not None:
-            self.wheels[body] = wheels
+            self.wheels[body.id] = wheels
 
     def forget(self, body: int) -> None:
         self.wheels.pop(body, None)
+
+    def bases(self, ids: Sequence[int]) -> Bases:
+        return Bases.read(self.client, ids)
+
+    def moved(self, ids: Sequence[int]) -> None:
+        """Nothing: PyBullet holds every state."""
 
     def step(self, bodies: dict[str, Body]) -> None:
         """Wheel friction from the last step's contacts, then PyBullet's step (its time step set at creation)."""

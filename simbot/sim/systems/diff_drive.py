@@ -52,7 +52,7 @@ from simbot.sim.kit.drive import (
 )
 from simbot.sim.kit.rates import Paced
 from simbot.sim.loop.system import SystemContext, UpdateInfo
-from simbot.sim.physics.kinematic_stepper import KINEMATIC
+from simbot.sim.physics.kinematic_world import KINEMATIC
 from simbot.sim.physics.steady_turn import SkidError, skid_error
 
 TWIST_FLOOR = 1e-6
