@@ -269,9 +269,11 @@ def rotate_many(xyzw: npt.NDArray[np.float64], vectors: npt.NDArray[np.float64],
 
 
 def quaternion_products(a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]) -> Matrix:
-    """Each row of `a` (N×4, xyzw) times its row of `b`: rotation b then a, as `compose` turns
-    frames, for a fleet's frames at once in elementwise products."""
-    ax, ay, az, aw = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
+    """Each row of `a` (N×4, xyzw; normalised here, as PyBullet's products are) times its row of
+    `b`: rotation b then a, as `compose` turns frames, for a fleet's frames at once in elementwise
+    products."""
+    length = np.sqrt(a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1] + a[:, 2] * a[:, 2] + a[:, 3] * a[:, 3])
+    ax, ay, az, aw = a[:, 0] / length, a[:, 1] / length, a[:, 2] / length, a[:, 3] / length
     bx, by, bz, bw = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
     return np.stack(
         [

@@ -222,6 +222,11 @@ class Inbox:
                 return Refused(str(exc))
         return None
 
+    @property
+    def pending(self) -> bool:
+        """Whether something arrived since the last drain (a length read needs no lock)."""
+        return bool(self._queue)
+
     def drain(self) -> list[bytes | Refused]:
         """What arrived since the last drain, oldest first: payloads, and the samples refused."""
         if not self._queue:  # most steps: nothing came (a length read needs no lock)

@@ -40,6 +40,11 @@ class CommandPipeline:
         """The command as limited at the last step."""
         return self._current
 
+    @property
+    def idle(self) -> bool:
+        """Whether the next step would apply nothing: the command holds and no message waits."""
+        return self._holds and not self._commands.pending
+
     def step(self, dt: float) -> Command | None:
         """The command to apply before a physics step of `dt` seconds; None where the one applied holds."""
         messages = self._commands.drain()

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,7 +22,7 @@ from simbot.description.plugin_params import bool_param, number_param, param
 from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.rates import Every
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader
 from simbot.transform import yaw_quaternion
 
@@ -311,6 +311,15 @@ class Drive(ABC):
         command = self._pipeline.step(info.step_ns / 1e9)
         if command is not None:
             self.apply(command)
+
+    @classmethod
+    def pre_update_all(cls, batches: Sequence[Batch]) -> None:
+        """Every drive of each world that has something to apply; an idle one (its command holds,
+        no message waits: most of a fleet, most steps) is passed over."""
+        for drives, info in batches:
+            for drive in drives:
+                if not drive._pipeline.idle:
+                    drive.pre_update(info)
 
     def reset(self, info: UpdateInfo) -> None:
         self._pipeline.reset()

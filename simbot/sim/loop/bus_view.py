@@ -75,6 +75,12 @@ class Input:
     def close(self) -> None:
         self._inbox.close()
 
+    @property
+    def pending(self) -> bool:
+        """Whether anything arrived since the last drain: a fleet's systems pass over an empty input
+        without draining it."""
+        return self._inbox.pending
+
     def drain(self) -> list[Any]:
         """The valid messages that arrived since the last call, oldest first."""
         if self._inbox.overflowed != self._overflowed:

@@ -9,6 +9,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from simbot.description.model import Model, World
 from simbot.description.poses import Pose
 from simbot.description.urdf_writer import joint_trees
@@ -17,6 +20,7 @@ from simbot.sim.physics.body import Body
 from simbot.sim.physics.commands import Commands
 from simbot.sim.physics.guard import changes_world
 from simbot.sim.physics.loading import Loader
+from simbot.sim.physics.protocols import Frame
 from simbot.sim.physics.rays import Rays, engine_wanted
 from simbot.sim.physics.stepping import Stepper, stepper
 from simbot.transform import Transform
@@ -43,6 +47,9 @@ class Physics(Commands):
     _rays: Rays = field(init=False)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     _base_offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
+    _frame_sets: list[tuple[list[Frame], tuple[list[int], npt.NDArray[np.float64]] | None]] = field(
+        default_factory=list
+    )
     read_only: bool = False
     """True while post-update systems run: they read the step's result and change nothing."""
     _loader: Loader = field(init=False)
@@ -90,6 +97,7 @@ class Physics(Commands):
             raise ValueError(f"a model named {name!r} is already in the world")
         loaded = self._loader.load(model, name, pose)
         self.bodies[name] = loaded.body
+        self._frame_sets.clear()
         self._stepper.add(loaded.body, loaded.wheels)
         self._heightfields[name] = loaded.heightfields
         self._rays.add(loaded.body)
@@ -114,6 +122,7 @@ class Physics(Commands):
             self._stepper.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
             self._base_offsets = {k: v for k, v in self._base_offsets.items() if k[0] != part}
+            self._frame_sets.clear()
             self._rays.remove(part)
             for heightfield in self._heightfields.pop(part, []):
                 pb.removeBody(heightfield, physicsClientId=self.client)

@@ -21,6 +21,9 @@ from simbot.sim.physics.rays import Rays
 from simbot.sim.physics.stepping import Stepper
 from simbot.transform import Transform, Vec3, matmul, quaternion_products, rotate_many
 
+FRAME_SETS_KEPT = 4
+"""Sets of frames asked for together that `frame_motions` keeps worked out (a world's IMUs, its lidars)."""
+
 
 class Queries:
     """Reading the world; the state it reads is `Physics`'s."""
@@ -35,6 +38,8 @@ class Queries:
     """Frames fixed to links, in their link's URDF frame (`_offset`)."""
     _base_offsets: dict[tuple[str, str, Pose], Transform]
     """Frames fixed to bases, in their base's centre-of-mass frame (`_on_base`)."""
+    _frame_sets: list[tuple[list[Frame], tuple[list[int], npt.NDArray[np.float64]] | None]]
+    """The last few sets of frames asked for at once, newest first, and what `_on_bases` found of them."""
     _stepper: Stepper
 
     @property
@@ -113,9 +118,9 @@ class Queries:
     def frame_motions(self, frames: Sequence[Frame]) -> FrameMotions:
         """`frame_motion` of many frames at once (a fleet's IMUs), as arrays: frames fixed to their
         bodies' bases from one query of the bases (a kinematic fleet's rows), others link by link."""
-        on_bases = [self._on_base(*frame) for frame in frames]
-        if None not in on_bases:
-            return self._base_frame_motions(on_bases)  # type: ignore[arg-type]
+        on_bases = self._on_bases(frames)
+        if on_bases is not None:
+            return self._base_frame_motions(*on_bases)
         rows = []
         for frame in frames:
             (position, orientation), com, linear, angular = self._frame_state(*frame)
@@ -138,10 +143,25 @@ class Queries:
             offset = self._base_offsets[key] = compose(body.com_to_root, self._offset(body, link, pose_in_link))
         return body.id, offset
 
-    def _base_frame_motions(self, on_bases: Sequence[tuple[int, Transform]]) -> FrameMotions:
-        """Frames fixed to bases (`_on_base`), their motions from their bases' at once."""
-        bases = self._stepper.bases([body for body, _ in on_bases])
-        offsets = np.array([(*position, *orientation) for _, (position, orientation) in on_bases]).reshape(-1, 7)
+    def _on_bases(self, frames: Sequence[Frame]) -> tuple[list[int], npt.NDArray[np.float64]] | None:
+        """(the bodies, each frame in its base's centre-of-mass frame as a row: position, quaternion)
+        of frames all fixed to bases, None otherwise; kept for the same frames asked again (a fleet's
+        IMUs every step: a comparison of the same tuples) until a body enters or leaves."""
+        for asked, found in self._frame_sets:
+            if asked == frames:
+                return found
+        on_bases = [self._on_base(*frame) for frame in frames]
+        found = None
+        if None not in on_bases:
+            ids = [body for body, _ in on_bases]  # type: ignore[misc]
+            offsets = np.array([(*at, *turn) for _, (at, turn) in on_bases], dtype=np.float64)  # type: ignore[misc]
+            found = ids, offsets.reshape(-1, 7)
+        self._frame_sets[:] = [(list(frames), found), *self._frame_sets[: FRAME_SETS_KEPT - 1]]
+        return found
+
+    def _base_frame_motions(self, ids: list[int], offsets: npt.NDArray[np.float64]) -> FrameMotions:
+        """Frames fixed to bases (`_on_bases`), their motions from their bases' at once."""
+        bases = self._stepper.bases(ids)
         positions = bases.positions + rotate_many(bases.orientations, offsets[:, :3])
         orientations = quaternion_products(bases.orientations, offsets[:, 3:])
         (vx, vy, vz), (wx, wy, wz) = bases.linear.T, bases.angular.T

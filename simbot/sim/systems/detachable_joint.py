@@ -16,11 +16,12 @@ holds is refused to the others (a warning; the state stays `detached`) until it 
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
 from simbot.bus import messages
 from simbot.description.naming import model_topic
 from simbot.description.plugin_params import param
-from simbot.sim.loop.system import SystemConfigError, SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemConfigError, SystemContext, UpdateInfo
 
 log = logging.getLogger(__name__)
 
@@ -58,6 +59,15 @@ class DetachableJoint:
     @property
     def attached(self) -> bool:
         return self._joint is not None
+
+    @classmethod
+    def pre_update_all(cls, batches: Sequence[Batch]) -> None:
+        """Each joint of each world asked to attach or detach; the others (a fleet's, most steps)
+        are passed over."""
+        for joints, info in batches:
+            for joint in joints:
+                if joint._attach.pending or joint._detach.pending:
+                    joint.pre_update(info)
 
     def pre_update(self, info: UpdateInfo) -> None:
         # Both within one step: attach, then detach (the bus keeps no order between two keys).

@@ -111,14 +111,19 @@ class Imu(Sampled):
         if not due:
             return
         motions = FrameMotions.joined(parts)
-        acceleration = Imu._accelerations(due, stamps, motions.linear)
         count = len(due)
+        white = np.empty((count, 6))
+        last = np.empty((count, 3))
+        seconds = np.empty(count)
+        for row, (imu, now_ns, velocity) in enumerate(zip(due, stamps, motions.linear)):
+            last[row], seconds[row], white[row] = imu._last_linear, imu._since(now_ns), imu._white_row()
+            imu._last_ns, imu._last_linear = now_ns, velocity
+        acceleration = np.where(np.isfinite(seconds)[:, None], (motions.linear - last) / seconds[:, None], 0.0)
         # gyro and accelerometer turned into each frame in one call: rows 0..N-1 and N..2N-1
         turns = np.concatenate([motions.orientations, motions.orientations])
         gravity = gravities[0] if len(gravities) == 1 else np.concatenate(gravities)
         sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - gravity]), into=True)
-        terms = np.array([imu._noise_terms for imu in due])  # mean, bias, stddev of the six channels
-        white = np.array([imu._white_row() for imu in due])
+        terms = _terms_of(due)  # mean, bias, stddev of the six channels
         true = np.hstack([sensed[:count], sensed[count:]])
         measured = true + terms[:, :6] + terms[:, 6:12] + white * terms[:, 12:]  # ChannelNoise's sum, in its order
         for row, (imu, now_ns) in enumerate(zip(due, stamps)):
@@ -129,19 +134,9 @@ class Imu(Sampled):
                 )
             imu.published(now_ns)
 
-    @staticmethod
-    def _accelerations(
-        imus: Sequence[Imu], stamps: Sequence[int], linear: npt.NDArray[np.float64]
-    ) -> npt.NDArray[np.float64]:
-        """Each IMU's mean acceleration since its last sample (zero for the first), and this one kept
-        (`stamps`: each one's sim time now)."""
-        last = np.array([imu._last_linear for imu in imus])
-        seconds = np.array(
-            [(now - imu._last_ns) / 1e9 if imu._last_ns is not None else np.inf for imu, now in zip(imus, stamps)]
-        )
-        for imu, now, velocity in zip(imus, stamps, linear):
-            imu._last_ns, imu._last_linear = now, velocity
-        return np.where(np.isfinite(seconds)[:, None], (linear - last) / seconds[:, None], 0.0)
+    def _since(self, now_ns: int) -> float:
+        """Seconds since the last sample (infinite for the first: it takes a = 0)."""
+        return (now_ns - self._last_ns) / 1e9 if self._last_ns is not None else np.inf
 
     def _white_row(self) -> npt.NDArray[np.float64]:
         """The six channels' white draws for one sample."""
@@ -152,6 +147,7 @@ class Imu(Sampled):
 
     def reset(self, info: UpdateInfo) -> None:
         super().reset(info)
+        _TERMS.clear()
         self._last_ns = None
         self._white = np.empty((0, 6))
         self._gyro.draw_bias()
@@ -162,3 +158,15 @@ class Imu(Sampled):
         """The six channels' mean, bias (drawn at start and each reset) and stddev, end to end."""
         gyro, accel = self._gyro, self._accel
         return np.concatenate([gyro.mean, accel.mean, gyro.bias, accel.bias, gyro.stddev, accel.stddev])
+
+
+_TERMS: list[tuple[list[Imu], npt.NDArray[np.float64]]] = []
+"""The last sampled IMUs' noise terms as rows, kept until an IMU resets (its bias drawn again)."""
+
+
+def _terms_of(imus: list[Imu]) -> npt.NDArray[np.float64]:
+    """The noise terms of `imus`, a row each: a fleet's thousand rows gathered once, not each sample."""
+    if _TERMS and _TERMS[0][0] == imus:  # the same IMUs: a comparison of identities
+        return _TERMS[0][1]
+    _TERMS[:] = [(list(imus), np.array([imu._noise_terms for imu in imus]))]
+    return _TERMS[0][1]
