@@ -502,3 +502,25 @@ def test_publishers_declared_while_a_world_loads_follow_who_listens_from_its_end
         wait_until(lambda: not odom.has_subscribers, what="no subscriber once it listens")
         pair.client.subscribe("tug_1/odom", TWIST, lambda msg: None)
         wait_until(lambda: odom.refresh() and odom.has_subscribers, what="the client's subscriber")
+
+
+def test_watching_counts_each_change_of_who_subscribes() -> None:
+    """A node's `Watching.generation` moves on when a first subscriber comes to one of its publishers
+    and when the last one leaves, and stands still otherwise: what holds of every `has_subscribers`
+    holds while it does (the rendering system looks for watched cameras again only then). A new
+    publisher is a change too: what it says is news."""
+    with node_pair() as pair:
+        publisher = pair.server.publisher("watched_scan", TWIST, watched_only=True)
+        other = pair.server.publisher("unwatched_scan", TWIST)
+        wait_until(lambda: not publisher.has_subscribers, what="no subscriber at first")
+        quiet = pair.server.watching.generation
+        other.put(m.twist((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+        assert not publisher.has_subscribers and not other.has_subscribers
+        assert pair.server.watching.generation == quiet, "putting and asking change nothing"
+        subscriber = pair.client.subscribe("watched_scan", TWIST, lambda msg: None)
+        wait_until(lambda: pair.server.watching.generation != quiet, what="the first subscriber's change")
+        assert publisher.has_subscribers
+        came = pair.server.watching.generation
+        subscriber.close()
+        wait_until(lambda: pair.server.watching.generation != came, what="the last subscriber's leaving")
+        wait_until(lambda: not publisher.has_subscribers, what="no subscriber again")

@@ -129,6 +129,23 @@ def test_every_fires_at_its_rate_on_1ms_steps(rate: float) -> None:
     assert fired == round(rate * 10)
 
 
+@pytest.mark.parametrize(("rate", "step_ns"), [(30.0, 5_000_000), (7.0, 1_000_000), (500.0, 5_000_000)])
+def test_a_rate_passed_over_and_caught_up_fires_where_asking_every_step_would(rate: float, step_ns: int) -> None:
+    """A camera no one watches is not asked (the rendering system passes it over); watched again, it
+    catches up (`Every.catch_up`) and fires at the steps where a rate asked at every step fires,
+    whether it left off mid-period, periods ago, or (500 Hz on 5 ms steps) at every step."""
+    asked, skipped = Every.hz(rate), Every.hz(rate)
+    steps = [step * step_ns for step in range(1, 2_000)]
+    away = set(range(100, 377)) | set(range(900, 901)) | set(range(1500, 1999))
+    for index, now in enumerate(steps):
+        expected = asked.due(now)
+        if index in away:
+            continue
+        if index - 1 in away:
+            skipped.catch_up(now, step_ns)
+        assert skipped.due(now) == expected, f"step {index} at {now} ns"
+
+
 def test_limits_clamp_and_ramp() -> None:
     limits = Limits(min_value=-0.5, max_value=1.0, min_rate=-2.0, max_rate=1.0)
     assert (limits.clamp(3.0), limits.clamp(-3.0), limits.clamp(0.2)) == (1.0, -0.5, 0.2)

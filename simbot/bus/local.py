@@ -28,6 +28,7 @@ from simbot.bus.frames import with_frame_prefix
 from simbot.bus.keys import topic_key
 from simbot.bus.node import Inbox, Node, Publisher, Subscription
 from simbot.bus.options import BusOptions
+from simbot.bus.publisher import Watching
 from simbot.bus.rmw import NodeName
 from simbot.bus.services import Queryable, Request, RosRequest, RosService
 
@@ -40,9 +41,11 @@ class LocalHub:
     def __init__(self) -> None:
         self.listeners: dict[str, list[Callable[[Any], None]]] = {}
         self.latest: dict[str, Any] = {}
+        self.watching = Watching()
 
     def listen(self, key: str, deliver: Callable[[Any], None]) -> None:
         self.listeners.setdefault(key, []).append(deliver)
+        self.watching.changed()
         if key in self.latest:
             deliver(self.latest[key])
 
@@ -50,6 +53,7 @@ class LocalHub:
         listeners = self.listeners.get(key, [])
         if deliver in listeners:
             listeners.remove(deliver)
+            self.watching.changed()
 
     def put(self, key: str, msg: Any, latched: bool) -> None:
         if latched:
@@ -168,6 +172,7 @@ class LocalNode(Node):
 
     def __init__(self) -> None:
         self.hub = LocalHub()
+        self.watching = self.hub.watching
         self.options = BusOptions()
         self.hosts_helpers = False
         """No other process can reach it: a render worker hands its frames back to the world, which

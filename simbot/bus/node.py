@@ -45,7 +45,7 @@ from simbot.bus.forks import check_fork_safe, zenoh_starts
 from simbot.bus.graph import Announcement
 from simbot.bus.keys import topic_key
 from simbot.bus.options import BusOptions, Role, zenoh_config, zenoh_reason
-from simbot.bus.publisher import Publisher, Route, direct
+from simbot.bus.publisher import Publisher, Route, Watching, direct
 from simbot.bus.rmw import AttachmentError, EntityKind, NodeName, Qos, parse_attachment
 from simbot.bus.services import (
     JSON_ENCODING,
@@ -260,6 +260,8 @@ class Node:
         self._entities: list[_Closable] = []
         self._entity_ids = 0
         self._publishers: list[Publisher] = []
+        self.watching = Watching()
+        """Changes of who subscribes to this node's publishers (`Watching`)."""
         self._by_name: dict[str, list[Publisher]] = {}
         config = zenoh_config(options, role)
         check_fork_safe()
@@ -349,6 +351,7 @@ class Node:
             frame_prefix=frame_prefix,
             watched_only=watched_only,
             listening=self._unheard is None,
+            watching=self.watching,
         )
         if self._unheard is not None:
             self._unheard.append(publisher)

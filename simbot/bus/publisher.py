@@ -3,12 +3,14 @@ who listens known without asking.
 
 Zenoh's matching listener tells the publisher when a first subscriber comes and the last one
 leaves, so `has_subscribers` is an attribute read: a server with a hundred tugs asks it thousands
-of times a step (every camera, every IMU). A `watched_only` publisher (the server's) neither
-encodes nor sends what no one matches.
+of times a step (every camera, every IMU). A node's `Watching` counts those changes of all its
+publishers, so that a system serving thousands (a fleet's cameras) asks them again only after one.
+A `watched_only` publisher (the server's) neither encodes nor sends what no one matches.
 """
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from collections.abc import Callable
@@ -36,6 +38,19 @@ def direct(callback: Callable[[T], None]) -> zenoh.handlers.Callback[T]:
     return zenoh.handlers.Callback(callback, indirect=False)
 
 
+class Watching:
+    """How many times any of a node's publishers learnt that a first subscriber came or the last
+    one left: what its publishers' `has_subscribers` say holds while `generation` does."""
+
+    def __init__(self) -> None:
+        self._changes = itertools.count(1)
+        self.generation = 0
+
+    def changed(self) -> None:
+        """A publisher's subscribers changed (any thread: `next` on a count is one step)."""
+        self.generation = next(self._changes)
+
+
 @dataclass(frozen=True)
 class Route:
     """Where one entity of a node goes: its topic's name within simbot (`ns/odom`), its data key,
@@ -61,10 +76,11 @@ class Publisher:
         frame_prefix: str = "",
         watched_only: bool = False,
         listening: bool = True,
+        watching: Watching | None = None,
     ) -> None:
         """`listening=False`: who listens is followed only after `listen`, taken to be someone
         until then (a server declares its world's publishers first, then listens:
-        `Node.listening_later`)."""
+        `Node.listening_later`); `watching` counts each change of who listens (the node's)."""
         self.key = route.name
         self.data_key = route.key
         self.typename = route.typename
@@ -82,6 +98,7 @@ class Publisher:
         self._listener: zenoh.MatchingListener[None] | None = None
         self._matching = True
         self._recheck = False
+        self._watching = watching or Watching()
         self._closed = False
         self._watched_only = watched_only and not latched
         self._publisher: zenoh.Publisher | zenoh.ext.AdvancedPublisher
@@ -111,6 +128,7 @@ class Publisher:
             return  # closed while the world loaded (a model whose systems failed), or listening already
         self._listener = self._publisher.declare_matching_listener(direct(self._on_matching))
         self._matching = _matching(self._publisher.matching_status)
+        self._watching.changed()
 
     def _on_matching(self, status: zenoh.MatchingStatus) -> None:
         """Zenoh thread: a first subscriber came, or the last one left. The news can come late, after
@@ -120,6 +138,7 @@ class Publisher:
             self._matching = True
         else:
             self._recheck = True
+        self._watching.changed()
 
     def refresh(self) -> bool:
         """Asks Zenoh now whether a subscriber came: the listener hears of it a little after the
@@ -138,9 +157,12 @@ class Publisher:
         if self._listener is None or not isinstance(self._publisher, zenoh.Publisher):
             return False
         try:
-            self._matching = _matching(self._publisher.matching_status)
+            matching = _matching(self._publisher.matching_status)
         except zenoh.ZError:  # undeclared by close() on another thread
             return False
+        if matching != self._matching:
+            self._matching = matching
+            self._watching.changed()
         return True
 
     def put(self, msg: Any) -> None:

@@ -312,13 +312,19 @@ class Drive(ABC):
         if command is not None:
             self.apply(command)
 
+    @property
+    def idle(self) -> bool:
+        """Whether this step's `pre_update` would do nothing: its command holds and no message
+        waits. A drive with work of its own at every step (a steering servo) says False."""
+        return self._pipeline.idle
+
     @classmethod
     def pre_update_all(cls, batches: Sequence[Batch]) -> None:
-        """Every drive of each world that has something to apply; an idle one (its command holds,
-        no message waits: most of a fleet, most steps) is passed over."""
+        """Every drive of each world that has something to do; an idle one (most of a fleet, most
+        steps) is passed over."""
         for drives, info in batches:
             for drive in drives:
-                if not drive._pipeline.idle:
+                if not drive.idle:
                     drive.pre_update(info)
 
     def reset(self, info: UpdateInfo) -> None:

@@ -31,6 +31,13 @@ class Every:
     def restart(self) -> None:
         self.next_ns = 0
 
+    def catch_up(self, now_ns: int, step_ns: int) -> None:
+        """Where `due` would stand at the step of `now_ns` had it been asked at every step before
+        (a sensor no one watched, passed over): due now if a multiple of the period came since the
+        last step. A restart still pending (0) stays: the first step asked is due."""
+        if self.next_ns:
+            self.next_ns = max(self.next_ns, ((now_ns - step_ns) // self.period_ns + 1) * self.period_ns)
+
 
 @dataclass
 class RateMeter:
@@ -93,6 +100,12 @@ class Sampled(Paced):
 
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)
+
+    def resume(self, info: UpdateInfo) -> None:
+        """Asked again after steps in which it was passed over: its rate where asking at every step
+        would have put it (`Every.catch_up`)."""
+        self.every.catch_up(info.sim_time_ns, info.step_ns)
+        self._now_ns = info.sim_time_ns
 
     def report(self) -> dict[str, Any]:
         return {"rate_hz": round(self.meter.rate(self._now_ns), 3), "messages": self.meter.count}

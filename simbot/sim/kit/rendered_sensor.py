@@ -44,6 +44,11 @@ class RenderedSensor(Protocol):
 
     def due(self, info: UpdateInfo) -> bool: ...
 
+    def resume(self, info: UpdateInfo) -> None:
+        """Its rate brought up to this step, as if `due` had been asked at every step since the
+        rendering system last asked (it passes over cameras no one watches)."""
+        ...
+
     @property
     def next_due_ns(self) -> int:
         """Sim time before which `due` says False."""

@@ -8,7 +8,7 @@ reports a body's centre of mass; the offset is undone here once).
   wheels, castors) and `heightfields`;
 - `engine`: `Physics`, the world itself: bodies in and out, stepping, reset, the read-only phase;
 - `stepping`: what differs between dynamic and kinematic stepping (`Stepper`), chosen once per world;
-  `kinematic_world`: the kinematic fleet mode's stepper;
+  `kinematic_world`: the kinematic fleet mode's stepper, its moving bases held as arrays;
 - `queries` and `commands`: its read and command halves, by name; `protocols`: the same as systems see them;
 - `bullet_transforms`: transforms by PyBullet's math; `rays`, `contacts`, `wheel_friction`: the parts.
 

@@ -158,6 +158,11 @@ class AckermannSteering(Drive):
         self._steering = (0.0, 0.0)
         """The (left, right) angles the steering servo turns the wheels to."""
 
+    @property
+    def idle(self) -> bool:
+        """Never: the steering servo is driven at every step."""
+        return False
+
     def pre_update(self, info: UpdateInfo) -> None:
         super().pre_update(info)
         self._steer()

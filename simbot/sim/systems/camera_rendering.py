@@ -164,7 +164,12 @@ class Rendering:
         """Each body's instance number for segmentation, counted up as bodies come (1..65535, then again)."""
         self._counted = 0
         self._next_due_ns = 0
-        """Sim time of the next tick of any camera: no step before it looks at the cameras."""
+        """Sim time of the next tick of any camera watched: no step before it looks at the cameras."""
+        self._watching = node.watching
+        self._seen: int | None = None
+        """The node's `Watching.generation` when the cameras watched were last looked for."""
+        self._listening: list[int] = []
+        """The cameras someone subscribes to (or that save their frames), by index, as of `_seen`."""
 
     def model_added(self, event: ModelEvent) -> None:
         """Its bodies enter the render scenes, then its cameras take the next indices (a running pool
@@ -187,7 +192,7 @@ class Rendering:
             self._gone.discard(back)
         else:
             self.cameras.append(camera)
-        self._next_due_ns = 0
+        self._next_due_ns, self._seen = 0, None
 
     def model_removed(self, event: ModelEvent) -> None:
         """Its cameras stop, its bodies leave the scenes (before the physics removes them)."""
@@ -199,6 +204,7 @@ class Rendering:
             if camera.where[0] in bodies:
                 self._gone.add(index)
                 self._waiting.discard(index)
+        self._seen = None
         if self._following:
             self._changes += bodies
         if self.pool is not None and len(self._gone) == len(self.cameras):
@@ -222,6 +228,7 @@ class Rendering:
         """No camera is left: the pool closes, and the next camera watched starts a fresh one."""
         self.close()
         self.cameras, self._gone, self._changes, self._starting = [], set(), [], None
+        self._seen, self._listening = None, []
 
     def _sync(self) -> None:
         """Sends a running pool what changed since its snapshot of the world, as one edit: the
@@ -269,19 +276,19 @@ class Rendering:
 
     def post_update(self, info: UpdateInfo) -> None:
         now_ns = info.sim_time_ns
-        if now_ns >= self._next_due_ns:
+        if now_ns >= self._next_due_ns or self._watching.generation != self._seen:
             self._tick(info)
         if self._waiting and self._ready() and self._idle():
             self._request(now_ns)
         self._deliver()
 
     def _tick(self, info: UpdateInfo) -> None:
-        """Each camera due waits for a frame, or (nobody watching) sends its camera_info alone; then
-        the next tick of any: the steps between cost nothing here, however many cameras there are."""
+        """Each camera watched and due waits for a frame, or (only its camera_info watched) sends
+        camera_info alone; then the next tick of any: the steps between cost nothing here, however
+        many cameras there are, and cameras no one watches cost nothing at all."""
         next_due_ns = sys.maxsize
-        for index, camera in enumerate(self.cameras):
-            if index in self._gone:
-                continue
+        for index in self._listened(info):
+            camera = self.cameras[index]
             if camera.due(info):
                 if camera.wanted() and self.status.failure is None:
                     camera.skipped += index in self._waiting  # real time: the physics never waits for a frame
@@ -290,6 +297,24 @@ class Rendering:
                     camera.publish_info(info.sim_time_ns)
             next_due_ns = min(next_due_ns, camera.next_due_ns)
         self._next_due_ns = next_due_ns
+
+    def _listened(self, info: UpdateInfo) -> list[int]:
+        """The cameras someone subscribes to (any output or camera_info) or that save their frames,
+        looked for again only when who subscribes to the node's publishers changed (a fleet's six
+        thousand cameras, none watched, cost one comparison a step); one that comes back into view
+        catches up with its rate (`resume`), as if it had been asked at every step."""
+        if self._watching.generation != self._seen:
+            self._seen = self._watching.generation  # read first: a change while looking comes again
+            before = set(self._listening)
+            self._listening = [
+                index
+                for index, camera in enumerate(self.cameras)
+                if index not in self._gone and (camera.wanted() or camera.audience())
+            ]
+            for index in self._listening:
+                if index not in before:
+                    self.cameras[index].resume(info)
+        return self._listening
 
     def _ready(self) -> bool:
         """Whether the pool takes requests; starts it (in the background) on first call."""
