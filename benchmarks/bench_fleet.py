@@ -19,7 +19,7 @@ wall time (what real time means) and their own CPU time:
 The dynamic rows stop after the first N whose server, in fast mode, makes less than half a sim
 second per CPU second (the real-time factor on a shared machine counts the others' work).
 
-Then issues 48's and 58's goals (their own block, `fleet_goals`), each a real-time run of the full Flexley Tug (every sensor declared: six
+Then issues 48's and 58's goals, each a real-time run of the full Flexley Tug (every sensor declared: six
 cameras, two lidars, the IMU) on the empty world, with a client in this process reading ten tugs'
 scans and odometry (decoded), against the bare loop of the same tugs in the same run (kinematic:
 `Physics.step` of the kinematic world, 5 ms steps; dynamic: the loader's bare loop):
@@ -429,10 +429,10 @@ def main() -> None:
             dynamic = fast >= 0.5
         table.append(f"| {n} | {cells} | {kinematic_row(n, args)} |")
         print(table[-1], flush=True)
-    if not args.goals_only:
-        publish("fleet", table)
+    lines = [] if args.goals_only else table
     if not args.no_goals:
-        publish("fleet_goals", goal_rows(args))
+        lines += ([""] if lines else []) + goal_rows(args)
+    publish("fleet", lines)
 
 
 if __name__ == "__main__":

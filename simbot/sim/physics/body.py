@@ -85,3 +85,14 @@ class Bases(NamedTuple):
             rows.append((*position, *orientation, *sum(pb.getBaseVelocity(body, physicsClientId=client), ())))
         table = np.array(rows, dtype=np.float64).reshape(-1, 13)
         return Bases(table[:, :3], table[:, 3:7], table[:, 7:10], table[:, 10:])
+
+
+def read_joint_states(client: int, body: int, joints: Sequence[int]) -> list[tuple[float, float, float]]:
+    """(position, velocity, motor effort) of each joint of a PyBullet body, as PyBullet holds them."""
+    states = pb.getJointStates(body, list(joints), physicsClientId=client) if joints else []
+    return [(float(s[0]), float(s[1]), float(s[3])) for s in states]
+
+
+def write_joint_positions(client: int, body: int, joints: Sequence[int], values: Sequence[float]) -> None:
+    """Joints of a PyBullet body put at `values`, at rest."""
+    pb.resetJointStatesMultiDof(body, list(joints), [[value] for value in values], physicsClientId=client)

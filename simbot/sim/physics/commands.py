@@ -58,9 +58,9 @@ class Commands(Queries):
     def set_joint_positions(self, model: str, positions: Mapping[str, float]) -> None:
         """Puts joints at `positions` at rest, kinematically (an actor's legs as its skeleton has them)."""
         body = self.body(model)
-        indices = [body.joint_index(joint) for joint in positions]
-        values = [[value] for value in positions.values()]
-        pb.resetJointStatesMultiDof(body.id, indices, values, physicsClientId=self.client)
+        self._stepper.set_joint_positions(
+            body.id, [body.joint_index(joint) for joint in positions], list(positions.values())
+        )
 
     @changes_world
     def drive_base(self, model: str, forward: float, lateral: float, turn: float) -> None:
@@ -110,6 +110,7 @@ class Commands(Queries):
 
     def _com_frame(self, model: str, link: str) -> tuple[int, int, Transform]:
         """(body id, link index, the link's centre-of-mass frame in the world): PyBullet constrains those."""
+        self._stepper.sync()
         body = self.body(model)
         index = body.link_index(link)
         if index == -1:

@@ -143,6 +143,7 @@ class Physics(Commands):
         saves each variant it applies)."""
         if self._saved_state is not None:
             pb.removeState(self._saved_state, physicsClientId=self.client)
+        self._stepper.sync()
         self._saved_state = pb.saveState(physicsClientId=self.client)
         self._saved_bodies = tuple(self.bodies)
 
@@ -163,5 +164,5 @@ class Physics(Commands):
             raise ValueError(f"reset: the world as started held {', '.join(gone)}, removed since; restart the server")
         if self._saved_state is not None:
             pb.restoreState(self._saved_state, physicsClientId=self.client)
-            self._stepper.moved([body.id for body in self.bodies.values()])
+            self._stepper.restored()
             self._rays.moved(list(self.bodies.values()))

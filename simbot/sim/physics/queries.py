@@ -179,6 +179,7 @@ class Queries:
             com, linear, angular = vec3(base.positions[0]), vec3(base.linear[0]), vec3(base.angular[0])
             frame = compose(Transform.of(com, base.orientations[0]), body.com_to_root)
         else:
+            self._stepper.sync()
             state = pb.getLinkState(
                 body.id, index, computeLinkVelocity=True, computeForwardKinematics=True, physicsClientId=self.client
             )
@@ -210,8 +211,7 @@ class Queries:
         body = self.body(model)
         moving = [j for j in joints if j not in body.held]
         indices = [body.joint_index(j) for j in moving]
-        states = pb.getJointStates(body.id, indices, physicsClientId=self.client) if indices else []
-        found = {name: (float(s[0]), float(s[1]), float(s[3])) for name, s in zip(moving, states)}
+        found = dict(zip(moving, self._stepper.joint_states(body.id, indices)))
         return [found.get(j, (0.0, 0.0, 0.0)) for j in joints]
 
     def body_state(self, model: str) -> tuple[Transform, dict[str, float]]:
@@ -226,6 +226,7 @@ class Queries:
     def link_contacts(self, model: str, link: str) -> list[ContactPoint]:
         """The points where `link` touches other bodies after the last step, with the forces on it."""
         body = self.body(model)
+        self._stepper.sync()
         points = pb.getContactPoints(bodyA=body.id, linkIndexA=body.link_index(link), physicsClientId=self.client)
         return [contact_point(point, self._names_of(point[2], point[4])) for point in points]
 
@@ -242,6 +243,7 @@ class Queries:
         reports it). Needs `measure_joint_wrench` first."""
         body = self.body(model)
         index = body.joint_index(joint)
+        self._stepper.sync()
         reaction = pb.getJointState(body.id, index, physicsClientId=self.client)[2]
         com, orn = pb.getLinkState(body.id, index, computeForwardKinematics=True, physicsClientId=self.client)[:2]
         rotation = np.array(pb.getMatrixFromQuaternion(orn), dtype=float).reshape(3, 3)
@@ -263,4 +265,5 @@ class Queries:
         """`cast_rays` of many sensors' rays in one cast (every lidar due in a step); `engine=False`
         casts through PyBullet even where the engine is on (the tests compare the two)."""
         bodies = [(starts, ends, self.body(blind) if blind is not None else None) for starts, ends, blind in batches]
+        self._stepper.sync()  # the wheels' links where they turned to
         return self._rays.cast(bodies) if engine else self._rays.bullet.cast_all(bodies)

@@ -6,7 +6,11 @@ chosen once when it is created (`stepper`), and otherwise knows nothing of the m
 - `add` and `forget`: a body entered the world (with its wheels' friction model, if it has
   wheels) or left it; nothing of a forgotten body is stepped again;
 - `bases`: bodies' bases (centre of mass, its velocity) as rows, what every reader of a base
-  reads; `moved`: bodies were placed or set moving from outside the stepping (a teleport, a reset);
+  reads; `moved`: bodies were placed or set moving from outside the stepping (a teleport);
+  `restored`: the world came back from a saved state (a reset);
+- `joint_states` and `set_joint_positions`: joints read and put, what every reader of a joint
+  reads; `sync`: PyBullet told of what the stepping holds apart from it, before anything reads
+  PyBullet itself (a link's pose, a cast, a contact, a saved state);
 - `step`: the world one step on (the world's step size);
 - `joint_velocity`: a joint turns at a velocity from now on, with at most an effort where forces count;
 - `drive`: the planar twist a drive commands of a model frame, after its own clamping and ramps;
@@ -27,7 +31,7 @@ from typing import Protocol
 
 from simbot.description.model import World
 from simbot.sim.bullet import pb
-from simbot.sim.physics.body import Bases, Body
+from simbot.sim.physics.body import Bases, Body, read_joint_states, write_joint_positions
 from simbot.sim.physics.kinematic_world import KINEMATIC, KinematicWorld
 from simbot.sim.physics.wheel_friction import WheelFriction, wheel_loads
 
@@ -42,6 +46,14 @@ class Stepper(Protocol):
     def bases(self, ids: Sequence[int]) -> Bases: ...
 
     def moved(self, ids: Sequence[int]) -> None: ...
+
+    def restored(self) -> None: ...
+
+    def sync(self) -> None: ...
+
+    def joint_states(self, body: int, joints: Sequence[int]) -> list[tuple[float, float, float]]: ...
+
+    def set_joint_positions(self, body: int, joints: Sequence[int], values: Sequence[float]) -> None: ...
 
     def step(self, bodies: dict[str, Body]) -> None: ...
 
@@ -81,6 +93,18 @@ class DynamicStepper:
 
     def moved(self, ids: Sequence[int]) -> None:
         """Nothing: PyBullet holds every state."""
+
+    def restored(self) -> None:
+        """Nothing: PyBullet holds every state."""
+
+    def sync(self) -> None:
+        """Nothing: PyBullet holds every state."""
+
+    def joint_states(self, body: int, joints: Sequence[int]) -> list[tuple[float, float, float]]:
+        return read_joint_states(self.client, body, joints)
+
+    def set_joint_positions(self, body: int, joints: Sequence[int], values: Sequence[float]) -> None:
+        write_joint_positions(self.client, body, joints, values)
 
     def step(self, bodies: dict[str, Body]) -> None:
         """Wheel friction from the last step's contacts, then PyBullet's step (its time step set at creation)."""
