@@ -7,7 +7,9 @@ simbot's programs share one key space and every message goes out once. Within si
 still named by `Node.key` (`ns/odom`), the name world state counts inputs by.
 
 Congestion control: publishers DROP by default, so a slow subscriber never slows the
-simulation (SPEC §4); `drop=False` gives BLOCK for data that must arrive.
+simulation (SPEC §4); `drop=False` gives BLOCK for data that must arrive, and latched publishers
+BLOCK too: a latched message (a map, a description, a joint's state) is put once, and a
+congested link at that moment (a first step's flood of images) must not lose it.
 
 Latched topics ("transient local": `robot_description`, `tf_static`, `detachable_joint/state`)
 use Zenoh's own mechanism, the `zenoh.ext` advanced publisher with a cache of one sample and

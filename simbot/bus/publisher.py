@@ -91,7 +91,7 @@ class Publisher:
         """`application/cdr;TYPE`: lets a monitor decode a key without being told its type."""
         self._attachments = Attachments()
         self._announcement = Announcement(session, route.token) if route.token else None
-        congestion = zenoh.CongestionControl.DROP if drop else zenoh.CongestionControl.BLOCK
+        congestion = zenoh.CongestionControl.DROP if drop and not latched else zenoh.CongestionControl.BLOCK
         self._latest: bytes | None = None
         self._lock = threading.Lock()
         self._queryable: zenoh.Queryable[None] | None = None
