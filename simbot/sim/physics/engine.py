@@ -46,7 +46,6 @@ class Physics(Commands):
     constraints: dict[int, tuple[str, str]] = field(default_factory=dict)
     _rays: Rays = field(init=False)
     _offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
-    _base_offsets: dict[tuple[str, str, Pose], Transform] = field(default_factory=dict)
     _frame_sets: list[tuple[list[Frame], tuple[list[int], npt.NDArray[np.float64]] | None]] = field(
         default_factory=list
     )
@@ -121,7 +120,6 @@ class Physics(Commands):
             body = self.bodies.pop(part)
             self._stepper.forget(body.id)
             self._offsets = {k: v for k, v in self._offsets.items() if k[0] != part}
-            self._base_offsets = {k: v for k, v in self._base_offsets.items() if k[0] != part}
             self._frame_sets.clear()
             self._rays.remove(part)
             for heightfield in self._heightfields.pop(part, []):

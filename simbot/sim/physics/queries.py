@@ -36,8 +36,6 @@ class Queries:
     _rays: Rays
     _offsets: dict[tuple[str, str, Pose], Transform]
     """Frames fixed to links, in their link's URDF frame (`_offset`)."""
-    _base_offsets: dict[tuple[str, str, Pose], Transform]
-    """Frames fixed to bases, in their base's centre-of-mass frame (`_on_base`)."""
     _frame_sets: list[tuple[list[Frame], tuple[list[int], npt.NDArray[np.float64]] | None]]
     """The last few sets of frames asked for at once, newest first, and what `_on_bases` found of them."""
     _stepper: Stepper
@@ -92,8 +90,7 @@ class Queries:
     def model_motion(self, model: str) -> tuple[Transform, Vec3, Vec3]:
         """(model frame in the world, linear velocity of its origin, angular velocity), in the world frame."""
         body = self.body(model)
-        base = self._stepper.bases([body.id])
-        com, linear, angular = Transform.of(base.positions[0], base.orientations[0]), base.linear[0], base.angular[0]
+        com, linear, angular = self._base_motion(body)
         frame = compose(com, body.com_to_frame)
         offset = np.subtract(frame[0], com[0])
         velocity = np.add(linear, np.cross(angular, offset))
@@ -126,10 +123,8 @@ class Queries:
             (position, orientation), com, linear, angular = self._frame_state(*frame)
             rows.append((*position, *orientation, *com, *linear, *angular))
         table = np.array(rows, dtype=float).reshape(-1, 16)  # pose 7, centre of mass 3, v 3, ω 3
-        (vx, vy, vz), (wx, wy, wz) = table[:, 10:13].T, table[:, 13:].T
-        rx, ry, rz = (table[:, :3] - table[:, 7:10]).T
-        velocities = np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
-        return FrameMotions(table[:, :3], table[:, 3:7], velocities, table[:, 13:])  # v + ω × r
+        velocities = _origin_velocities(table[:, 10:13], table[:, 13:], table[:, :3] - table[:, 7:10])
+        return FrameMotions(table[:, :3], table[:, 3:7], velocities, table[:, 13:])
 
     def _on_base(self, model: str, link: str, pose_in_link: Pose) -> tuple[int, Transform] | None:
         """(body id, the frame in its base's centre-of-mass frame) of a frame fixed to its body's
@@ -137,11 +132,7 @@ class Queries:
         body = self.body(model)
         if body.link_index(link) != -1:
             return None
-        key = (body.name, link, pose_in_link)
-        offset = self._base_offsets.get(key)
-        if offset is None:
-            offset = self._base_offsets[key] = compose(body.com_to_root, self._offset(body, link, pose_in_link))
-        return body.id, offset
+        return body.id, compose(body.com_to_root, self._offset(body, link, pose_in_link))
 
     def _on_bases(self, frames: Sequence[Frame]) -> tuple[list[int], npt.NDArray[np.float64]] | None:
         """(the bodies, each frame in its base's centre-of-mass frame as a row: position, quaternion)
@@ -164,10 +155,8 @@ class Queries:
         bases = self._stepper.bases(ids)
         positions = bases.positions + rotate_many(bases.orientations, offsets[:, :3])
         orientations = quaternion_products(bases.orientations, offsets[:, 3:])
-        (vx, vy, vz), (wx, wy, wz) = bases.linear.T, bases.angular.T
-        rx, ry, rz = (positions - bases.positions).T
-        velocities = np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
-        return FrameMotions(positions, orientations, velocities, bases.angular)  # v + ω × r
+        velocities = _origin_velocities(bases.linear, bases.angular, positions - bases.positions)
+        return FrameMotions(positions, orientations, velocities, bases.angular)
 
     def _frame_state(self, model: str, link: str, pose_in_link: Pose) -> tuple[Transform, Vec3, Vec3, Vec3]:
         """(the frame's world pose, its link's centre of mass, that centre's linear velocity, the
@@ -175,9 +164,8 @@ class Queries:
         body = self.body(model)
         index = body.link_index(link)
         if index == -1:
-            base = self._stepper.bases([body.id])
-            com, linear, angular = vec3(base.positions[0]), vec3(base.linear[0]), vec3(base.angular[0])
-            frame = compose(Transform.of(com, base.orientations[0]), body.com_to_root)
+            base, linear, angular = self._base_motion(body)
+            com, frame = base.position, compose(base, body.com_to_root)
         else:
             self._stepper.sync()
             state = pb.getLinkState(
@@ -201,8 +189,12 @@ class Queries:
 
     def _base(self, body: Body) -> Transform:
         """PyBullet's base frame (the root link's centre of mass) in the world."""
+        return self._base_motion(body)[0]
+
+    def _base_motion(self, body: Body) -> tuple[Transform, Vec3, Vec3]:
+        """(the base frame in the world, its linear velocity, the angular velocity), as the stepper holds them."""
         base = self._stepper.bases([body.id])
-        return Transform.of(base.positions[0], base.orientations[0])
+        return Transform.of(base.positions[0], base.orientations[0]), vec3(base.linear[0]), vec3(base.angular[0])
 
     # joints
 
@@ -267,3 +259,12 @@ class Queries:
         bodies = [(starts, ends, self.body(blind) if blind is not None else None) for starts, ends, blind in batches]
         self._stepper.sync()  # the wheels' links where they turned to
         return self._rays.cast(bodies) if engine else self._rays.bullet.cast_all(bodies)
+
+
+def _origin_velocities(
+    linear: npt.NDArray[np.float64], angular: npt.NDArray[np.float64], offsets: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """Each frame origin's velocity (N×3), v + ω × r: its centre of mass's `linear`, the body's
+    `angular`, and `offsets` from that centre to the origin (products written out, no BLAS)."""
+    (vx, vy, vz), (wx, wy, wz), (rx, ry, rz) = linear.T, angular.T, offsets.T
+    return np.stack([vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx], axis=1)
