@@ -93,6 +93,9 @@ def read_joint_states(client: int, body: int, joints: Sequence[int]) -> list[tup
     return [(float(s[0]), float(s[1]), float(s[3])) for s in states]
 
 
-def write_joint_positions(client: int, body: int, joints: Sequence[int], values: Sequence[float]) -> None:
-    """Joints of a PyBullet body put at `values`, at rest."""
-    pb.resetJointStatesMultiDof(body, list(joints), [[value] for value in values], physicsClientId=client)
+def write_joint_positions(
+    client: int, body: int, joints: Sequence[int], values: Sequence[float], velocities: Sequence[float] = ()
+) -> None:
+    """Joints of a PyBullet body put at `values`, turning at `velocities` (none given: at rest)."""
+    speeds = [[speed] for speed in velocities] or [[0.0]] * len(values)
+    pb.resetJointStatesMultiDof(body, list(joints), [[value] for value in values], speeds, physicsClientId=client)

@@ -160,9 +160,9 @@ class KinematicWorld:
         for body in self._unsynced:
             positions, velocities = self.positions[body], self.joints[body]
             joints = list(positions)
-            values = [[positions[joint]] for joint in joints]
-            speeds = [[velocities[joint]] for joint in joints]
-            pb.resetJointStatesMultiDof(body, joints, values, speeds, physicsClientId=self.client)
+            write_joint_positions(
+                self.client, body, joints, [positions[j] for j in joints], [velocities[j] for j in joints]
+            )
         self._unsynced.clear()
 
     def joint_states(self, body: int, joints: Sequence[int]) -> list[tuple[float, float, float]]:
@@ -175,8 +175,8 @@ class KinematicWorld:
         return read_joint_states(self.client, body, joints)
 
     def set_joint_positions(self, body: int, joints: Sequence[int], values: Sequence[float]) -> None:
-        """Joints put at `values` at rest (an actor's legs), here and in PyBullet."""
-        self.sync()
+        """Joints put at `values` at rest (an actor's legs), here and in PyBullet (the others turned
+        since the last `sync` stay to be told then)."""
         turned = self.positions.get(body, {})
         for joint, value in zip(joints, values):
             if joint in turned:
