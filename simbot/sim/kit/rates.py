@@ -34,9 +34,12 @@ class Every:
     def catch_up(self, now_ns: int, step_ns: int) -> None:
         """Where `due` would stand at the step of `now_ns` had it been asked at every step before
         (a sensor no one watched, passed over): due now if a multiple of the period came since the
-        last step. A restart still pending (0) stays: the first step asked is due."""
-        if self.next_ns:
-            self.next_ns = max(self.next_ns, ((now_ns - step_ns) // self.period_ns + 1) * self.period_ns)
+        last step. One never asked since the clock started (0) would have fired at its first step,
+        `step_ns`, and stood on the grid after it; asked at that step, it is due."""
+        first = (
+            (step_ns // self.period_ns + 1) * self.period_ns if self.next_ns == 0 and now_ns > step_ns else self.next_ns
+        )
+        self.next_ns = max(first, ((now_ns - step_ns) // self.period_ns + 1) * self.period_ns) if first else 0
 
 
 @dataclass
