@@ -147,6 +147,22 @@ def test_a_rate_passed_over_and_caught_up_fires_where_asking_every_step_would(ra
         assert skipped.due(now) == expected, f"step {index} at {now} ns"
 
 
+@pytest.mark.parametrize(("came", "asked_from"), [(10, 11), (10, 40), (10, 10 + 200)])
+def test_a_rate_that_came_at_run_time_fires_at_its_first_step_then_on_its_grid(came: int, asked_from: int) -> None:
+    """A camera created at run time (after step `came`) and first asked at a later step fires where
+    a rate asked from the step after it came fires: at that first step, then on its grid."""
+    step_ns, rate = 1_000_000, 30.0
+    asked, late = Every.hz(rate), Every.hz(rate)
+    for step in range(came + 1, 1_000):
+        now = step * step_ns
+        expected = asked.due(now)
+        if step < asked_from:
+            continue
+        if step == asked_from:
+            late.catch_up(now, step_ns, came * step_ns)
+        assert late.due(now) == expected, f"step {step}"
+
+
 def test_limits_clamp_and_ramp() -> None:
     limits = Limits(min_value=-0.5, max_value=1.0, min_rate=-2.0, max_rate=1.0)
     assert (limits.clamp(3.0), limits.clamp(-3.0), limits.clamp(0.2)) == (1.0, -0.5, 0.2)

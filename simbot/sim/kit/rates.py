@@ -31,15 +31,17 @@ class Every:
     def restart(self) -> None:
         self.next_ns = 0
 
-    def catch_up(self, now_ns: int, step_ns: int) -> None:
-        """Where `due` would stand at the step of `now_ns` had it been asked at every step before
-        (a sensor no one watched, passed over): due now if a multiple of the period came since the
-        last step. One never asked since the clock started (0) would have fired at its first step,
-        `step_ns`, and stood on the grid after it; asked at that step, it is due."""
-        first = (
-            (step_ns // self.period_ns + 1) * self.period_ns if self.next_ns == 0 and now_ns > step_ns else self.next_ns
-        )
-        self.next_ns = max(first, ((now_ns - step_ns) // self.period_ns + 1) * self.period_ns) if first else 0
+    def catch_up(self, now_ns: int, step_ns: int, since_ns: int = 0) -> None:
+        """Where `due` would stand at the step of `now_ns` had it been asked at every step from the
+        one after `since_ns` (when it came into the world; 0: the clock's start) on: due now if a
+        multiple of the period came since the last step. One never asked (0) would have fired at
+        that first step and stood on the grid after it; asked at that step, it is due."""
+        if self.next_ns == 0:
+            first_ns = since_ns + step_ns
+            if now_ns <= first_ns:
+                return
+            self.next_ns = (first_ns // self.period_ns + 1) * self.period_ns
+        self.next_ns = max(self.next_ns, ((now_ns - step_ns) // self.period_ns + 1) * self.period_ns)
 
 
 @dataclass
@@ -104,10 +106,10 @@ class Sampled(Paced):
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)
 
-    def resume(self, info: UpdateInfo) -> None:
+    def resume(self, info: UpdateInfo, since_ns: int = 0) -> None:
         """Asked again after steps in which it was passed over: its rate where asking at every step
-        would have put it (`Every.catch_up`)."""
-        self.every.catch_up(info.sim_time_ns, info.step_ns)
+        after `since_ns` (when it came into the world) would have put it (`Every.catch_up`)."""
+        self.every.catch_up(info.sim_time_ns, info.step_ns, since_ns)
         self._now_ns = info.sim_time_ns
 
     def report(self) -> dict[str, Any]:

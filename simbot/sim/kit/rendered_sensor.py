@@ -44,9 +44,10 @@ class RenderedSensor(Protocol):
 
     def due(self, info: UpdateInfo) -> bool: ...
 
-    def resume(self, info: UpdateInfo) -> None:
-        """Its rate brought up to this step, as if `due` had been asked at every step since the
-        rendering system last asked (it passes over cameras no one watches)."""
+    def resume(self, info: UpdateInfo, since_ns: int = 0) -> None:
+        """Its rate brought up to this step, as if `due` had been asked at every step after
+        `since_ns`, the sim time it came into the world (the rendering system passes over cameras no
+        one watches)."""
         ...
 
     @property

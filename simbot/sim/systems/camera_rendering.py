@@ -170,6 +170,10 @@ class Rendering:
         """The node's `Watching.generation` when the cameras watched were last looked for."""
         self._listening: list[int] = []
         """The cameras someone subscribes to (or that save their frames), by index, as of `_seen`."""
+        self._now_ns = 0
+        """Sim time of the last step seen (0 before the first and after a reset)."""
+        self._came_ns: dict[int, int] = {}
+        """Each camera's sim time of the last step before it came into the world (0: there from the start)."""
 
     def model_added(self, event: ModelEvent) -> None:
         """Its bodies enter the render scenes, then its cameras take the next indices (a running pool
@@ -192,6 +196,7 @@ class Rendering:
             self._gone.discard(back)
         else:
             self.cameras.append(camera)
+        self._came_ns[back if back is not None else len(self.cameras) - 1] = self._now_ns
         self._next_due_ns, self._seen = 0, None
 
     def model_removed(self, event: ModelEvent) -> None:
@@ -228,7 +233,7 @@ class Rendering:
         """No camera is left: the pool closes, and the next camera watched starts a fresh one."""
         self.close()
         self.cameras, self._gone, self._changes, self._starting = [], set(), [], None
-        self._seen, self._listening = None, []
+        self._seen, self._listening, self._came_ns = None, [], {}
 
     def _sync(self) -> None:
         """Sends a running pool what changed since its snapshot of the world, as one edit: the
@@ -275,7 +280,7 @@ class Rendering:
     # --- the update
 
     def post_update(self, info: UpdateInfo) -> None:
-        now_ns = info.sim_time_ns
+        now_ns = self._now_ns = info.sim_time_ns
         if now_ns >= self._next_due_ns or self._watching.generation != self._seen:
             self._tick(info)
         if self._waiting and self._ready() and self._idle():
@@ -313,7 +318,7 @@ class Rendering:
             ]
             for index in self._listening:
                 if index not in before:
-                    self.cameras[index].resume(info)
+                    self.cameras[index].resume(info, self._came_ns.get(index, 0))
         return self._listening
 
     def _ready(self) -> bool:
@@ -412,7 +417,8 @@ class Rendering:
         them out before the reset is done: none of the old world comes after it); each camera's
         noise starts again from its seed."""
         self._waiting.clear()
-        self._next_due_ns = 0
+        self._next_due_ns, self._now_ns = 0, 0
+        self._came_ns = dict.fromkeys(self._came_ns, 0)
         self._collect(wait=True)
         self._respec = True
 
