@@ -20,6 +20,7 @@ from simbot.description.model import Box, Collision, Inertial, Link, Model, Para
 from simbot.description.model import World as SdfWorld
 from simbot.description.plugin_params import plugin_priority
 from simbot.description.poses import Pose
+from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
 from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly
@@ -125,6 +126,46 @@ def test_reset_resets_the_physics_then_each_resettable_system_at_time_zero() -> 
     world.sim.reset()
     assert world.calls == [("physics.reset",), ("reset", "a", "0"), ("reset", "d", "0")]
     assert (world.sim.clock.now_ns, world.sim.clock.iterations) == (0, 0)
+
+
+class PacedPost(PostOnly, Paced):
+    """A post-update system at its own period: the loop calls it only from `next_due_ns` on; one
+    that `lazy` leaves its rate where it was (it did nothing) and is called again at the next step."""
+
+    def __init__(self, name: str, calls: Calls, period_ns: int, lazy: bool = False) -> None:
+        super().__init__(name, calls)
+        self.every, self.lazy = Every(period_ns), lazy
+
+    def post_update(self, info: UpdateInfo) -> None:
+        super().post_update(info)
+        if not self.lazy or info.iterations >= 3:
+            self.every.due(info.sim_time_ns)
+
+    def reset(self, info: UpdateInfo) -> None:
+        self.every.restart()
+
+
+def test_paced_systems_run_when_due_among_the_others_in_their_order_and_from_the_start_after_a_reset() -> None:
+    """Three systems of one run: one every 3 steps, one at every step, one at 10 steps that stays
+    due until its third step: each step calls what is due, in the systems' order; a reset starts
+    every rate again."""
+    calls: Calls = []
+    systems = [PacedPost("slow", calls, 3 * STEP_NS), PostOnly("each", calls), PacedPost("lazy", calls, 10 * STEP_NS, True)]
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, in_loop(systems))
+
+    def steps(count: int) -> list[list[str]]:
+        called = []
+        for _ in range(count):
+            calls.clear()
+            sim.step()
+            called.append([call[1] for call in calls if call[0] == "post"])
+        return called
+
+    slow = ["slow", "each"]
+    expected = [[*slow, "lazy"], ["each", "lazy"], [*slow, "lazy"], ["each"], ["each"], slow, ["each"]]
+    assert steps(7) == expected
+    sim.reset()
+    assert steps(3) == expected[:3]
 
 
 def test_requested_steps_run_in_lockstep_and_reply_after_the_last() -> None:

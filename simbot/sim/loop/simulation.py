@@ -9,6 +9,7 @@ schedules; what happens in a step is the systems' and the physics module's busin
 from __future__ import annotations
 
 import contextlib
+import heapq
 import logging
 import threading
 import time
@@ -174,7 +175,38 @@ def _batched(slots: list[Slot], batches: dict[tuple[type, int], Slot], system: S
     _inserted(slots, batches[key])
 
 
-Run = Slot | list[Slot]
+class SlotRun:
+    """Systems' own slots one after the other, as a step calls them: each unpaced one at every step,
+    each paced one from when it is next due, in the order of the slots. The paced ones wait in a
+    heap by that time, so a step looks only at what is due now, not at a fleet's thousands of paced
+    slots (a plan is made again after a reset, which puts every rate back to its start)."""
+
+    def __init__(self, slots: list[Slot]) -> None:
+        self.slots = slots
+        self._always = [(place, slot) for place, slot in enumerate(slots) if slot.paced is None]
+        self._waiting = [
+            (slot.paced.next_due_ns, place, slot) for place, slot in enumerate(slots) if slot.paced is not None
+        ]
+        heapq.heapify(self._waiting)
+
+    def call(self, info: UpdateInfo) -> None:
+        """The slots due at `info`'s time, in their order; each paced one waits again for its next time."""
+        now_ns, waiting = info.sim_time_ns, self._waiting
+        if not waiting or waiting[0][0] > now_ns:
+            for _, slot in self._always:
+                cast(Callable[[UpdateInfo], None], slot.call)(info)
+            return
+        due: list[tuple[int, Slot]] = []
+        while waiting and waiting[0][0] <= now_ns:
+            _, place, slot = heapq.heappop(waiting)
+            due.append((place, slot))
+        for place, slot in heapq.merge(self._always, sorted(due, key=lambda entry: entry[0]), key=lambda e: e[0]):
+            cast(Callable[[UpdateInfo], None], slot.call)(info)
+            if slot.paced is not None:
+                heapq.heappush(waiting, (slot.paced.next_due_ns, place, slot))
+
+
+Run = Slot | SlotRun
 """A batched class's slot, or systems' own slots one after the other (what a step calls in a row)."""
 
 
@@ -194,7 +226,7 @@ class Plan:
 
 def _runs(slots: list[Slot]) -> list[Run]:
     """`slots` with each stretch of systems' own slots in one list."""
-    runs: list[Run] = []
+    runs: list[Slot | list[Slot]] = []
     for slot in slots:
         if slot.key is not None:
             runs.append(slot)
@@ -202,7 +234,7 @@ def _runs(slots: list[Slot]) -> list[Run]:
             runs[-1].append(slot)
         else:
             runs.append([slot])
-    return runs
+    return [SlotRun(run) if isinstance(run, list) else run for run in runs]
 
 
 @dataclass
@@ -295,6 +327,7 @@ class Simulation:
         """Time to zero, every model where it began, every system forgets."""
         self.physics.reset()
         self.clock.reset()
+        self._plan = None  # every rate starts again: the paced slots wait anew
         info = self.clock.info(self.paused)
         for system in self.systems:
             if isinstance(system, Resettable):
@@ -383,7 +416,4 @@ def _phase(worlds: list[list[Run]], infos: list[UpdateInfo], batched: str) -> No
             )
             continue
         for run, info in zip(across, infos):
-            now_ns = info.sim_time_ns
-            for slot in cast(list[Slot], run):
-                if slot.paced is None or now_ns >= slot.paced.next_due_ns:
-                    cast(Callable[[UpdateInfo], None], slot.call)(info)
+            cast(SlotRun, run).call(info)
