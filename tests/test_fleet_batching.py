@@ -18,7 +18,7 @@ import pytest
 from simbot.bus import decode, encode, messages
 from simbot.bus.local import LocalNode
 from simbot.sim.loop.bus_view import SimBus
-from simbot.sim.loop.simulation import Slot
+from simbot.sim.loop.plan import Slot
 from simbot.sim.loop.system import PostUpdate
 from simbot.sim.server import build_world, parse_config
 

@@ -21,7 +21,8 @@ from simbot.description.model import World as SdfWorld
 from simbot.description.plugin_params import plugin_priority
 from simbot.description.poses import Pose
 from simbot.sim.kit.rates import Every, Paced
-from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
+from simbot.sim.loop.plan import Scheduled
+from simbot.sim.loop.simulation import Mode, Simulation
 from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly
 from simbot.transform import Transform
@@ -150,7 +151,11 @@ def test_paced_systems_run_when_due_among_the_others_in_their_order_and_from_the
     due until its third step: each step calls what is due, in the systems' order; a reset starts
     every rate again."""
     calls: Calls = []
-    systems = [PacedPost("slow", calls, 3 * STEP_NS), PostOnly("each", calls), PacedPost("lazy", calls, 10 * STEP_NS, True)]
+    systems = [
+        PacedPost("slow", calls, 3 * STEP_NS),
+        PostOnly("each", calls),
+        PacedPost("lazy", calls, 10 * STEP_NS, True),
+    ]
     sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, in_loop(systems))
 
     def steps(count: int) -> list[list[str]]:

@@ -28,8 +28,9 @@ from simbot.description.naming import scoped_key, scoped_rng
 from simbot.description.plugin_params import plugin_priority
 from simbot.description.urdf_writer import joint_trees
 from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.plan import Scheduled
 from simbot.sim.loop.registry import builtin, lookup, sensor_lookup
-from simbot.sim.loop.simulation import Scheduled, Simulation
+from simbot.sim.loop.simulation import Simulation
 from simbot.sim.loop.system import RunOptions, SystemConfigError, SystemContext, SystemFactory, priority
 from simbot.sim.physics.protocols import WorldAccess
 

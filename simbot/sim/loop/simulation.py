@@ -1,4 +1,4 @@
-"""The simulation loop: the sim clock, the three run modes, and the order of a step.
+"""The simulation loop: the sim clock, the three run modes, and a step (its order: `plan`).
 
 One step: the clock advances, every system's `pre_update` (commands in), the physics step, every
 system's `post_update` (state out) with the physics read-only. Every phase gets the same
@@ -9,7 +9,6 @@ schedules; what happens in a step is the systems' and the physics module's busin
 from __future__ import annotations
 
 import contextlib
-import heapq
 import logging
 import threading
 import time
@@ -19,8 +18,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import cast
 
+from simbot.sim.loop.plan import Plan, Scheduled, Slot, add_to_batch, insert_slot, phases_of, run_phase
 from simbot.sim.loop.system import (
-    Batch,
     BatchedPostUpdate,
     BatchedPreUpdate,
     Closable,
@@ -120,123 +119,6 @@ class StepRequest:
     done: Callable[[], None]
 
 
-@dataclass(frozen=True)
-class Scheduled:
-    """A system in the loop, with its place in each phase (lower first)."""
-
-    system: System
-    priority: int
-
-
-_PHASES: dict[type, frozenset[type]] = {}
-"""Each system class's phase Protocols, looked at once a class."""
-
-
-def _phases(system: System) -> frozenset[type]:
-    """The phase Protocols `system`'s class implements, checked on its first instance: a runtime
-    Protocol's isinstance looks at every member, and a thousand tugs' 13 000 systems are ordered
-    again at each create."""
-    kind = type(system)
-    if kind not in _PHASES:
-        phases = (PreUpdate, BatchedPreUpdate, PostUpdate, BatchedPostUpdate, Periodic)
-        _PHASES[kind] = frozenset(phase for phase in phases if isinstance(system, phase))
-    return _PHASES[kind]
-
-
-@dataclass(frozen=True)
-class Slot:
-    """One call of a phase: a system's own, or its batched class's for the `batch` of one priority
-    (`key`: the class and priority, which worlds of the same systems share)."""
-
-    call: Callable[[UpdateInfo], None] | None
-    priority: int
-    batch: list[System] | None = None
-    key: tuple[type, int] | None = None
-    paced: Periodic | None = None
-    """What says when a post-update call is next due (None: every step)."""
-
-
-def _inserted(slots: list[Slot], slot: Slot) -> None:
-    """`slot` after every slot of its priority or a lower one (the list is by priority)."""
-    index = len(slots)
-    while index and slots[index - 1].priority > slot.priority:
-        index -= 1
-    slots.insert(index, slot)
-
-
-def _batched(slots: list[Slot], batches: dict[tuple[type, int], Slot], system: System, priority: int) -> None:
-    """`system` into its class's batch of `priority`, a new slot where it is the first (it runs in
-    that place)."""
-    key = (type(system), priority)
-    if key in batches:
-        cast(list[System], batches[key].batch).append(system)
-        return
-    batches[key] = Slot(None, priority, [system], key)
-    _inserted(slots, batches[key])
-
-
-class SlotRun:
-    """Systems' own slots one after the other, as a step calls them: each unpaced one at every step,
-    each paced one from when it is next due, in the order of the slots. The paced ones wait in a
-    heap by that time, so a step looks only at what is due now, not at a fleet's thousands of paced
-    slots (a plan is made again after a reset, which puts every rate back to its start)."""
-
-    def __init__(self, slots: list[Slot]) -> None:
-        self.slots = slots
-        self._always = [(place, slot) for place, slot in enumerate(slots) if slot.paced is None]
-        self._waiting = [
-            (slot.paced.next_due_ns, place, slot) for place, slot in enumerate(slots) if slot.paced is not None
-        ]
-        heapq.heapify(self._waiting)
-
-    def call(self, info: UpdateInfo) -> None:
-        """The slots due at `info`'s time, in their order; each paced one waits again for its next time."""
-        now_ns, waiting = info.sim_time_ns, self._waiting
-        if not waiting or waiting[0][0] > now_ns:
-            for _, slot in self._always:
-                cast(Callable[[UpdateInfo], None], slot.call)(info)
-            return
-        due: list[tuple[int, Slot]] = []
-        while waiting and waiting[0][0] <= now_ns:
-            _, place, slot = heapq.heappop(waiting)
-            due.append((place, slot))
-        for place, slot in heapq.merge(self._always, sorted(due, key=lambda entry: entry[0]), key=lambda e: e[0]):
-            cast(Callable[[UpdateInfo], None], slot.call)(info)
-            if slot.paced is not None:
-                heapq.heappush(waiting, (slot.paced.next_due_ns, place, slot))
-
-
-Run = Slot | SlotRun
-"""A batched class's slot, or systems' own slots one after the other (what a step calls in a row)."""
-
-
-@dataclass(frozen=True)
-class Plan:
-    """A world's slots as a step calls them: each phase's runs, and the batched slots' keys in order
-    (worlds whose keys match step together)."""
-
-    pre: list[Run]
-    post: list[Run]
-    keys: tuple[tuple[tuple[type, int] | None, ...], tuple[tuple[type, int] | None, ...]]
-
-    @staticmethod
-    def of(pre: list[Slot], post: list[Slot]) -> Plan:
-        return Plan(_runs(pre), _runs(post), (tuple(s.key for s in pre), tuple(s.key for s in post)))
-
-
-def _runs(slots: list[Slot]) -> list[Run]:
-    """`slots` with each stretch of systems' own slots in one list."""
-    runs: list[Slot | list[Slot]] = []
-    for slot in slots:
-        if slot.key is not None:
-            runs.append(slot)
-        elif runs and isinstance(runs[-1], list):
-            runs[-1].append(slot)
-        else:
-            runs.append([slot])
-    return [SlotRun(run) if isinstance(run, list) else run for run in runs]
-
-
 @dataclass
 class Simulation:
     """The world, its systems, and the loop that advances them."""
@@ -275,16 +157,16 @@ class Simulation:
     def _slot(self, entry: Scheduled) -> None:
         """`entry`'s system into the phases it implements, after those of its priority already there."""
         system, priority = entry.system, entry.priority
-        phases, self._plan = _phases(system), None
+        phases, self._plan = phases_of(system), None
         if BatchedPreUpdate in phases:
-            _batched(self._pre, self._batches[0], system, priority)
+            add_to_batch(self._pre, self._batches[0], system, priority)
         elif PreUpdate in phases:
-            _inserted(self._pre, Slot(cast(PreUpdate, system).pre_update, priority))
+            insert_slot(self._pre, Slot(cast(PreUpdate, system).pre_update, priority))
         if BatchedPostUpdate in phases:
-            _batched(self._post, self._batches[1], system, priority)
+            add_to_batch(self._post, self._batches[1], system, priority)
         elif PostUpdate in phases:
             paced = cast(Periodic, system) if Periodic in phases else None
-            _inserted(self._post, Slot(cast(PostUpdate, system).post_update, priority, paced=paced))
+            insert_slot(self._post, Slot(cast(PostUpdate, system).post_update, priority, paced=paced))
 
     def add_systems(self, systems: list[Scheduled]) -> None:
         """Systems join the loop (a created model's between steps: world control calls it from
@@ -396,24 +278,10 @@ def step_together(sims: Sequence[Simulation]) -> None:
     for sim in sims:
         sim.clock.advance()
         infos.append(sim.clock.info(sim.paused))
-    _phase([plan.pre for plan in plans], infos, "pre_update_all")
+    run_phase([plan.pre for plan in plans], infos, "pre_update_all")
     for sim in sims:
         sim.physics.step()
     with contextlib.ExitStack() as reading:
         for sim in sims:
             reading.enter_context(sim.physics.reading())
-        _phase([plan.post for plan in plans], infos, "post_update_all")
-
-
-def _phase(worlds: list[list[Run]], infos: list[UpdateInfo], batched: str) -> None:
-    """One phase of each world: a batched class's slot once for every world's batch, each world's
-    run of systems' own slots in turn (a paced one only when due)."""
-    for across in zip(*worlds):
-        first = across[0]
-        if isinstance(first, Slot):
-            getattr(cast(tuple[type, int], first.key)[0], batched)(
-                [Batch(cast(list[System], cast(Slot, slot).batch), info) for slot, info in zip(across, infos)]
-            )
-            continue
-        for run, info in zip(across, infos):
-            cast(SlotRun, run).call(info)
+        run_phase([plan.post for plan in plans], infos, "post_update_all")

@@ -18,7 +18,8 @@ has a `name`, and implements only the phases it needs, each a small Protocol giv
   of a hundred tugs has a hundred IMUs; one call does their frame queries, rotations and noise as
   arrays. Worlds of the same systems step together (`simbot.sim.loop.simulation.step_together`,
   a vector env's sub-envs): each batched class is called once per phase for all of them, each
-  world's instances with its own info (sub-envs' clocks differ after their resets).
+  world's instances with its own info (sub-envs' clocks differ after their resets). A class
+  whose instances are `Periodic` gets only those due at the step, and no call where none is.
 - `reset(info)`: the world was reset; forget what was integrated.
 - `model_added(event)`, `model_removed(event)`: a model entered the world (at start, or created
   through world control) or is about to leave it, with its bodies and its systems

@@ -32,9 +32,10 @@ from simbot.description.model import Model, World
 from simbot.description.naming import scoped_key
 from simbot.description.poses import Pose
 from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.plan import Scheduled
 from simbot.sim.loop.registry import ROBOT_GROUP, WORLD_GROUP
 from simbot.sim.loop.sdf_systems import LeftOut, Wanted, builtins, plugins_of, sensors_of, world_plugins
-from simbot.sim.loop.simulation import Mode, Scheduled, Simulation
+from simbot.sim.loop.simulation import Mode, Simulation
 from simbot.sim.loop.system import ModelEvent, ModelObserver, RunOptions, System, SystemConfigError
 from simbot.sim.loop.world_control import CreateRequest
 from simbot.sim.loop.world_edit import NotInPlace, Retunable, WorldEdit, WorldFollower, plan_edit, retuned
