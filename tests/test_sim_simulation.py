@@ -9,7 +9,7 @@ is checked on a real PyBullet world.
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -23,7 +23,7 @@ from simbot.description.poses import Pose
 from simbot.sim.kit.rates import Every, Paced
 from simbot.sim.loop.plan import Scheduled
 from simbot.sim.loop.simulation import Mode, Simulation
-from simbot.sim.loop.system import LAST_PRIORITY, SystemConfigError, UpdateInfo, priority
+from simbot.sim.loop.system import LAST_PRIORITY, Batch, SystemConfigError, UpdateInfo, priority
 from simbot.sim.physics import Physics, PhysicsReadOnly
 from simbot.transform import Transform
 
@@ -171,6 +171,32 @@ def test_paced_systems_run_when_due_among_the_others_in_their_order_and_from_the
     assert steps(7) == expected
     sim.reset()
     assert steps(3) == expected[:3]
+
+
+class PacedBatch(PacedPost):
+    """A batched paced class: the loop hands `post_update_all` the instances due at the step."""
+
+    @classmethod
+    def post_update_all(cls, batches: Sequence[Batch]) -> None:
+        for systems, info in batches:
+            systems[0].calls.append(("batch",))
+            for system in systems:
+                system.post_update(info)
+
+
+def test_a_batched_paced_class_is_handed_only_its_instances_due_and_not_called_when_none_is() -> None:
+    """Two instances at 2 and 3 steps: each step's call has those due, in their order; at a step
+    where neither is, no call."""
+    calls: Calls = []
+    systems = [PacedBatch("two", calls, 2 * STEP_NS), PacedBatch("three", calls, 3 * STEP_NS)]
+    sim = Simulation(cast(Physics, StandInPhysics(calls)), Mode.LOCKSTEP, in_loop(systems))
+    called = []
+    for _ in range(7):
+        calls.clear()
+        sim.step()
+        called.append([call[1] if call[0] == "post" else "batch" for call in calls if call[0] in ("post", "batch")])
+    both, two, three = ["batch", "two", "three"], ["batch", "two"], ["batch", "three"]
+    assert called == [both, two, three, two, [], both, []]
 
 
 def test_requested_steps_run_in_lockstep_and_reply_after_the_last() -> None:
