@@ -27,7 +27,8 @@ when dead reckoning began (its entry, or the last reset), so a scan drawn in `od
 walls of `world`, drifting off them as odometry drifts, as RViz shows it without a localiser.
 
 Cost: post_update reads model poses (the physics' base pose, no forward kinematics: reading
-never perturbs the simulation, which a seeded run's digests check) only at SCENE_TF_RATE; the
+never perturbs the simulation, which a seeded run's digests check) only at SCENE_TF_RATE, and
+only while someone subscribes to `tf` (a fleet's thousand frames are built for no one else); the
 scene is rebuilt at most once per step in which models came or went, and its encoding (tens of
 ms for the warehouse's 220 visuals) and put happen on a sender thread, never in the physics loop.
 """
@@ -218,7 +219,7 @@ class ScenePublisher:
             stamps = {frame: messages.header(now_ns, frame) for frame in frames}
             markers = [part.marker(stamps[part.frame]) for parts in self._parts.values() for part in parts]
             self._sender.send(messages.marker_array([messages.delete_all(info.sim_time_ns, WORLD_FRAME), *markers]))
-        if self._every.due(info.sim_time_ns) and (self._moving or self._anchors):
+        if self._every.due(info.sim_time_ns) and (self._moving or self._anchors) and self._tf.has_subscribers:
             self._tf.put(messages.tf_message(self._transforms(info.sim_time_ns)))
 
     def _transforms(self, now_ns: int) -> list[Any]:
