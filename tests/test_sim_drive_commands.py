@@ -11,6 +11,7 @@ misplaced moves the base by a·dt² = 2.5e-5 m.
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,7 @@ from bus_helpers import wait_until
 from test_sim_drive_systems import BOT, Rig, _car, _hinge, _inertial, _mecanum, _robot, _wheel, lockstep
 
 from simbot.bus import encode, messages
+from simbot.sim.loop.bus_view import Doorbell
 from simbot.sim.physics.kinematic_world import KINEMATIC_STEP_S
 
 MAX_SPEED, MAX_ACCELERATION = 0.4, 1.0
@@ -120,3 +122,27 @@ def test_a_reset_stands_the_drive_and_its_next_command_ramps_from_zero(tmp_path:
     assert standing == pytest.approx((0.0, 0.0, 0.0), abs=EXACT)
     assert (odom.x, odom.y) == pytest.approx((0.0, 0.0), abs=EXACT)
     assert again == pytest.approx(_ramped(40), abs=EXACT)
+
+
+def test_the_doorbell_answers_each_system_once_in_the_order_they_joined_and_forgets_one_gone() -> None:
+    """What a fleet's drives ring when a command comes (on the bus's threads, many at once): each
+    answered once, in the order they joined whatever order they rang in; one gone is not answered."""
+    bell = Doorbell()
+    owners = [f"drive_{i}" for i in range(200)]
+    for owner in owners:
+        bell.join(owner)
+    assert bell.answer() == owners, "each rung once at joining, for its first step"
+    assert bell.answer() == []
+
+    def ring(part: list[str]) -> None:
+        for owner in reversed(part * 3):
+            bell.ring(owner)
+
+    threads = [threading.Thread(target=ring, args=(owners[i::4],)) for i in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    bell.leave("drive_7")
+    bell.ring("drive_7")
+    assert bell.answer() == [owner for owner in owners if owner != "drive_7"]

@@ -119,6 +119,7 @@ class LocalInbox(Inbox):
         self.received = 0
         self.overflowed = 0
         self._queue: deque[Any] = deque(maxlen=maxlen)
+        self.on_arrival: Callable[[], None] | None = None
         self._hub = hub
         hub.listen(key, self._append)
 
@@ -127,6 +128,8 @@ class LocalInbox(Inbox):
         if len(self._queue) == self._queue.maxlen:
             self.overflowed += 1
         self._queue.append(msg)
+        if self.on_arrival is not None:
+            self.on_arrival()
 
     def drain(self) -> list[Any]:
         items = list(self._queue)

@@ -191,6 +191,9 @@ class Inbox:
         self.overflowed = 0
         self.received = 0
         """Payloads that arrived, counted as they arrive (before anyone drains them)."""
+        self.on_arrival: Callable[[], None] | None = None
+        """Called (on Zenoh's thread) after each payload is queued: its loop learns that mail came
+        without asking every inbox every step."""
         self._suffix = "/" + suffix
         self._foreign: set[str] = set()
         self._queue: deque[bytes | Refused] = deque(maxlen=maxlen)
@@ -207,6 +210,8 @@ class Inbox:
             if len(self._queue) == self._queue.maxlen:
                 self.overflowed += 1
             self._queue.append(item)
+        if self.on_arrival is not None:
+            self.on_arrival()
 
     def _refusal(self, sample: zenoh.Sample) -> Refused | None:
         """Why a sample is refused before decoding: another type's key, or a malformed attachment."""

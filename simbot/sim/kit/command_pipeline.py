@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from simbot.description.drive_params import Limits
-from simbot.sim.loop.bus_view import Input
+from simbot.sim.loop.bus_view import Doorbell, Input
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,10 @@ class CommandPipeline:
     def idle(self) -> bool:
         """Whether the next step would apply nothing: the command holds and no message waits."""
         return self._holds and not self._commands.pending
+
+    def rings(self, bell: Doorbell, owner: Any) -> None:
+        """Each command that comes rings `bell` for `owner` (the drive): its batch steps it then."""
+        self._commands.rings(bell, owner)
 
     def step(self, dt: float) -> Command | None:
         """The command to apply before a physics step of `dt` seconds; None where the one applied holds."""

@@ -21,7 +21,7 @@ from simbot.description.naming import scoped_key
 from simbot.description.plugin_params import bool_param, number_param, param
 from simbot.sim.kit.command_pipeline import Command, CommandPipeline
 from simbot.sim.kit.rates import Every
-from simbot.sim.loop.bus_view import SimBus
+from simbot.sim.loop.bus_view import Doorbell, SimBus
 from simbot.sim.loop.system import Batch, SystemConfigError, SystemContext, UpdateInfo
 from simbot.sim.physics import WorldReader
 from simbot.transform import yaw_quaternion
@@ -307,6 +307,14 @@ class Drive(ABC):
         """(odometry frame, child frame) as it publishes them (prefixed with the robot's namespace); None: no odometry."""
         return None if self._odometry is None else self._odometry.frames
 
+    _bell: Doorbell
+
+    def _listen(self, bus: SimBus) -> None:
+        """Its commands ring the world's doorbell of its kind (`pre_update_all` steps it then); call
+        once its pipeline is made."""
+        self._bell = bus.doorbell(type(self).__name__)
+        self._pipeline.rings(self._bell, self)
+
     def pre_update(self, info: UpdateInfo) -> None:
         command = self._pipeline.step(info.step_ns / 1e9)
         if command is not None:
@@ -320,14 +328,18 @@ class Drive(ABC):
 
     @classmethod
     def pre_update_all(cls, batches: Sequence[Batch]) -> None:
-        """Every drive of each world that has something to do; an idle one (most of a fleet, most
-        steps) is passed over."""
+        """Every drive of each world that has something to do: those whose commands rang its
+        doorbell, and those still ramping, which ring it again themselves; an idle one (most of a
+        fleet, most steps) costs nothing."""
         for drives, info in batches:
-            for drive in drives:
+            bell = drives[0]._bell
+            for drive in bell.answer():
+                drive.pre_update(info)
                 if not drive.idle:
-                    drive.pre_update(info)
+                    bell.ring(drive)
 
     def reset(self, info: UpdateInfo) -> None:
         self._pipeline.reset()
+        self._bell.ring(self)  # the limited zero, at the next step
         if self._odometry is not None:
             self._odometry.restart(info.sim_time_ns)

@@ -155,6 +155,7 @@ class AckermannSteering(Drive):
                 Encoders(ctx.physics, self._name, (p.left[0], p.right[0])),
                 p.odom_rate,
             )
+        self._listen(ctx.bus)
         self._steering = (0.0, 0.0)
         """The (left, right) angles the steering servo turns the wheels to."""
 

@@ -53,6 +53,9 @@ class DetachableJoint:
         self._attach = ctx.bus.input(attach, EMPTY)
         self._detach = ctx.bus.input(detach, EMPTY)
         self._state = ctx.bus.publisher(state, messages.String, latched=True)
+        self._bell = ctx.bus.doorbell(type(self).__name__)
+        self._attach.rings(self._bell, self)
+        self._detach.rings(self._bell, self)
         self._joint: int | None = None
         self._publish()
 
@@ -62,12 +65,11 @@ class DetachableJoint:
 
     @classmethod
     def pre_update_all(cls, batches: Sequence[Batch]) -> None:
-        """Each joint of each world asked to attach or detach; the others (a fleet's, most steps)
-        are passed over."""
+        """Each joint of each world asked to attach or detach (its requests rang the world's
+        doorbell of joints); the others (a fleet's, most steps) cost nothing."""
         for joints, info in batches:
-            for joint in joints:
-                if joint._attach.pending or joint._detach.pending:
-                    joint.pre_update(info)
+            for joint in joints[0]._bell.answer():
+                joint.pre_update(info)
 
     def pre_update(self, info: UpdateInfo) -> None:
         # Both within one step: attach, then detach (the bus keeps no order between two keys).

@@ -99,6 +99,7 @@ class DiffDrive(Drive, Paced):
         self._efforts = {j: joint_effort(self._model, j) for j in p.left + p.right}
         commands = ctx.bus.input(p.topic, "geometry_msgs/msg/Twist", check_twist)
         self._pipeline = CommandPipeline(commands, _twist, (p.linear, p.angular))
+        self._listen(ctx.bus)
         output = OdometryOutput(
             ctx.bus, p.odom_topic, p.tf_topic if p.publish_tf else None, p.frame_id, p.child_frame_id
         )

@@ -110,6 +110,7 @@ class MecanumDrive(Drive, Paced):
         self._efforts = {j: joint_effort(model, j) for corner in p.wheels for j in corner}
         commands = ctx.bus.input(command_topic(ctx, ctx.plugin, "cmd_vel"), "geometry_msgs/msg/Twist", check_twist)
         self._pipeline = CommandPipeline(commands, _twist, (p.limits,) * 3)
+        self._listen(ctx.bus)
         self._odometry: DeadReckoning = DeadReckoning(
             OdometryOutput.from_plugin(ctx, ctx.plugin, model, self._name),
             Encoders(ctx.physics, self._name, tuple(corner[0] for corner in p.wheels)),
