@@ -89,6 +89,8 @@ class Imu(Sampled):
         self._last_ns: int | None = None
         self._last_linear = np.zeros(3)
         self._white = np.empty((0, 6))
+        self._cohort: _Cohort | None = None
+        """The IMUs it is sampled with, which hold its state while it is (`_Cohort`)."""
         self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 
     def post_update(self, info: UpdateInfo) -> None:
@@ -112,20 +114,18 @@ class Imu(Sampled):
             return
         motions = FrameMotions.joined(parts)
         count = len(due)
-        white = np.empty((count, 6))
-        last = np.empty((count, 3))
-        seconds = np.empty(count)
-        for row, (imu, now_ns, velocity) in enumerate(zip(due, stamps, motions.linear)):
-            last[row], seconds[row], white[row] = imu._last_linear, imu._since(now_ns), imu._white_row()
-            imu._last_ns, imu._last_linear = now_ns, velocity
-        acceleration = np.where(np.isfinite(seconds)[:, None], (motions.linear - last) / seconds[:, None], 0.0)
+        rows = _cohort_of(due)
+        now = np.asarray(stamps, dtype=np.int64)
+        seconds = np.where(rows.last_ns >= 0, (now - rows.last_ns) / 1e9, np.inf)
+        acceleration = np.where(np.isfinite(seconds)[:, None], (motions.linear - rows.last) / seconds[:, None], 0.0)
+        rows.last, rows.last_ns = motions.linear, now
         # gyro and accelerometer turned into each frame in one call: rows 0..N-1 and N..2N-1
         turns = np.concatenate([motions.orientations, motions.orientations])
         gravity = gravities[0] if len(gravities) == 1 else np.concatenate(gravities)
         sensed = rotate_many(turns, np.concatenate([motions.angular, acceleration - gravity]), into=True)
-        terms = _terms_of(due)  # mean, bias, stddev of the six channels
+        terms = rows.terms  # mean, bias, stddev of the six channels
         true = np.hstack([sensed[:count], sensed[count:]])
-        measured = true + terms[:, :6] + terms[:, 6:12] + white * terms[:, 12:]  # ChannelNoise's sum, in its order
+        measured = true + terms[:, :6] + terms[:, 6:12] + rows.white() * terms[:, 12:]  # ChannelNoise's sum
         for row, (imu, now_ns) in enumerate(zip(due, stamps)):
             if imu._pub.has_subscribers:
                 quat = motions.orientations[row]
@@ -134,20 +134,10 @@ class Imu(Sampled):
                 )
             imu.published(now_ns)
 
-    def _since(self, now_ns: int) -> float:
-        """Seconds since the last sample (infinite for the first: it takes a = 0)."""
-        return (now_ns - self._last_ns) / 1e9 if self._last_ns is not None else np.inf
-
-    def _white_row(self) -> npt.NDArray[np.float64]:
-        """The six channels' white draws for one sample."""
-        if not len(self._white):
-            self._white = self._rng.normal(0.0, 1.0, (NOISE_ROWS, 6))
-        white, self._white = self._white[0], self._white[1:]
-        return white
-
     def reset(self, info: UpdateInfo) -> None:
         super().reset(info)
-        _TERMS.clear()
+        if self._cohort is not None:
+            self._cohort.leave()
         self._last_ns = None
         self._white = np.empty((0, 6))
         self._gyro.draw_bias()
@@ -160,13 +150,58 @@ class Imu(Sampled):
         return np.concatenate([gyro.mean, accel.mean, gyro.bias, accel.bias, gyro.stddev, accel.stddev])
 
 
-_TERMS: list[tuple[list[Imu], npt.NDArray[np.float64]]] = []
-"""The last sampled IMUs' noise terms as rows, kept until an IMU resets (its bias drawn again)."""
+class _Cohort:
+    """The IMUs sampled together at the last step, their state as rows: the velocity and time of
+    each one's last sample, its noise terms, and the white draws it has ahead (each IMU's own
+    stream, taken NOISE_ROWS at a time as `Imu` alone would). A fleet's IMUs come together step
+    after step: their state stays here, and goes back into each IMU (`leave`) when another set
+    comes or one of them resets."""
+
+    def __init__(self, imus: list[Imu]) -> None:
+        self.imus = imus
+        self.terms = np.array([imu._noise_terms for imu in imus]).reshape(len(imus), 18)
+        self.last = np.array([imu._last_linear for imu in imus]).reshape(len(imus), 3)
+        self.last_ns = np.array([-1 if imu._last_ns is None else imu._last_ns for imu in imus], dtype=np.int64)
+        self._fill([imu._white for imu in imus])
+        for imu in imus:
+            imu._cohort = self
+
+    def _fill(self, ahead: list[npt.NDArray[np.float64]]) -> None:
+        """Each IMU's draws ahead side by side; one with none left draws its next NOISE_ROWS."""
+        ahead = [
+            rows if len(rows) else imu._rng.normal(0.0, 1.0, (NOISE_ROWS, 6)) for imu, rows in zip(self.imus, ahead)
+        ]
+        self._ends = np.array([len(rows) for rows in ahead])
+        self._block = np.zeros((len(ahead), int(self._ends.max()), 6))
+        for row, rows in enumerate(ahead):
+            self._block[row, : len(rows)] = rows
+        self._cursor, self._until = 0, int(self._ends.min())
+
+    def _ahead(self) -> list[npt.NDArray[np.float64]]:
+        return [self._block[row, self._cursor : end] for row, end in enumerate(self._ends.tolist())]
+
+    def white(self) -> npt.NDArray[np.float64]:
+        """The six channels' white draws of each IMU's next sample."""
+        if self._cursor == self._until:
+            self._fill(self._ahead())
+        white = self._block[:, self._cursor]
+        self._cursor += 1
+        return white
+
+    def leave(self) -> None:
+        """Each IMU's state back into it, and the cohort gone."""
+        for imu, last, last_ns, ahead in zip(self.imus, self.last, self.last_ns.tolist(), self._ahead()):
+            imu._last_linear, imu._last_ns, imu._white = last.copy(), None if last_ns < 0 else last_ns, ahead.copy()
+            imu._cohort = None
 
 
-def _terms_of(imus: list[Imu]) -> npt.NDArray[np.float64]:
-    """The noise terms of `imus`, a row each: a fleet's thousand rows gathered once, not each sample."""
-    if _TERMS and _TERMS[0][0] == imus:  # the same IMUs: a comparison of identities
-        return _TERMS[0][1]
-    _TERMS[:] = [(list(imus), np.array([imu._noise_terms for imu in imus]))]
-    return _TERMS[0][1]
+def _cohort_of(imus: list[Imu]) -> _Cohort:
+    """The cohort of `imus`: the one they are in when it holds just them (a comparison of
+    identities), else a new one, the state of any they were in back in its IMUs first."""
+    held = imus[0]._cohort
+    if held is not None and held.imus == imus:
+        return held
+    for imu in imus:
+        if imu._cohort is not None:
+            imu._cohort.leave()
+    return _Cohort(list(imus))
