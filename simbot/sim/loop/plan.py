@@ -110,8 +110,17 @@ def _place(entry: tuple[int, Any]) -> int:
     return int(entry[0])
 
 
-def _next_due_ns(slot: Slot) -> int:
-    return cast(Periodic, slot.paced).next_due_ns
+Own = tuple[Callable[[UpdateInfo], None], Periodic | None]
+"""A system's own slot as a run calls it: its call, and what says when it is next due (None: every step)."""
+
+
+def _own(slot: Slot) -> Own:
+    assert slot.call is not None, "a batched slot is not a system's own"
+    return slot.call, slot.paced
+
+
+def _next_due_ns(own: Own) -> int:
+    return cast(Periodic, own[1]).next_due_ns
 
 
 class SlotRun:
@@ -119,16 +128,17 @@ class SlotRun:
     each paced one from when it is next due (`Waiting`), in the order of the slots."""
 
     def __init__(self, slots: list[Slot]) -> None:
-        self._always = [(place, slot) for place, slot in enumerate(slots) if slot.paced is None]
-        self._waiting = Waiting(((p, slot) for p, slot in enumerate(slots) if slot.paced is not None), _next_due_ns)
+        owns = [_own(slot) for slot in slots]
+        self._always = [(place, own) for place, own in enumerate(owns) if own[1] is None]
+        self._waiting = Waiting(((place, own) for place, own in enumerate(owns) if own[1] is not None), _next_due_ns)
 
     def call(self, info: UpdateInfo) -> None:
         """The slots due at `info`'s time, in their order; each paced one waits again for its next time."""
         due = self._waiting.due(info.sim_time_ns)
-        for place, slot in heapq.merge(self._always, due, key=_place) if due else self._always:
-            cast(Callable[[UpdateInfo], None], slot.call)(info)
-            if slot.paced is not None:
-                self._waiting.again(place, slot)
+        for place, own in heapq.merge(self._always, due, key=_place) if due else self._always:
+            own[0](info)
+            if own[1] is not None:
+                self._waiting.again(place, own)
 
 
 class BatchRun:
@@ -140,6 +150,7 @@ class BatchRun:
 
     def __init__(self, slot: Slot, paced: bool) -> None:
         self.slot = slot
+        self.kind = cast(tuple[type, int], slot.key)[0]
         self.paced = paced
         self._batch = cast(list[Any], slot.batch)
         self._span = (0, 0)
@@ -211,11 +222,10 @@ def run_phase(worlds: list[list[Run]], infos: list[UpdateInfo], batched: str) ->
         first = across[0]
         if isinstance(first, SlotRun):
             for run, info in zip(across, infos):
-                cast(SlotRun, run).call(info)
+                run.call(info)  # the same kind of run in each world: worlds of one plan
             continue
-        runs = cast(tuple[BatchRun, ...], across)
-        batches = [Batch(systems, info) for run, info in zip(runs, infos) if (systems := run.systems(info))]
+        batches = [Batch(systems, info) for run, info in zip(across, infos) if (systems := run.systems(info))]
         if batches:
-            getattr(cast(tuple[type, int], first.slot.key)[0], batched)(batches)
-        for run in runs:
+            getattr(first.kind, batched)(batches)
+        for run in across:
             run.called()
