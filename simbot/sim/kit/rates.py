@@ -4,6 +4,7 @@ every sensor shares (`Sampled`)."""
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,8 +26,12 @@ class Every:
         """True at the first step at or after each multiple of the period (so 30 Hz stays 30 Hz on 1 ms steps)."""
         if now_ns < self.next_ns:
             return False
-        self.next_ns = (now_ns // self.period_ns + 1) * self.period_ns
+        self.fired(now_ns)
         return True
+
+    def fired(self, now_ns: int) -> None:
+        """It fired at `now_ns` (due then): next at the period's next multiple."""
+        self.next_ns = (now_ns // self.period_ns + 1) * self.period_ns
 
     def restart(self) -> None:
         self.next_ns = 0
@@ -105,6 +110,15 @@ class Sampled(Paced):
 
     def published(self, stamp_ns: int) -> None:
         self.meter.tick(stamp_ns)
+
+    @staticmethod
+    def sampled_all(sensors: Sequence[Sampled], stamps: Sequence[int]) -> None:
+        """`due` (asked when due) then `published` of many sensors at once, each at its stamp: the
+        bookkeeping of a fleet's batch (the loop hands it only those due) in one pass."""
+        for sensor, now_ns in zip(sensors, stamps):
+            sensor._now_ns = now_ns
+            sensor.every.fired(now_ns)
+            sensor.meter.tick(now_ns)
 
     def resume(self, info: UpdateInfo, since_ns: int = 0) -> None:
         """Asked again after steps in which it was passed over: its rate where asking at every step

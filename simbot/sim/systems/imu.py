@@ -94,18 +94,19 @@ class Imu(Sampled):
         self._pub = ctx.bus.publisher(ctx.sensor_topic("imu"), messages.Imu)
 
     def post_update(self, info: UpdateInfo) -> None:
-        type(self).post_update_all([Batch([self], info)])
+        if self.next_due_ns <= info.sim_time_ns:
+            type(self).post_update_all([Batch([self], info)])
 
     @classmethod
     def post_update_all(cls, batches: Sequence[Batch]) -> None:
-        """Every IMU due now samples, every world's in one pass (a frame query a world); those
-        someone subscribes to publish."""
+        """Every IMU handed (each due now) samples, every world's in one pass (a frame query a
+        world); those someone subscribes to publish."""
         due: list[Imu] = []
         stamps: list[int] = []
         parts: list[FrameMotions] = []
         gravities = []
-        for imus, info in batches:
-            if here := [imu for imu in imus if imu.due(info)]:
+        for here, info in batches:  # those due (the loop hands a paced class no other)
+            if here:
                 due += here
                 stamps += [info.sim_time_ns] * len(here)
                 parts.append(here[0]._physics.frame_motions([imu._where for imu in here]))
@@ -126,13 +127,12 @@ class Imu(Sampled):
         terms = rows.terms  # mean, bias, stddev of the six channels
         true = np.hstack([sensed[:count], sensed[count:]])
         measured = true + terms[:, :6] + terms[:, 6:12] + rows.white() * terms[:, 12:]  # ChannelNoise's sum
-        for row, (imu, now_ns) in enumerate(zip(due, stamps)):
-            if imu._pub.has_subscribers:
-                quat = motions.orientations[row]
-                imu._pub.put(
-                    messages.imu(now_ns, imu._frame, quat, measured[row, :3], measured[row, 3:], imu._covariances)
-                )
-            imu.published(now_ns)
+        Sampled.sampled_all(due, stamps)
+        for row in [row for row, imu in enumerate(due) if imu._pub.has_subscribers]:
+            imu, quat = due[row], motions.orientations[row]
+            imu._pub.put(
+                messages.imu(stamps[row], imu._frame, quat, measured[row, :3], measured[row, 3:], imu._covariances)
+            )
 
     def reset(self, info: UpdateInfo) -> None:
         super().reset(info)
