@@ -169,10 +169,11 @@ class KinematicWorld:
         """(position, velocity, effort) of each joint: a turning joint's from here (no effort: no
         force is computed), any other's from PyBullet."""
         turned, velocities = self.positions.get(body, {}), self.joints.get(body, {})
-        if all(joint in turned for joint in joints):
+        try:
             return [(turned[joint], velocities[joint], 0.0) for joint in joints]
-        self.sync()
-        return read_joint_states(self.client, body, joints)
+        except KeyError:  # one not turning here
+            self.sync()
+            return read_joint_states(self.client, body, joints)
 
     def set_joint_positions(self, body: int, joints: Sequence[int], values: Sequence[float]) -> None:
         """Joints put at `values` at rest (an actor's legs), here and in PyBullet (the others turned
