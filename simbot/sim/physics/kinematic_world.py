@@ -114,6 +114,8 @@ class KinematicWorld:
     """Per constraint made by `attach`."""
     _parked: set[int] = field(default_factory=set)
     """Bodies whose joints stand still and read so."""
+    _floors: dict[int, bool] = field(default_factory=dict)
+    """Whether each body looked at is a floor plane."""
 
     def add(self, body: Body, wheels: WheelFriction | None) -> None:
         """A row for a body that can move, read from PyBullet; it is stepped once a drive or a joint
@@ -134,6 +136,7 @@ class KinematicWorld:
             del self.ids[row]
             self._row = {id_: k for k, id_ in enumerate(self.ids)}
         self.blocked_by.pop(body, None)
+        self._floors.pop(body, None)
         self.joints.pop(body, None)
         self.positions.pop(body, None)
         self._unsynced.discard(body)
@@ -206,10 +209,11 @@ class KinematicWorld:
     def _settle(self, body: int, others: Iterable[Body]) -> None:
         """Lowers (or lifts) `body` until it touches what supports it: nothing falls in kinematic mode,
         and a robot spawned above the floor would carry its lidars too high."""
+        near = self._near(body)
         gaps = [
             c[8]
             for other in others
-            if other.id != body
+            if other.id != body and other.id in near
             for c in pb.getClosestPoints(body, other.id, SETTLE_SEARCH_M, physicsClientId=self.client)
             if abs(c[7][2]) >= FLOOR_NORMAL_Z
         ]
@@ -218,15 +222,31 @@ class KinematicWorld:
             pb.resetBasePositionAndOrientation(body, (x, y, z - min(gaps)), quat, physicsClientId=self.client)
             self.moved([body])
 
+    def _near(self, body: int) -> set[int]:
+        """The bodies whose bounds come within SETTLE_SEARCH_M of `body`'s (PyBullet's broadphase):
+        the only ones a closest-point query can find, so that a thousand tugs' first drives do not
+        ask each of the others."""
+        links = range(-1, pb.getNumJoints(body, physicsClientId=self.client))
+        bounds = np.array([pb.getAABB(body, link, physicsClientId=self.client) for link in links])
+        low, high = bounds[:, 0].min(axis=0) - SETTLE_SEARCH_M, bounds[:, 1].max(axis=0) + SETTLE_SEARCH_M
+        found = pb.getOverlappingObjects(low.tolist(), high.tolist(), physicsClientId=self.client) or ()
+        return {other for other, _ in found}
+
     def _off_the_floor(self, body: int, others: Iterable[Body]) -> None:
         """No contacts between `body` and the floor planes from now on: the check ignores them (their
         normals are vertical), and PyBullet made them for every wheel and castor at every step
         (measured: 40 µs a moving tug a step of the world's collision detection, 26 µs of its
         contact query, 300 tugs driven)."""
         links = [-1, *range(pb.getNumJoints(body, physicsClientId=self.client))]
-        for floor in (other for other in others if _floor_plane(other.model)):
+        for floor in (other for other in others if self._floor(other)):
             for link in links:
                 pb.setCollisionFilterPair(floor.id, body, -1, link, 0, physicsClientId=self.client)
+
+    def _floor(self, body: Body) -> bool:
+        """Whether `body` is a floor plane (`_floor_plane`), looked at once a body."""
+        if body.id not in self._floors:
+            self._floors[body.id] = _floor_plane(body.model)
+        return self._floors[body.id]
 
     def joint_velocity(self, body: int, joint: int, velocity: float, max_effort: float) -> None:
         """The joint turns at `velocity` from now on, whatever `max_effort`: no force is computed."""
