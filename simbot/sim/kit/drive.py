@@ -279,8 +279,9 @@ class DeadReckoning:
         self.pose.advance(forward, lateral, turn)
         dt = (now_ns - self._last_ns) / 1e9
         self._last_ns = now_ns
-        twist = (forward / dt, lateral / dt, turn / dt) if dt > 0 else (0.0, 0.0, 0.0)
-        self._output.put_planar(now_ns, self.pose, twist[:2], twist[2], self._covariance(twist))
+        if self._output.watched:  # a fleet's odometry is read for a few robots
+            twist = (forward / dt, lateral / dt, turn / dt) if dt > 0 else (0.0, 0.0, 0.0)
+            self._output.put_planar(now_ns, self.pose, twist[:2], twist[2], self._covariance(twist))
 
     def restart(self, now_ns: int) -> None:
         """From the origin again, the encoders counting from where the wheels stand."""

@@ -35,6 +35,7 @@ dead reckoning's fixed covariance.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import partial
 
 from simbot.bus import messages
@@ -51,7 +52,7 @@ from simbot.sim.kit.drive import (
     joint_effort,
 )
 from simbot.sim.kit.rates import Paced
-from simbot.sim.loop.system import SystemContext, UpdateInfo
+from simbot.sim.loop.system import Batch, SystemContext, UpdateInfo
 from simbot.sim.physics.kinematic_world import KINEMATIC
 from simbot.sim.physics.steady_turn import SkidError, skid_error
 
@@ -116,6 +117,14 @@ class DiffDrive(Drive, Paced):
             for joint in joints:
                 self._physics.set_joint_velocity(self._name, joint, speed / self.params.radius, self._efforts[joint])
         self._physics.drive_base(self._name, v, 0.0, w)
+
+    @classmethod
+    def post_update_all(cls, batches: Sequence[Batch]) -> None:
+        """Each world's drives due now (the loop hands a paced class no other) sample their
+        odometry, one after the other: a fleet's hundreds at 50 Hz in one call of the loop."""
+        for drives, info in batches:
+            for drive in drives:
+                drive.post_update(info)
 
     def post_update(self, info: UpdateInfo) -> None:
         rotations = self._odometry.due(info.sim_time_ns)
