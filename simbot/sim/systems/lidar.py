@@ -102,24 +102,24 @@ class Lidar(Sampled):
         self._points = ctx.bus.publisher(f"{topic}/points", messages.PointCloud2)
 
     def post_update(self, info: UpdateInfo) -> None:
-        type(self).post_update_all([Batch([self], info)])
+        if self.next_due_ns <= info.sim_time_ns:
+            type(self).post_update_all([Batch([self], info)])
 
     @classmethod
     def post_update_all(cls, batches: Sequence[Batch]) -> None:
-        """Every lidar due now scans. Those someone subscribes to cast their rays together, in one
-        cast of their world, their frames read in one query; the others only draw their noise, so
-        that what a subscriber gets does not depend on who listened before."""
+        """Every lidar handed (each due now: the loop hands a paced class no other) scans. Those
+        someone subscribes to cast their rays together, in one cast of their world, their frames
+        read in one query; the others only draw their noise, so that what a subscriber gets does
+        not depend on who listened before."""
         for lidars, info in batches:
             Lidar._scan_world(lidars, info)
 
     @staticmethod
     def _scan_world(lidars: Sequence[Lidar], info: UpdateInfo) -> None:
         """A world's lidars due now scan (see `post_update_all`)."""
+        Sampled.sampled_all(lidars, [info.sim_time_ns] * len(lidars))
         watched = []
         for lidar in lidars:
-            if not lidar.due(info):
-                continue
-            lidar.published(info.sim_time_ns)
             if lidar._pub.has_subscribers or lidar._points.has_subscribers:
                 watched.append(lidar)
             else:
