@@ -128,8 +128,9 @@ class LocalInbox(Inbox):
         if len(self._queue) == self._queue.maxlen:
             self.overflowed += 1
         self._queue.append(msg)
-        if self.on_arrival is not None:
-            self.on_arrival()
+        arrival = self.on_arrival  # read once: the loop may clear it meanwhile (the input closed)
+        if arrival is not None:
+            arrival()
 
     def drain(self) -> list[Any]:
         items = list(self._queue)

@@ -210,8 +210,9 @@ class Inbox:
             if len(self._queue) == self._queue.maxlen:
                 self.overflowed += 1
             self._queue.append(item)
-        if self.on_arrival is not None:
-            self.on_arrival()
+        arrival = self.on_arrival  # read once: the loop may clear it meanwhile (the input closed)
+        if arrival is not None:
+            arrival()
 
     def _refusal(self, sample: zenoh.Sample) -> Refused | None:
         """Why a sample is refused before decoding: another type's key, or a malformed attachment."""
