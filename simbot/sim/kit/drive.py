@@ -195,9 +195,8 @@ class OdometryOutput:
         twist_covariance: tuple[float, ...],
     ) -> None:
         """Planar odometry with the pose covariance of dead reckoning (z, roll and pitch unknown) and
-        the twist's diagonal the drive states."""
-        if not self.watched:
-            return
+        the twist's diagonal the drive states (its caller asks `watched` first: a fleet's covariances
+        are built for the robots someone reads)."""
         self.put(
             now_ns,
             ((pose.x, pose.y, 0.0), pose.quaternion),

@@ -149,7 +149,6 @@ class BatchRun:
     none, all or some are due, and only the last needs a look at each."""
 
     def __init__(self, slot: Slot, paced: bool) -> None:
-        self.slot = slot
         self.kind = cast(tuple[type, int], slot.key)[0]
         self.paced = paced
         self._batch = cast(list[Any], slot.batch)
